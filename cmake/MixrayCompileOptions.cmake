@@ -1,0 +1,33 @@
+# Warnings (errors for project code), sanitizers and the helper that declares a mixray library.
+
+add_library(mixray_warnings INTERFACE)
+target_compile_options(mixray_warnings INTERFACE
+    -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align -Woverloaded-virtual
+    -Wimplicit-fallthrough -Wformat=2
+    $<$<BOOL:${MIXRAY_WERROR}>:-Werror>)
+
+if(MIXRAY_SANITIZE)
+    add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer
+                        -fno-sanitize-recover=undefined)
+    add_link_options(-fsanitize=address,undefined)
+endif()
+
+find_program(CCACHE_PROGRAM ccache)
+if(CCACHE_PROGRAM)
+    set(CMAKE_CXX_COMPILER_LAUNCHER ${CCACHE_PROGRAM})
+    set(CMAKE_C_COMPILER_LAUNCHER ${CCACHE_PROGRAM})
+endif()
+
+# mixray_library(<target> ALIAS <mixray::name> SOURCES ... ) declares a module library whose
+# public headers live in include/ next to the CMakeLists that calls it.
+function(mixray_library target)
+    cmake_parse_arguments(ARG "" "ALIAS" "SOURCES" ${ARGN})
+    add_library(${target} ${ARG_SOURCES})
+    target_include_directories(${target} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include
+                                         PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
+    target_link_libraries(${target} PRIVATE mixray_warnings)
+    set_target_properties(${target} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+    if(ARG_ALIAS)
+        add_library(${ARG_ALIAS} ALIAS ${target})
+    endif()
+endfunction()

@@ -1,0 +1,69 @@
+# Finds every third-party library mixray uses; a missing one stops configure naming its apt package.
+include(FindPkgConfig)
+
+# Stops configure with the Debian package that provides a missing dependency.
+function(mixray_require found what apt_package)
+    if(NOT ${found})
+        message(FATAL_ERROR
+            "mixray needs ${what}, which was not found.\n"
+            "Install it with: sudo apt-get install ${apt_package}\n"
+            "(or run scripts/setup-deps, which installs everything mixray needs)")
+    endif()
+endfunction()
+
+macro(mixray_pkg name module apt_package)
+    pkg_check_modules(${name} QUIET IMPORTED_TARGET ${module})
+    mixray_require(${name}_FOUND "${module} (pkg-config)" ${apt_package})
+endmacro()
+
+find_package(PkgConfig QUIET)
+mixray_require(PKG_CONFIG_FOUND "pkg-config" pkg-config)
+
+# Recordings.
+mixray_pkg(LIBAVFORMAT libavformat libavformat-dev)
+mixray_pkg(LIBAVCODEC libavcodec libavcodec-dev)
+mixray_pkg(LIBAVUTIL libavutil libavutil-dev)
+mixray_pkg(LIBSWSCALE libswscale libswscale-dev)
+
+# Device backends.
+mixray_pkg(OPENNI2 libopenni2 libopenni2-dev)
+mixray_pkg(ARAVIS aravis-0.8 libaravis-dev)
+mixray_pkg(LIBV4L2 libv4l2 libv4l-dev)
+mixray_pkg(LIBUSB libusb-1.0 libusb-1.0-0-dev)
+
+# Algorithms.
+find_package(Eigen3 3.4 QUIET NO_MODULE)
+mixray_require(Eigen3_FOUND "Eigen 3" libeigen3-dev)
+find_package(OpenCV 4.6 QUIET COMPONENTS core imgproc imgcodecs calib3d aruco)
+mixray_require(OpenCV_FOUND "OpenCV 4.6 with contrib (aruco)" "libopencv-dev libopencv-contrib-dev")
+find_package(Ceres 2.1 QUIET)
+mixray_require(Ceres_FOUND "Ceres Solver 2.1" libceres-dev)
+find_package(embree 3 QUIET)
+mixray_require(embree_FOUND "Embree 3" libembree-dev)
+find_path(MRCAL_INCLUDE_DIR mrcal.h PATH_SUFFIXES mrcal)
+find_library(MRCAL_LIBRARY mrcal)
+mixray_require(MRCAL_LIBRARY "mrcal 2.2" libmrcal-dev)
+
+# Support libraries.
+find_package(yaml-cpp QUIET)
+mixray_require(yaml-cpp_FOUND "yaml-cpp" libyaml-cpp-dev)
+find_package(nlohmann_json 3 QUIET)
+mixray_require(nlohmann_json_FOUND "nlohmann-json" nlohmann-json3-dev)
+find_package(CLI11 QUIET)
+if(NOT CLI11_FOUND)
+    find_path(CLI11_INCLUDE_DIR CLI/CLI.hpp)
+    set(CLI11_FOUND ${CLI11_INCLUDE_DIR})
+endif()
+mixray_require(CLI11_FOUND "CLI11" libcli11-dev)
+if(NOT TARGET CLI11::CLI11)
+    add_library(CLI11::CLI11 INTERFACE IMPORTED)
+    target_include_directories(CLI11::CLI11 INTERFACE ${CLI11_INCLUDE_DIR})
+endif()
+find_package(Threads REQUIRED)
+
+if(MIXRAY_BUILD_TESTS)
+    find_package(GTest QUIET)
+    mixray_require(GTest_FOUND "GoogleTest" "libgtest-dev libgmock-dev")
+    find_package(benchmark QUIET)
+    mixray_require(benchmark_FOUND "Google Benchmark" libbenchmark-dev)
+endif()

@@ -1,0 +1,66 @@
+// Devices and backends: how real and replayed sources enter the graph without the graph
+// knowing any of them by name (libcamera's pipeline-handler registry).
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mixray/graph/graph.h"
+#include "mixray/graph/result.h"
+
+namespace mixray {
+
+// A device as a backend sees it before opening: enough to list and to pick one.
+struct DeviceDescriptor {
+    std::string backend;   // "openni2", "aravis", "replay", ...
+    std::string id;        // what DeviceConfig::id must say to open this one
+    std::string model;     // human-readable model name
+    std::string serial;    // empty when the device has none
+    std::string location;  // URI, bus path or IP address
+    std::vector<std::string> modes;  // "depth 640x480@30 depth16", ...
+};
+
+// How the rig file asks for one device.
+struct DeviceConfig {
+    std::string name;    // the device's name in the rig; prefix of its stream names
+    std::string driver;  // backend name
+    std::string id;      // id, serial or URI the backend understands; empty: the first found
+    std::map<std::string, std::string> options;  // mode and backend-specific settings
+    std::vector<std::string> streams;            // streams to enable; empty: all
+};
+
+// A source node backed by one physical or replayed device.
+class Device : public Node {
+public:
+    virtual DeviceDescriptor descriptor() const = 0;
+};
+
+// One device family. Implementations live in drivers/<backend>/ and are registered by apps.
+// Thread-bound: call from one thread.
+class DeviceBackend {
+public:
+    virtual ~DeviceBackend() = default;
+    virtual std::string_view name() const = 0;
+    // Devices present now. An empty list is not an error; a broken library is.
+    virtual Result<std::vector<DeviceDescriptor>> enumerate() = 0;
+    virtual Result<std::unique_ptr<Device>> open(const DeviceConfig& config) = 0;
+};
+
+// The set of backends an application offers. Not global: apps build one and pass it on.
+class BackendRegistry {
+public:
+    // Takes ownership. A second backend of the same name replaces nothing and is refused.
+    Status add(std::unique_ptr<DeviceBackend> backend);
+    DeviceBackend* find(std::string_view name) const;
+    std::vector<DeviceBackend*> backends() const;
+    // Opens config.driver's device; NotFound naming the known backends when there is none.
+    Result<std::unique_ptr<Device>> open(const DeviceConfig& config) const;
+
+private:
+    std::vector<std::unique_ptr<DeviceBackend>> backends_;
+};
+
+}  // namespace mixray

@@ -1,0 +1,74 @@
+// Bounded frame queues: the edges of the device graph, each with a declared overflow policy.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mixray/graph/frame.h"
+
+namespace mixray {
+
+// What an edge does when its consumer falls behind.
+enum class QueuePolicy : uint8_t {
+    kLive,      // never blocks the producer: the oldest queued frame is dropped and counted
+    kLossless,  // blocks the producer until the consumer makes room: nothing is dropped
+};
+
+std::string_view toString(QueuePolicy policy);
+
+struct QueueOptions {
+    size_t capacity = 4;                  // frames held at most; memory is capacity buffers
+    QueuePolicy policy = QueuePolicy::kLive;
+    std::string name;                     // consumer name, for statistics
+};
+
+struct QueueStats {
+    uint64_t pushed = 0;   // frames offered by the producer
+    uint64_t popped = 0;   // frames taken by the consumer
+    uint64_t dropped = 0;  // frames discarded under the live policy
+    size_t size = 0;       // frames queued now
+    size_t high_water = 0; // most frames ever queued at once
+};
+
+// Fixed-capacity FIFO of FrameRefs between one producer side and one consumer. Storage is
+// allocated once; push and pop never allocate. Thread-safe.
+class FrameQueue {
+public:
+    explicit FrameQueue(const QueueOptions& options);
+    FrameQueue(const FrameQueue&) = delete;
+    FrameQueue& operator=(const FrameQueue&) = delete;
+
+    // Offers a frame. Live: always returns true at once. Lossless: waits for room; returns
+    // false when the queue was closed meanwhile.
+    bool push(FrameRef frame);
+
+    // Takes the oldest frame, waiting up to `timeout`; nullopt on timeout or when closed and
+    // empty.
+    std::optional<FrameRef> pop(std::chrono::nanoseconds timeout);
+    std::optional<FrameRef> tryPop();
+
+    // Wakes everyone; further pushes are refused, queued frames may still be popped.
+    void close();
+    bool closed() const;
+
+    const QueueOptions& options() const { return options_; }
+    QueueStats stats() const;
+
+private:
+    QueueOptions options_;
+    mutable std::mutex mutex_;
+    std::condition_variable not_empty_;
+    std::condition_variable not_full_;
+    std::vector<FrameRef> ring_;
+    size_t head_ = 0;
+    size_t size_ = 0;
+    bool closed_ = false;
+    QueueStats stats_;
+};
+
+}  // namespace mixray

@@ -1,0 +1,31 @@
+// Locations of test inputs and scratch space.
+#include "test_data.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+namespace mixray::test {
+
+std::filesystem::path sourceDir() { return MIXRAY_SOURCE_DIR; }
+
+std::filesystem::path fixturesDir() { return sourceDir() / "fixtures"; }
+
+std::filesystem::path sharedDataDir() {
+    if (const char* env = std::getenv("MIXRAY_SHARED_DATA")) return env;
+    return sourceDir().parent_path() / "shared" / "data";
+}
+
+std::filesystem::path tempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "global";
+    for (char& c : name) {
+        if (c == '/') c = '_';
+    }
+    auto dir = std::filesystem::path(MIXRAY_BINARY_DIR) / "test-tmp" / name;
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+}  // namespace mixray::test
