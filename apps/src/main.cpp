@@ -1,9 +1,26 @@
 // The mixray command line: one binary, one subcommand per job.
 #include <CLI/CLI.hpp>
 
+#include "cli.h"
+
 int main(int argc, char** argv) {
-    CLI::App app{"mixray: photoreal augmented reality from a rig of real cameras"};
-    app.require_subcommand(1);
-    CLI11_PARSE(app, argc, argv);
-    return 0;
+    using namespace mixray::cli;
+    CLI::App app{"mixray: photoreal augmented reality from a rig of real cameras.\n"
+                 "Run 'mixray <command> --help' for the options of one command."};
+    app.set_version_flag("--version", "mixray 0.1.0");
+    app.require_subcommand(1, 1);
+
+    Commands commands;
+    registerInfoCommand(app, commands);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        const int rc = app.exit(e);  // prints help, or the usage error
+        return rc == 0 ? kExitOk : kExitUsage;
+    }
+    for (const auto& command : commands) {
+        if (command.app->parsed()) return command.run();
+    }
+    return kExitUsage;
 }

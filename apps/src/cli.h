@@ -1,0 +1,39 @@
+// Shared plumbing of the mixray subcommands: registration, exit codes, error printing.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mixray/graph/result.h"
+
+namespace mixray::cli {
+
+// Exit codes, stable for scripts: what went wrong, not where.
+enum ExitCode : int {
+    kExitOk = 0,
+    kExitInternal = 1,     // a bug or a library failure
+    kExitUsage = 2,        // bad command line (CLI11 uses it too)
+    kExitBadInput = 3,     // input files missing, malformed, truncated
+    kExitUnavailable = 4,  // a device or resource is not there now
+    kExitInterrupted = 130,
+};
+
+int exitCodeFor(const Status& status);
+
+// Prints "mixray <command>: <status>" to stderr and returns the matching exit code.
+int fail(const std::string& command, const Status& status);
+
+// A subcommand and what to run when it was chosen.
+struct Command {
+    CLI::App* app = nullptr;
+    std::function<int()> run;
+};
+using Commands = std::vector<Command>;
+
+// One per subcommand, each in its own <name>_command.cpp.
+void registerInfoCommand(CLI::App& app, Commands& commands);
+
+}  // namespace mixray::cli

@@ -1,0 +1,72 @@
+// Recordings as the graph sees them: a set of streams, their frames in time order, attached
+// files. Formats (Matroska, TUM folders, ...) implement these interfaces.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mixray/graph/frame.h"
+#include "mixray/graph/result.h"
+#include "mixray/graph/stream.h"
+
+namespace mixray {
+
+// A file stored inside a recording (rig description, calibration, factory calibration JSON).
+struct Attachment {
+    std::string name;       // file name, no directories: "rig.yaml"
+    std::string mime_type;  // "application/x-yaml", "application/json", ...
+    std::vector<uint8_t> data;
+    bool operator==(const Attachment&) const = default;
+};
+
+// Sequential reader of one recording. Frames come from pools the reader owns; StreamIds in
+// frame metadata index streams(). Thread-bound.
+class RecordingReader {
+public:
+    virtual ~RecordingReader() = default;
+
+    // Short format name for messages: "mixray-mkv", "azure-kinect-mkv", "tum", ...
+    virtual std::string format() const = 0;
+    virtual const std::vector<StreamInfo>& streams() const = 0;
+    virtual const std::vector<Attachment>& attachments() const = 0;
+    // Recording-level metadata (title, software, device serials, ...).
+    virtual const std::map<std::string, std::string>& tags() const = 0;
+
+    // The next frame in recording order (host_stamp_ns non-decreasing across the file).
+    // kEndOfStream after the last frame. kCorruptData when the rest of the file cannot be read
+    // (a truncated file): every frame returned before it was complete and exact.
+    // kUnavailable when all of a stream's buffers are still held by consumers: release some
+    // and call again.
+    virtual Result<FrameRef> next() = 0;
+
+    // Positions the reader so that next() returns, for every stream, the first frame whose
+    // host_stamp_ns >= stamp_ns.
+    virtual Status seek(int64_t host_stamp_ns) = 0;
+};
+
+// What a writer is asked to store besides frames.
+struct RecordingHeader {
+    std::vector<StreamInfo> streams;  // frame.meta().stream indexes this list
+    std::vector<Attachment> attachments;
+    std::map<std::string, std::string> tags;
+};
+
+// Sequential writer of one recording. Thread-bound.
+class RecordingWriter {
+public:
+    virtual ~RecordingWriter() = default;
+    // Appends one frame of header.streams[frame.meta().stream]. Frames of one stream must come
+    // in non-decreasing host_stamp_ns.
+    virtual Status write(const FrameRef& frame) = 0;
+    // Finishes the file (index, durations). A writer destroyed without close() leaves a file
+    // that is still readable up to its last complete frame.
+    virtual Status close() = 0;
+    // Bytes written to disk so far.
+    virtual uint64_t bytesWritten() const = 0;
+};
+
+}  // namespace mixray
