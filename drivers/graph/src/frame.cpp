@@ -6,6 +6,13 @@
 #include <new>
 
 namespace mixray {
+namespace {
+constexpr std::align_val_t kPoolAlignment{64};
+}  // namespace
+
+void detail::AlignedBytesDelete::operator()(uint8_t* p) const {
+    ::operator delete[](p, kPoolAlignment);
+}
 
 std::string_view toString(FrameStatus status) {
     switch (status) {
@@ -76,6 +83,15 @@ FrameRef WritableFrame::publish() && {
     return FrameRef(slot);
 }
 
+WritableFrame WritableFrame::reclaim(FrameRef& frame) {
+    detail::FrameSlot* slot = frame.slot_;
+    // With a single handle nobody else can take a new reference, so the check cannot race.
+    if (!slot || slot->refs.load(std::memory_order_acquire) != 1) return {};
+    frame.slot_ = nullptr;
+    slot->refs.store(0, std::memory_order_relaxed);
+    return WritableFrame(slot);
+}
+
 bool BufferPoolOptions::validate(std::string* why) const {
     const size_t bytes = buffer_bytes ? buffer_bytes : desc.bufferBytes();
     if (bytes == 0) {
@@ -101,11 +117,11 @@ std::shared_ptr<BufferPool> BufferPool::create(const BufferPoolOptions& options)
 
 BufferPool::BufferPool(const BufferPoolOptions& options)
     : options_(options), slots_(options.buffer_count) {
-    constexpr size_t kAlign = 64;
+    constexpr auto kAlign = static_cast<size_t>(kPoolAlignment);
     size_t bytes = options_.buffer_bytes ? options_.buffer_bytes : options_.desc.bufferBytes();
     bytes = (bytes + kAlign - 1) / kAlign * kAlign;
     options_.buffer_bytes = bytes;
-    storage_.reset(new (std::align_val_t(kAlign)) uint8_t[bytes * slots_.size()]);
+    storage_.reset(static_cast<uint8_t*>(::operator new[](bytes * slots_.size(), kPoolAlignment)));
     free_.reserve(slots_.size());
     for (size_t i = 0; i < slots_.size(); ++i) {
         slots_[i].data = storage_.get() + i * bytes;

@@ -46,6 +46,11 @@ struct FrameSlot {
     uint8_t* data = nullptr;
     std::shared_ptr<BufferPool> owner;  // keeps the pool alive while the slot is out
 };
+
+// Frees pool storage allocated with the pool's alignment.
+struct AlignedBytesDelete {
+    void operator()(uint8_t* p) const;
+};
 }  // namespace detail
 
 // Shared handle to an immutable published frame. Copying it costs one atomic increment; the
@@ -100,6 +105,12 @@ public:
     // Makes the frame immutable and shareable. The WritableFrame is empty afterwards.
     FrameRef publish() &&;
 
+    // Turns the only handle of a published frame back into a writable frame, so a producer
+    // that forwards frames (the replay device renumbering streams, shifting stamps on a loop)
+    // can amend the metadata without copying the payload. When other handles exist the frame
+    // is shared and must stay immutable: returns an empty WritableFrame, `frame` untouched.
+    static WritableFrame reclaim(FrameRef& frame);
+
 private:
     friend class BufferPool;
     explicit WritableFrame(detail::FrameSlot* slot) : slot_(slot) {}
@@ -143,7 +154,7 @@ private:
 
     BufferPoolOptions options_;
     std::vector<detail::FrameSlot> slots_;
-    std::unique_ptr<uint8_t[]> storage_;
+    std::unique_ptr<uint8_t[], detail::AlignedBytesDelete> storage_;
     mutable std::mutex mutex_;
     std::vector<detail::FrameSlot*> free_;
     std::atomic<uint64_t> exhausted_{0};
