@@ -62,6 +62,14 @@ public:
     // Appends one frame of header.streams[frame.meta().stream]. Frames of one stream must come
     // in non-decreasing host_stamp_ns.
     virtual Status write(const FrameRef& frame) = 0;
+    // Appends `frame` as a frame of header.streams[stream], whatever frame.meta().stream says:
+    // for writers fed a subset of a graph's streams, whose graph ids differ from the header's
+    // indices (published frames are immutable, so the id cannot be rewritten). Writers that
+    // cannot remap accept only stream == frame.meta().stream.
+    virtual Status writeAs(StreamId stream, const FrameRef& frame) {
+        if (frame && stream == frame.meta().stream) return write(frame);
+        return {ErrorCode::kUnsupported, "this recording writer cannot remap stream ids"};
+    }
     // Finishes the file (index, durations). A writer destroyed without close() leaves a file
     // that is still readable up to its last complete frame.
     virtual Status close() = 0;

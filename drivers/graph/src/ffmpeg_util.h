@@ -1,0 +1,61 @@
+// Internal FFmpeg helpers for the Matroska reader and writer: RAII owners, error text, CRC.
+#pragma once
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/dict.h>
+#include <libavutil/frame.h>
+}
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "mixray/graph/result.h"
+
+namespace mixray::ffmpeg {
+
+// FFmpeg's text for an AVERROR code: "Invalid data found when processing input".
+std::string errorString(int av_error);
+
+// kIoError for operating-system failures (disk full, permissions), kCorruptData for bad input,
+// kInternal otherwise; the message is "<context>: <FFmpeg's text>".
+Status toStatus(int av_error, std::string_view context);
+
+// CRC-32 (IEEE, as in zlib and Matroska's CRC-32 element) of `size` bytes.
+uint32_t crc32(const uint8_t* data, size_t size);
+uint32_t crc32(std::string_view text);
+
+struct PacketDeleter {
+    void operator()(AVPacket* packet) const { av_packet_free(&packet); }
+};
+struct FrameDeleter {
+    void operator()(AVFrame* frame) const { av_frame_free(&frame); }
+};
+struct CodecContextDeleter {
+    void operator()(AVCodecContext* context) const { avcodec_free_context(&context); }
+};
+using PacketPtr = std::unique_ptr<AVPacket, PacketDeleter>;
+using FramePtr = std::unique_ptr<AVFrame, FrameDeleter>;
+using CodecContextPtr = std::unique_ptr<AVCodecContext, CodecContextDeleter>;
+
+// The value of `key` in `dict`, or nullptr.
+const char* dictValue(const AVDictionary* dict, const char* key);
+
+// Little-endian field access for the on-disk records (the file format is little-endian on
+// every host).
+inline void putLe(uint8_t* out, uint64_t value, int bytes) {
+    for (int i = 0; i < bytes; ++i)
+        out[i] = static_cast<uint8_t>(value >> (8 * i));
+}
+inline uint64_t getLe(const uint8_t* in, int bytes) {
+    uint64_t value = 0;
+    for (int i = 0; i < bytes; ++i)
+        value |= static_cast<uint64_t>(in[i]) << (8 * i);
+    return value;
+}
+
+}  // namespace mixray::ffmpeg

@@ -1,0 +1,326 @@
+// The recorder node: lossless and live recording from a graph, host-stamp order, stream
+// subsets, drops under a slow disk, and a full disk that leaves a valid file.
+#include "mixray/graph/recorder.h"
+
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <csignal>
+#include <thread>
+
+#include "recording_test_util.h"
+#include "test_data.h"
+
+namespace mixray {
+namespace {
+
+using std::chrono::milliseconds;
+using test::ExpectedFrame;
+
+class RecorderTest : public ::testing::Test {
+  protected:
+    static void SetUpTestSuite() { setFfmpegLogging(false); }
+};
+
+StreamId addStream(Graph& graph, const StreamInfo& info) {
+    auto id = graph.addStream(info);
+    EXPECT_TRUE(id) << id.status().toString();
+    return id ? *id : kInvalidStream;
+}
+
+// Publishes one synthetic frame of `stream` and returns it.
+FrameRef publish(Graph& graph, StreamId stream, uint64_t sequence, int64_t host_ns) {
+    FrameMetadata meta;
+    meta.stream = stream;
+    meta.sequence = sequence;
+    meta.host_stamp_ns = host_ns;
+    meta.device_stamp_ns = host_ns / 2 + 17;
+    meta.exposure_us = 1000 + static_cast<int64_t>(sequence);
+    FrameRef frame =
+        test::makeFrame(graph.stream(stream), meta, static_cast<uint32_t>(sequence * 13 + stream));
+    graph.publish(frame);
+    return frame;
+}
+
+// Reads a whole recording; `end` gets the final status.
+std::vector<FrameRef> readRecording(const std::filesystem::path& path, Status* end,
+                                    std::vector<StreamInfo>* streams = nullptr) {
+    auto reader = openMkv(path);
+    EXPECT_TRUE(reader) << reader.status().toString();
+    if (!reader)
+        return {};
+    if (streams)
+        *streams = (*reader)->streams();
+    return test::readAll(**reader, end);
+}
+
+TEST_F(RecorderTest, RecordsAllStreamsLosslesslyInHostStampOrder) {
+    const auto path = test::tempDir() / "session.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("kinect/depth", PixelFormat::kDepth16, 16, 12));
+    const StreamId imu =
+        addStream(graph, test::makeStream("kinect/imu", PixelFormat::kBinary, 0, 1));
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLossless;
+    options.queue_capacity = 64;
+    options.attachments = {{"rig.yaml", "application/x-yaml", {'r', 'i', 'g'}}};
+    options.tags = {{"operator", "test"}};
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+
+    // Queued before the recorder starts: it sees every stream's head and merges by host time,
+    // although depth frames were published first.
+    std::vector<ExpectedFrame> expected;
+    std::vector<FrameRef> depth_frames;
+    std::vector<FrameRef> imu_frames;
+    for (int i = 0; i < 10; ++i)
+        depth_frames.push_back(publish(graph, depth, i, 1'000'000 + i * 10'000'000));
+    for (int i = 0; i < 20; ++i)
+        imu_frames.push_back(publish(graph, imu, i, 1'500'000 + i * 5'000'000));
+    ASSERT_TRUE(graph.start());
+    for (int i = 10; i < 15; ++i)
+        depth_frames.push_back(publish(graph, depth, i, 1'000'000 + i * 10'000'000));
+    graph.stop();
+
+    const RecorderStats stats = rec->stats();
+    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
+    EXPECT_FALSE(stats.writing);
+    ASSERT_EQ(stats.streams.size(), 2u);
+    EXPECT_EQ(stats.streams[0].stream, "kinect/depth");
+    EXPECT_EQ(stats.streams[0].written, 15u);
+    EXPECT_EQ(stats.streams[1].written, 20u);
+    EXPECT_EQ(stats.frames_dropped, 0u);
+    EXPECT_EQ(stats.bytes_written, std::filesystem::file_size(path));
+    EXPECT_NE(stats.summary().find("recorded 35 frames"), std::string::npos) << stats.summary();
+
+    for (const FrameRef& f : depth_frames)
+        expected.push_back({f, f.meta()});
+    for (const FrameRef& f : imu_frames)
+        expected.push_back({f, f.meta()});
+    std::stable_sort(expected.begin(), expected.end(), [](const auto& a, const auto& b) {
+        return a.meta.host_stamp_ns < b.meta.host_stamp_ns;
+    });
+    Status end;
+    std::vector<StreamInfo> streams;
+    auto frames = readRecording(path, &end, &streams);
+    EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
+    test::expectSameStreams(streams, graph.streams());
+    ASSERT_EQ(frames.size(), expected.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+        test::expectSameFrame(frames[i], expected[i], "frame " + std::to_string(i));
+    }
+}
+
+TEST_F(RecorderTest, RecordsAChosenSubsetWithItsOwnStreamIds) {
+    const auto path = test::tempDir() / "subset.mkv";
+    Graph graph;
+    const StreamId a = addStream(graph, test::makeStream("cam/a", PixelFormat::kMono8, 8, 8));
+    const StreamId b = addStream(graph, test::makeStream("cam/b", PixelFormat::kRGB8, 8, 8));
+    const StreamId c = addStream(graph, test::makeStream("cam/c", PixelFormat::kMono16, 8, 8));
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLossless;
+    options.streams = {"cam/c", "cam/a"};
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+    std::vector<ExpectedFrame> expected;
+    for (int i = 0; i < 4; ++i) {
+        FrameRef fa = publish(graph, a, i, 100 + i * 3);
+        publish(graph, b, i, 101 + i * 3);
+        FrameRef fc = publish(graph, c, i, 102 + i * 3);
+        FrameMetadata ma = fa.meta();
+        ma.stream = 1;  // cam/a is the recording's second stream
+        FrameMetadata mc = fc.meta();
+        mc.stream = 0;
+        expected.push_back({fa, ma});
+        expected.push_back({fc, mc});
+    }
+    graph.stop();
+    EXPECT_TRUE(rec->stats().error.isOk()) << rec->stats().error.toString();
+    ASSERT_EQ(rec->header().streams.size(), 2u);
+    EXPECT_EQ(rec->header().streams[0].name, "cam/c");
+
+    Status end;
+    std::vector<StreamInfo> streams;
+    auto frames = readRecording(path, &end, &streams);
+    ASSERT_EQ(streams.size(), 2u);
+    EXPECT_EQ(streams[0].name, "cam/c");
+    EXPECT_EQ(streams[1].name, "cam/a");
+    ASSERT_EQ(frames.size(), expected.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+        test::expectSameFrame(frames[i], expected[i], "frame " + std::to_string(i));
+    }
+}
+
+TEST_F(RecorderTest, ConnectRefusesUnknownStreamsAndBadOptions) {
+    Graph graph;
+    addStream(graph, test::makeStream("cam/a", PixelFormat::kMono8, 8, 8));
+    RecorderOptions options;
+    options.path = test::tempDir() / "x.mkv";
+    options.streams = {"cam/nope"};
+    Status unknown = graph.addNode(std::make_unique<Recorder>(options));
+    EXPECT_EQ(unknown.code(), ErrorCode::kNotFound);
+    EXPECT_NE(unknown.message().find("cam/nope"), std::string::npos) << unknown.message();
+    EXPECT_NE(unknown.message().find("cam/a"), std::string::npos) << unknown.message();
+
+    RecorderOptions no_path;
+    EXPECT_EQ(graph.addNode(std::make_unique<Recorder>(no_path)).code(),
+              ErrorCode::kInvalidArgument);
+    RecorderOptions zero_queue;
+    zero_queue.path = options.path;
+    zero_queue.queue_capacity = 0;
+    EXPECT_EQ(graph.addNode(std::make_unique<Recorder>(zero_queue)).code(),
+              ErrorCode::kInvalidArgument);
+}
+
+// A writer that takes its time, like a slow disk.
+class SlowWriter : public RecordingWriter {
+  public:
+    SlowWriter(std::unique_ptr<RecordingWriter> inner, milliseconds delay)
+        : inner_(std::move(inner)), delay_(delay) {}
+    Status write(const FrameRef& frame) override {
+        std::this_thread::sleep_for(delay_);
+        return inner_->write(frame);
+    }
+    Status writeAs(StreamId stream, const FrameRef& frame) override {
+        std::this_thread::sleep_for(delay_);
+        return inner_->writeAs(stream, frame);
+    }
+    Status close() override { return inner_->close(); }
+    uint64_t bytesWritten() const override { return inner_->bytesWritten(); }
+
+  private:
+    std::unique_ptr<RecordingWriter> inner_;
+    milliseconds delay_;
+};
+
+TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
+    const auto path = test::tempDir() / "slow.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLive;
+    options.queue_capacity = 4;
+    options.writer_factory =
+        [&](const RecordingHeader& header) -> Result<std::unique_ptr<RecordingWriter>> {
+        auto writer = createMkvWriter(path, header);
+        if (!writer)
+            return writer.status();
+        return std::unique_ptr<RecordingWriter>(
+            std::make_unique<SlowWriter>(std::move(*writer), milliseconds(30)));
+    };
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+
+    constexpr int kFrames = 60;
+    std::map<uint64_t, FrameRef> published;
+    const auto begin = std::chrono::steady_clock::now();
+    for (int i = 0; i < kFrames; ++i)
+        published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
+    const auto publishing = std::chrono::steady_clock::now() - begin;
+    // A lossless queue would have held the driver for about kFrames x 30 ms.
+    EXPECT_LT(publishing, milliseconds(600));
+    graph.stop();
+
+    const RecorderStats stats = rec->stats();
+    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
+    ASSERT_EQ(stats.streams.size(), 1u);
+    EXPECT_GT(stats.streams[0].dropped, 0u);
+    EXPECT_EQ(stats.streams[0].written + stats.streams[0].dropped, static_cast<uint64_t>(kFrames));
+    EXPECT_NE(stats.summary().find("dropped"), std::string::npos) << stats.summary();
+
+    // What was written is valid and exact.
+    Status end;
+    auto frames = readRecording(path, &end);
+    EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
+    ASSERT_EQ(frames.size(), stats.streams[0].written);
+    for (const FrameRef& f : frames) {
+        const FrameRef& original = published.at(f.meta().sequence);
+        EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
+    }
+}
+
+// Lowers this process's file size limit (and ignores SIGXFSZ, so writes fail with EFBIG like
+// on a full disk) for its lifetime.
+class FileSizeLimit {
+  public:
+    explicit FileSizeLimit(rlim_t bytes) {
+        getrlimit(RLIMIT_FSIZE, &saved_);
+        old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+        rlimit limit = saved_;
+        limit.rlim_cur = bytes;
+        ok_ = setrlimit(RLIMIT_FSIZE, &limit) == 0;
+    }
+    ~FileSizeLimit() {
+        setrlimit(RLIMIT_FSIZE, &saved_);
+        std::signal(SIGXFSZ, old_handler_);
+    }
+    bool ok() const { return ok_; }
+
+  private:
+    rlimit saved_{};
+    void (*old_handler_)(int) = SIG_DFL;
+    bool ok_ = false;
+};
+
+TEST_F(RecorderTest, FullDiskStopsWritingReportsAndLeavesAValidFile) {
+    const auto path = test::tempDir() / "full.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 64, 48));
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLossless;
+    options.queue_capacity = 8;
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+
+    constexpr int kFrames = 40;
+    std::map<uint64_t, FrameRef> published;
+    constexpr rlim_t kLimit = 48 * 1024;  // room for the header and a few noisy frames
+    {
+        FileSizeLimit limit(kLimit);
+        ASSERT_TRUE(limit.ok());
+        ASSERT_TRUE(graph.start());
+        // Lossless, yet the driver is never stuck: after the error the recorder drains.
+        for (int i = 0; i < kFrames; ++i)
+            published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
+        graph.stop();
+    }
+
+    const RecorderStats stats = rec->stats();
+    ASSERT_FALSE(stats.error.isOk()) << "the file size limit was never hit";
+    EXPECT_EQ(stats.error.code(), ErrorCode::kIoError) << stats.error.toString();
+    EXPECT_NE(stats.error.message().find(path.string()), std::string::npos)
+        << stats.error.toString();
+    EXPECT_NE(stats.summary().find("stopped"), std::string::npos) << stats.summary();
+    ASSERT_EQ(stats.streams.size(), 1u);
+    EXPECT_GT(stats.streams[0].written, 0u);
+    EXPECT_GT(stats.streams[0].discarded, 0u);
+    EXPECT_EQ(stats.streams[0].written + stats.streams[0].discarded,
+              static_cast<uint64_t>(kFrames));
+    EXPECT_LE(std::filesystem::file_size(path), kLimit);
+
+    // Every frame reported written reads back exactly; then the cut is reported.
+    Status end;
+    auto frames = readRecording(path, &end);
+    EXPECT_EQ(end.code(), ErrorCode::kCorruptData) << end.toString();
+    ASSERT_EQ(frames.size(), stats.streams[0].written);
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const FrameRef& original = published.at(i);
+        EXPECT_TRUE(test::sameFrame(frames[i], {original, original.meta()})) << i;
+    }
+}
+
+}  // namespace
+}  // namespace mixray
