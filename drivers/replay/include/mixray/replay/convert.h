@@ -1,0 +1,43 @@
+// Copying a recording from any reader into any writer (mkv, TUM folder, PCL TIFF folder).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "mixray/graph/recording.h"
+
+namespace mixray::replay {
+
+// The header a writer needs to reproduce `reader`: its streams, attachments and tags.
+RecordingHeader headerOf(const RecordingReader& reader);
+
+// Where a conversion stands, passed to the progress callback after every frame.
+struct ConvertProgress {
+    uint64_t frames = 0;         // frames copied so far
+    int64_t stamp_ns = 0;        // host stamp of the last frame copied
+    uint64_t bytes_written = 0;  // writer's bytesWritten()
+};
+
+// Return false to stop the conversion (convertRecording then fails with kCancelled).
+using ConvertProgressCallback = std::function<bool(const ConvertProgress&)>;
+
+// What a conversion did.
+struct ConvertSummary {
+    uint64_t frames = 0;                      // frames copied
+    std::vector<uint64_t> frames_per_stream;  // indexed like reader.streams()
+    int64_t first_stamp_ns = 0;               // host stamps of the first and last frame
+    int64_t last_stamp_ns = 0;
+    uint64_t bytes_written = 0;  // after close()
+    double seconds = 0;          // wall time taken
+};
+
+// Copies every frame `reader` has left (from its current position) into `writer` and closes
+// the writer. `writer` must have been created with headerOf(reader) (stream ids are passed
+// through unchanged). Waits briefly and retries when the reader reports kUnavailable. Errors of
+// the reader or writer are returned with the frame count reached; the writer is closed then
+// too, so what was copied stays readable. Does not take ownership of either.
+Result<ConvertSummary> convertRecording(RecordingReader& reader, RecordingWriter& writer,
+                                        const ConvertProgressCallback& progress = {});
+
+}  // namespace mixray::replay
