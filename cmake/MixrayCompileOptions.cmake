@@ -12,6 +12,20 @@ if(MIXRAY_SANITIZE)
     add_link_options(-fsanitize=address,undefined)
 endif()
 
+# Fuzzing (clang only): everything is instrumented for libFuzzer's coverage and built with ASan +
+# UBSan; tests/fuzz links the fuzzer executables with -fsanitize=fuzzer.
+set(MIXRAY_FUZZ_ENABLED OFF)
+if(MIXRAY_FUZZ)
+    if(CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+        set(MIXRAY_FUZZ_ENABLED ON)
+        add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer
+                            -fno-sanitize-recover=undefined)
+        add_link_options(-fsanitize=address,undefined)
+    else()
+        message(WARNING "MIXRAY_FUZZ needs clang (CXX=clang++); the fuzzers are not built")
+    endif()
+endif()
+
 find_program(CCACHE_PROGRAM ccache)
 if(CCACHE_PROGRAM)
     set(CMAKE_CXX_COMPILER_LAUNCHER ${CCACHE_PROGRAM})

@@ -34,6 +34,11 @@ struct Command {
 using Commands = std::vector<Command>;
 
 // One per subcommand, each in its own <name>_command.cpp.
+void registerBenchCommand(CLI::App& app, Commands& commands);
+void registerConvertCommand(CLI::App& app, Commands& commands);
+void registerDevicesCommand(CLI::App& app, Commands& commands);
 void registerInfoCommand(CLI::App& app, Commands& commands);
+void registerPlayCommand(CLI::App& app, Commands& commands);
+void registerRecordCommand(CLI::App& app, Commands& commands);
 
 }  // namespace mixray::cli

@@ -1,17 +1,227 @@
-// mixray info: what a recording holds (filled in when recordings land).
+// mixray info: what a recording holds — streams, formats, frame counts, timing, attachments.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <thread>
+
 #include "cli.h"
+#include "console.h"
+#include "mixray/graph/mkv.h"
+#include "mixray/replay/open_recording.h"
 
 namespace mixray::cli {
+namespace {
+
+// Timing of one stream, gathered by reading every frame.
+struct StreamSummary {
+    uint64_t frames = 0;
+    uint64_t bad_frames = 0;  // status other than ok
+    uint64_t payload_bytes = 0;
+    int64_t first_ns = 0;
+    int64_t last_ns = 0;
+    std::vector<int64_t> intervals_ns;
+    uint64_t sequence_gaps = 0;  // frames the device numbered but never delivered
+    uint64_t last_sequence = 0;
+};
+
+// A gap is an interval longer than 1.5 nominal (or median) frame periods.
+struct GapReport {
+    uint64_t count = 0;
+    int64_t longest_ns = 0;
+    int64_t longest_at_ns = 0;  // offset of the longest gap's start from the stream's start
+    double measured_fps = 0;
+};
+
+GapReport gapsOf(const StreamSummary& s, double nominal_fps) {
+    GapReport report;
+    if (s.intervals_ns.empty()) return report;
+    std::vector<int64_t> sorted = s.intervals_ns;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const int64_t median = sorted[sorted.size() / 2];
+    const double period =
+        nominal_fps > 0 ? 1e9 / nominal_fps : static_cast<double>(std::max<int64_t>(median, 1));
+    int64_t at = 0;
+    for (int64_t interval : s.intervals_ns) {
+        if (static_cast<double>(interval) > 1.5 * period) {
+            ++report.count;
+            if (interval > report.longest_ns) {
+                report.longest_ns = interval;
+                report.longest_at_ns = at;
+            }
+        }
+        at += interval;
+    }
+    const int64_t span = s.last_ns - s.first_ns;
+    if (span > 0) report.measured_fps = static_cast<double>(s.frames - 1) * 1e9 / span;
+    return report;
+}
+
+std::string layoutOf(const StreamInfo& info) {
+    char text[96];
+    std::snprintf(text, sizeof text, "%s %dx%d", std::string(toString(info.format.format)).c_str(),
+                  info.format.width, info.format.height);
+    return text;
+}
+
+int runInfo(const std::string& path, bool as_json) {
+    setFfmpegLogging(false);
+    auto opened = replay::openRecording(path);
+    if (!opened) return fail("info", opened.status());
+    RecordingReader& reader = **opened;
+    const auto& streams = reader.streams();
+    std::vector<StreamSummary> summaries(streams.size());
+
+    Status end_status;
+    uint64_t total = 0;
+    for (;;) {
+        auto frame = reader.next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kUnavailable) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                continue;
+            }
+            if (frame.status().code() != ErrorCode::kEndOfStream) end_status = frame.status();
+            break;
+        }
+        const auto& meta = frame->meta();
+        if (meta.stream >= summaries.size()) continue;
+        StreamSummary& s = summaries[meta.stream];
+        if (s.frames == 0) {
+            s.first_ns = meta.host_stamp_ns;
+        } else {
+            s.intervals_ns.push_back(meta.host_stamp_ns - s.last_ns);
+            if (meta.sequence > s.last_sequence + 1) s.sequence_gaps += meta.sequence - s.last_sequence - 1;
+        }
+        s.last_ns = meta.host_stamp_ns;
+        s.last_sequence = meta.sequence;
+        ++s.frames;
+        if (meta.status != FrameStatus::kOk) ++s.bad_frames;
+        s.payload_bytes += frame->image().size_bytes;
+        ++total;
+    }
+
+    int64_t first = INT64_MAX, last = INT64_MIN;
+    for (const auto& s : summaries) {
+        if (s.frames == 0) continue;
+        first = std::min(first, s.first_ns);
+        last = std::max(last, s.last_ns);
+    }
+    const int64_t duration = total > 0 ? last - first : 0;
+    std::error_code ec;
+    const auto file_bytes = std::filesystem::is_regular_file(path, ec)
+                                ? std::filesystem::file_size(path, ec)
+                                : 0;
+
+    if (as_json) {
+        nlohmann::json j;
+        j["path"] = path;
+        j["format"] = reader.format();
+        j["file_bytes"] = file_bytes;
+        j["frames"] = total;
+        j["duration_ns"] = duration;
+        j["first_stamp_ns"] = total ? first : 0;
+        j["complete"] = end_status.isOk();
+        if (!end_status.isOk()) j["error"] = end_status.toString();
+        j["tags"] = reader.tags();
+        for (size_t i = 0; i < streams.size(); ++i) {
+            const auto& info = streams[i];
+            const auto& s = summaries[i];
+            const GapReport gaps = gapsOf(s, info.nominal_fps);
+            j["streams"].push_back({{"name", info.name},
+                                    {"kind", std::string(toString(info.kind))},
+                                    {"format", std::string(toString(info.format.format))},
+                                    {"width", info.format.width},
+                                    {"height", info.format.height},
+                                    {"nominal_fps", info.nominal_fps},
+                                    {"measured_fps", gaps.measured_fps},
+                                    {"frames", s.frames},
+                                    {"bad_frames", s.bad_frames},
+                                    {"first_stamp_ns", s.first_ns},
+                                    {"last_stamp_ns", s.last_ns},
+                                    {"gaps", gaps.count},
+                                    {"longest_gap_ns", gaps.longest_ns},
+                                    {"sequence_gaps", s.sequence_gaps},
+                                    {"clock_domain", info.clock_domain},
+                                    {"tags", info.tags}});
+        }
+        j["attachments"] = nlohmann::json::array();
+        for (const auto& a : reader.attachments()) {
+            j["attachments"].push_back(
+                {{"name", a.name}, {"mime_type", a.mime_type}, {"bytes", a.data.size()}});
+        }
+        std::printf("%s\n", j.dump(2).c_str());
+    } else {
+        std::printf("%s: %s", path.c_str(), reader.format().c_str());
+        if (file_bytes) std::printf(", %s", formatBytes(file_bytes).c_str());
+        std::printf("\n  %llu frames over %s\n", static_cast<unsigned long long>(total),
+                    formatDuration(duration).c_str());
+        for (const auto& [key, value] : reader.tags()) {
+            std::printf("  tag %s = %s\n", key.c_str(), value.c_str());
+        }
+        std::printf("streams:\n");
+        for (size_t i = 0; i < streams.size(); ++i) {
+            const auto& info = streams[i];
+            const auto& s = summaries[i];
+            const GapReport gaps = gapsOf(s, info.nominal_fps);
+            std::printf("  #%zu %-22s %-9s %-18s %6llu frames  %6.2f fps", i, info.name.c_str(),
+                        std::string(toString(info.kind)).c_str(), layoutOf(info).c_str(),
+                        static_cast<unsigned long long>(s.frames), gaps.measured_fps);
+            if (info.nominal_fps > 0) std::printf(" (nominal %.2f)", info.nominal_fps);
+            std::printf("  %s\n", formatBytes(s.payload_bytes).c_str());
+            if (s.frames > 0) {
+                std::printf("     stamps %s .. %s after start", formatDuration(s.first_ns - first).c_str(),
+                            formatDuration(s.last_ns - first).c_str());
+                if (gaps.count) {
+                    std::printf(", %llu gaps (longest %s at %s)",
+                                static_cast<unsigned long long>(gaps.count),
+                                formatDuration(gaps.longest_ns).c_str(),
+                                formatDuration(gaps.longest_at_ns).c_str());
+                } else {
+                    std::printf(", no gaps");
+                }
+                if (s.sequence_gaps) {
+                    std::printf(", %llu frames missing by sequence",
+                                static_cast<unsigned long long>(s.sequence_gaps));
+                }
+                if (s.bad_frames) {
+                    std::printf(", %llu incomplete/corrupt",
+                                static_cast<unsigned long long>(s.bad_frames));
+                }
+                std::printf("\n");
+            }
+        }
+        if (!reader.attachments().empty()) std::printf("attachments:\n");
+        for (const auto& a : reader.attachments()) {
+            std::printf("  %-24s %-26s %s\n", a.name.c_str(), a.mime_type.c_str(),
+                        formatBytes(a.data.size()).c_str());
+        }
+    }
+    if (!end_status.isOk()) {
+        return fail("info", end_status.withContext(path + ": readable up to frame " +
+                                                   std::to_string(total)));
+    }
+    return kExitOk;
+}
+
+}  // namespace
 
 void registerInfoCommand(CLI::App& app, Commands& commands) {
-    auto* sub = app.add_subcommand("info", "Describe a recording: streams, formats, frame counts, "
-                                           "duration, timestamp gaps, attachments");
-    auto file = std::make_shared<std::string>();
-    sub->add_option("FILE", *file, "Recording (.mkv, TUM folder, ...)")->required();
-    commands.push_back({sub, [file] {
-                            return fail("info", {ErrorCode::kUnsupported,
-                                                 "cannot read recordings yet: " + *file});
-                        }});
+    auto* sub = app.add_subcommand(
+        "info",
+        "Describe a recording: streams, formats, frame counts, duration, timestamp gaps, "
+        "attachments. Reads every frame, so damage anywhere in the file is reported.");
+    struct Options {
+        std::string path;
+        bool json = false;
+    };
+    auto options = std::make_shared<Options>();
+    sub->add_option("FILE", options->path,
+                    "Recording: mixray or Azure Kinect .mkv, TUM RGB-D folder, PCL TIFF folder")
+        ->required();
+    sub->add_flag("--json", options->json, "Print the description as JSON");
+    commands.push_back({sub, [options] { return runInfo(options->path, options->json); }});
 }
 
 }  // namespace mixray::cli

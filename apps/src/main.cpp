@@ -11,7 +11,12 @@ int main(int argc, char** argv) {
     app.require_subcommand(1, 1);
 
     Commands commands;
+    registerDevicesCommand(app, commands);
     registerInfoCommand(app, commands);
+    registerRecordCommand(app, commands);
+    registerPlayCommand(app, commands);
+    registerConvertCommand(app, commands);
+    registerBenchCommand(app, commands);
 
     try {
         app.parse(argc, argv);

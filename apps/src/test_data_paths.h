@@ -1,0 +1,11 @@
+// Where the command line looks for real third-party data by default.
+#pragma once
+
+#include <filesystem>
+
+namespace mixray::cli {
+
+// $MIXRAY_SHARED_DATA, else ../shared/data beside the source tree this binary was built from.
+std::filesystem::path defaultSharedDataDir();
+
+}  // namespace mixray::cli

@@ -1,0 +1,182 @@
+// The mixray command line end to end: exit codes, messages, and the bundled session.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "test_data.h"
+
+namespace mixray {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+    int exit_code = -1;
+    std::string output;  // stdout and stderr together
+};
+
+// Runs the mixray binary with `args` (already shell-quoted where needed).
+CliRun mixray(const std::string& args) {
+    const std::string command = std::string(MIXRAY_CLI_PATH) + " " + args + " 2>&1";
+    CliRun run;
+    FILE* pipe = popen(command.c_str(), "r");
+    if (!pipe) return run;
+    std::array<char, 4096> buffer;
+    size_t n;
+    while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) run.output.append(buffer.data(), n);
+    const int status = pclose(pipe);
+    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run;
+}
+
+std::string q(const fs::path& path) { return "'" + path.string() + "'"; }
+
+const fs::path kSession = test::fixturesDir() / "sessions" / "pattern_rgbd.mkv";
+
+TEST(Cli, HelpAndUsageErrors) {
+    EXPECT_EQ(mixray("--help").exit_code, 0);
+    CliRun none = mixray("");
+    EXPECT_EQ(none.exit_code, 2) << none.output;
+    CliRun unknown = mixray("frobnicate");
+    EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+    for (const char* command : {"devices", "record", "info", "play", "convert", "bench graph"}) {
+        CliRun help = mixray(std::string(command) + " --help");
+        EXPECT_EQ(help.exit_code, 0) << command;
+        EXPECT_NE(help.output.find("Usage"), std::string::npos) << command;
+    }
+}
+
+TEST(Cli, DevicesSaysPlainlyWhenThereIsNoHardware) {
+    CliRun run = mixray("devices");
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("No camera or sensor found"), std::string::npos) << run.output;
+    CliRun virt = mixray("devices --virtual --json");
+    ASSERT_EQ(virt.exit_code, 0) << virt.output;
+    auto list = nlohmann::json::parse(virt.output);
+    ASSERT_GE(list.size(), 2u);
+    EXPECT_EQ(list[0]["backend"], "pattern");
+}
+
+TEST(Cli, InfoDescribesTheBundledSession) {
+    CliRun run = mixray("info --json " + q(kSession));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    auto info = nlohmann::json::parse(run.output);
+    EXPECT_EQ(info["format"], "mixray-mkv");
+    EXPECT_EQ(info["frames"], 150);
+    EXPECT_TRUE(info["complete"]);
+    ASSERT_EQ(info["streams"].size(), 3u);
+    EXPECT_EQ(info["streams"][0]["name"], "rgbd/color");
+    EXPECT_EQ(info["streams"][1]["format"], "depth16");
+    EXPECT_EQ(info["streams"][2]["frames"], 30);
+    EXPECT_EQ(info["streams"][0]["gaps"], 0);
+    EXPECT_NEAR(info["streams"][0]["measured_fps"].get<double>(), 30.0, 0.1);
+    ASSERT_EQ(info["attachments"].size(), 1u);
+    EXPECT_EQ(info["attachments"][0]["name"], "rig.yaml");
+    CliRun text = mixray("info " + q(kSession));
+    EXPECT_EQ(text.exit_code, 0);
+    EXPECT_NE(text.output.find("mono/mono"), std::string::npos) << text.output;
+}
+
+TEST(Cli, BadInputGivesExitCode3AndNamesTheFile) {
+    const fs::path dir = test::tempDir();
+    CliRun missing = mixray("info " + q(dir / "nope.mkv"));
+    EXPECT_EQ(missing.exit_code, 3) << missing.output;
+    EXPECT_NE(missing.output.find("nope.mkv"), std::string::npos) << missing.output;
+
+    // A recording cut off mid-file: what was complete is described, the damage reported.
+    const fs::path cut = dir / "cut.mkv";
+    fs::copy_file(kSession, cut);
+    fs::resize_file(cut, fs::file_size(cut) * 2 / 3);
+    CliRun truncated = mixray("info " + q(cut));
+    EXPECT_EQ(truncated.exit_code, 3) << truncated.output;
+    EXPECT_NE(truncated.output.find("readable up to frame"), std::string::npos) << truncated.output;
+
+    const fs::path rig = dir / "bad_rig.yaml";
+    std::ofstream(rig) << "rig: x\ndevices:\n  - name: a\n    driver: pattern\n    fps: fast\n";
+    CliRun bad_rig = mixray("record " + q(rig) + " -o " + q(dir / "x.mkv"));
+    EXPECT_EQ(bad_rig.exit_code, 3) << bad_rig.output;
+    EXPECT_NE(bad_rig.output.find("bad_rig.yaml:5"), std::string::npos) << bad_rig.output;
+    EXPECT_FALSE(fs::exists(dir / "x.mkv"));
+}
+
+TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
+    const fs::path dir = test::tempDir();
+    const fs::path out = dir / "session.mkv";
+    CliRun record = mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") +
+                        " -o " + q(out));
+    ASSERT_EQ(record.exit_code, 0) << record.output;
+    EXPECT_NE(record.output.find("recorded 150 frames"), std::string::npos) << record.output;
+    EXPECT_NE(record.output.find("sync"), std::string::npos) << record.output;
+
+    CliRun again = mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") +
+                       " -o " + q(out));
+    EXPECT_EQ(again.exit_code, 2) << "refuses to overwrite without --force";
+
+    CliRun play = mixray("play --fast " + q(out));
+    ASSERT_EQ(play.exit_code, 0) << play.output;
+    EXPECT_NE(play.output.find("replay/color"), std::string::npos) << play.output;
+    EXPECT_NE(play.output.find("60 frames"), std::string::npos) << play.output;
+
+    // mkv -> PCL TIFF folder -> mkv keeps colour and depth frames and their stamps. (Not TUM:
+    // pattern depth images carry their sequence stamp in row 0, values TUM's 16-bit 0.2 mm
+    // units cannot hold, and the TUM writer refuses to lose them.)
+    CliRun to_pcl = mixray("convert --to pcl-tiff " + q(out) + " " + q(dir / "pcl"));
+    ASSERT_EQ(to_pcl.exit_code, 0) << to_pcl.output;
+    CliRun back = mixray("convert " + q(dir / "pcl") + " " + q(dir / "back.mkv"));
+    ASSERT_EQ(back.exit_code, 0) << back.output;
+    auto a = nlohmann::json::parse(mixray("info --json " + q(out)).output);
+    auto b = nlohmann::json::parse(mixray("info --json " + q(dir / "back.mkv")).output);
+    ASSERT_EQ(b["streams"].size(), 2u);
+    EXPECT_EQ(b["streams"][0]["frames"], a["streams"][0]["frames"]);
+    EXPECT_EQ(b["streams"][1]["frames"], a["streams"][1]["frames"]);
+    // PCL names keep microseconds: the first colour stamp survives to the microsecond.
+    EXPECT_EQ(b["streams"][0]["first_stamp_ns"].get<int64_t>() / 1000,
+              a["streams"][0]["first_stamp_ns"].get<int64_t>() / 1000);
+}
+
+TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
+    const fs::path src = test::sharedDataDir() / "02_rgbd_single_frames_open3d";
+    MIXRAY_REQUIRE_SHARED_DATA(src / "TUM_depth.png");
+    const fs::path dir = test::tempDir();
+    const fs::path tum = dir / "tum";
+    fs::create_directories(tum / "rgb");
+    fs::create_directories(tum / "depth");
+    fs::copy_file(src / "TUM_color.png", tum / "rgb" / "1305031102.175304.png");
+    fs::copy_file(src / "TUM_depth.png", tum / "depth" / "1305031102.160407.png");
+    std::ofstream(tum / "rgb.txt") << "# color images\n1305031102.175304 rgb/1305031102.175304.png\n";
+    std::ofstream(tum / "depth.txt") << "# depth maps\n1305031102.160407 depth/1305031102.160407.png\n";
+
+    CliRun to_mkv = mixray("convert " + q(tum) + " " + q(dir / "tum.mkv"));
+    ASSERT_EQ(to_mkv.exit_code, 0) << to_mkv.output;
+    CliRun to_tum = mixray("convert " + q(dir / "tum.mkv") + " " + q(dir / "back"));
+    ASSERT_EQ(to_tum.exit_code, 0) << to_tum.output;
+    auto slurp = [](const fs::path& p) {
+        std::ifstream in(p, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_EQ(slurp(dir / "back" / "rgb.txt"), slurp(tum / "rgb.txt"));
+    EXPECT_EQ(slurp(dir / "back" / "depth.txt"), slurp(tum / "depth.txt"));
+    auto a = nlohmann::json::parse(mixray("info --json " + q(tum)).output);
+    auto b = nlohmann::json::parse(mixray("info --json " + q(dir / "back")).output);
+    EXPECT_EQ(a["streams"], b["streams"]);
+}
+
+TEST(Cli, BenchGraphPrintsItsFigures) {
+    CliRun run = mixray("bench graph --frames 300 --record-frames 10 --disk-mb 16 --dir " +
+                     q(test::tempDir()));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    for (const char* line : {"synchronized sets/s", "heap allocations per set",
+                             "pixel copies per frame", "raw disk write", "recording, uncompressed"}) {
+        EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
+    }
+}
+
+}  // namespace
+}  // namespace mixray
