@@ -50,7 +50,7 @@ std::string compactJson(const std::vector<uint8_t>& bytes) {
 }
 
 class AzureKinect : public ::testing::Test {
-  protected:
+protected:
     static void SetUpTestSuite() { setFfmpegLogging(false); }
 };
 

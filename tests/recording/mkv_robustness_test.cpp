@@ -105,7 +105,7 @@ ReadOutcome readChecked(const std::filesystem::path& path, const std::vector<Exp
 }
 
 class MkvRobustness : public ::testing::Test {
-  protected:
+protected:
     static void SetUpTestSuite() { setFfmpegLogging(false); }
 };
 

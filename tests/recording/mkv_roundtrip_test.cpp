@@ -17,7 +17,7 @@ namespace {
 using test::ExpectedFrame;
 
 class MkvRoundTrip : public ::testing::Test {
-  protected:
+protected:
     static void SetUpTestSuite() { setFfmpegLogging(false); }
 };
 

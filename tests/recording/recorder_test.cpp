@@ -18,7 +18,7 @@ using std::chrono::milliseconds;
 using test::ExpectedFrame;
 
 class RecorderTest : public ::testing::Test {
-  protected:
+protected:
     static void SetUpTestSuite() { setFfmpegLogging(false); }
 };
 
@@ -180,7 +180,7 @@ TEST_F(RecorderTest, ConnectRefusesUnknownStreamsAndBadOptions) {
 
 // A writer that takes its time, like a slow disk.
 class SlowWriter : public RecordingWriter {
-  public:
+public:
     SlowWriter(std::unique_ptr<RecordingWriter> inner, milliseconds delay)
         : inner_(std::move(inner)), delay_(delay) {}
     Status write(const FrameRef& frame) override {
@@ -194,7 +194,7 @@ class SlowWriter : public RecordingWriter {
     Status close() override { return inner_->close(); }
     uint64_t bytesWritten() const override { return inner_->bytesWritten(); }
 
-  private:
+private:
     std::unique_ptr<RecordingWriter> inner_;
     milliseconds delay_;
 };
@@ -252,7 +252,7 @@ TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
 // Lowers this process's file size limit (and ignores SIGXFSZ, so writes fail with EFBIG like
 // on a full disk) for its lifetime.
 class FileSizeLimit {
-  public:
+public:
     explicit FileSizeLimit(rlim_t bytes) {
         getrlimit(RLIMIT_FSIZE, &saved_);
         old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
@@ -266,7 +266,7 @@ class FileSizeLimit {
     }
     bool ok() const { return ok_; }
 
-  private:
+private:
     rlimit saved_{};
     void (*old_handler_)(int) = SIG_DFL;
     bool ok_ = false;

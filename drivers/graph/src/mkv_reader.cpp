@@ -94,8 +94,10 @@ std::shared_ptr<AVPacket> sharePacket(AVPacket* packet) {
     return std::shared_ptr<AVPacket>(copy, [](AVPacket* p) { av_packet_free(&p); });
 }
 
+// openMkv's reader: demuxes a few frames ahead, merges them by host stamp, decodes the one it
+// returns into its stream's pool. Thread-bound, like every RecordingReader.
 class MkvReader final : public RecordingReader {
-  public:
+public:
     MkvReader(fs::path path, const MkvReaderOptions& options)
         : path_(std::move(path)), options_(options), packet_(av_packet_alloc()) {}
 
@@ -108,7 +110,7 @@ class MkvReader final : public RecordingReader {
     Result<FrameRef> next() override;
     Status seek(int64_t host_stamp_ns) override;
 
-  private:
+private:
     Status openInput();
     Status openMixray();
     Status openAzure();

@@ -22,8 +22,10 @@ using ffmpeg::PacketPtr;
 
 constexpr uint64_t kNsPerMs = 1000000;
 
+// createMkvWriter's writer: one libavformat muxer, one FFV1 encoder per image stream.
+// Thread-bound, like every RecordingWriter.
 class MkvWriter final : public RecordingWriter {
-  public:
+public:
     MkvWriter(std::filesystem::path path, const MkvWriterOptions& options)
         : path_(std::move(path)), options_(options), packet_(av_packet_alloc()) {}
     ~MkvWriter() override { (void)close(); }
@@ -41,7 +43,7 @@ class MkvWriter final : public RecordingWriter {
         return fmt_ && fmt_->pb ? static_cast<uint64_t>(fmt_->pb->bytes_written) : bytes_;
     }
 
-  private:
+private:
     struct Track {
         StreamInfo info;
         mkv::Storage storage;
