@@ -28,21 +28,24 @@ namespace {
 namespace fs = std::filesystem;
 
 struct BenchGraphOptions {
-    uint64_t frames = 3000;       // capture instants for the synchronizer run
-    uint64_t record_frames = 300; // frame pairs for the recording run
-    uint64_t disk_mb = 256;       // raw write size for the disk baseline
-    std::string dir;              // where to write; default: the system temp folder
-    std::string shared_data;      // ../shared/data
+    uint64_t frames = 3000;        // capture instants for the synchronizer run
+    uint64_t record_frames = 300;  // frame pairs for the recording run
+    uint64_t disk_mb = 256;        // raw write size for the disk baseline
+    std::string dir;               // where to write; default: the system temp folder
+    std::string shared_data;       // ../shared/data
 };
 
-double seconds(int64_t ns) { return static_cast<double>(ns) / 1e9; }
+double seconds(int64_t ns) {
+    return static_cast<double>(ns) / 1e9;
+}
 
 // Pins the calling thread (and threads it starts later) to one CPU; restores on destruction.
 class PinToOneCore {
 public:
     PinToOneCore() {
         pinned_ = sched_getaffinity(0, sizeof saved_, &saved_) == 0;
-        if (!pinned_) return;
+        if (!pinned_)
+            return;
         cpu_set_t one;
         CPU_ZERO(&one);
         for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu) {
@@ -55,7 +58,8 @@ public:
         pinned_ = sched_setaffinity(0, sizeof one, &one) == 0;
     }
     ~PinToOneCore() {
-        if (pinned_) sched_setaffinity(0, sizeof saved_, &saved_);
+        if (pinned_)
+            sched_setaffinity(0, sizeof saved_, &saved_);
     }
     bool pinned() const { return pinned_; }
     int cpu() const { return cpu_; }
@@ -74,7 +78,8 @@ struct AddressSet {
     bool overflow = false;
     void add(const uint8_t* p) {
         for (size_t i = 0; i < count; ++i) {
-            if (seen[i] == p) return;
+            if (seen[i] == p)
+                return;
         }
         if (count < seen.size()) {
             seen[count++] = p;
@@ -92,14 +97,15 @@ Status benchSynchronizer(const BenchGraphOptions& options) {
     const std::string frames = std::to_string(options.frames);
     const std::string buffers = std::to_string(kPoolBuffers);
     DeviceConfig rgbd{"rgbd", "pattern", "rgbd", {}, {"color", "depth"}};
-    rgbd.options = {{"realtime", "false"}, {"fill", "stamp"}, {"frames", frames},
-                    {"buffers", buffers}, {"drift_ppm", "40"}, {"jitter_us", "200"}};
+    rgbd.options = {{"realtime", "false"}, {"fill", "stamp"},   {"frames", frames},
+                    {"buffers", buffers},  {"drift_ppm", "40"}, {"jitter_us", "200"}};
     DeviceConfig mono{"mono", "pattern", "mono", {}, {"mono"}};
-    mono.options = {{"realtime", "false"}, {"fill", "stamp"}, {"frames", frames},
-                    {"buffers", buffers}, {"drift_ppm", "-60"}, {"jitter_us", "200"}};
+    mono.options = {{"realtime", "false"}, {"fill", "stamp"},    {"frames", frames},
+                    {"buffers", buffers},  {"drift_ppm", "-60"}, {"jitter_us", "200"}};
     for (const auto& config : {rgbd, mono}) {
         auto device = registry.open(config);
-        if (!device) return device.status();
+        if (!device)
+            return device.status();
         MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(*device)));
     }
 
@@ -113,7 +119,8 @@ Status benchSynchronizer(const BenchGraphOptions& options) {
     std::atomic<uint64_t> allocs_at_warmup{0}, allocs_at_end{0};
     std::atomic<int64_t> t_warmup{0}, t_end{0};
     auto node = std::make_unique<SyncNode>(sync_options, [&](const SyncSet& set) {
-        for (size_t i = 0; i < set.frames.size(); ++i) addresses[i].add(set.frames[i].data());
+        for (size_t i = 0; i < set.frames.size(); ++i)
+            addresses[i].add(set.frames[i].data());
         const uint64_t n = ++sets;
         if (n == warmup) {
             allocs_at_warmup = heapAllocations();
@@ -139,11 +146,12 @@ Status benchSynchronizer(const BenchGraphOptions& options) {
     std::printf("graph + synchronizer: 640x480 rgb8 + 640x480 depth16 + 1280x960 mono8, %s\n",
                 pin.pinned() ? ("pinned to CPU " + std::to_string(pin.cpu())).c_str()
                              : "not pinned (sched_setaffinity failed)");
-    std::printf("  %llu sets from %llu instants, %llu frames dropped, skew mean %.3f ms max %.3f ms\n",
-                static_cast<unsigned long long>(sets.load()),
-                static_cast<unsigned long long>(options.frames),
-                static_cast<unsigned long long>(stats.framesDropped()), stats.skew_mean_ns / 1e6,
-                static_cast<double>(stats.skew_max_ns) / 1e6);
+    std::printf(
+        "  %llu sets from %llu instants, %llu frames dropped, skew mean %.3f ms max %.3f ms\n",
+        static_cast<unsigned long long>(sets.load()),
+        static_cast<unsigned long long>(options.frames),
+        static_cast<unsigned long long>(stats.framesDropped()), stats.skew_mean_ns / 1e6,
+        static_cast<double>(stats.skew_max_ns) / 1e6);
     std::printf("  synchronized sets/s (1 core):       %10.0f   (aim >= 2000)\n", rate);
     std::printf("  heap allocations per set (steady):  %10.3f\n", allocs_per_set);
     size_t max_addresses = 0;
@@ -155,7 +163,8 @@ Status benchSynchronizer(const BenchGraphOptions& options) {
     const bool zero_copy = !overflow && max_addresses <= kPoolBuffers;
     std::printf("  distinct buffers per stream:        %10zu   (driver pool holds %zu)\n",
                 max_addresses, kPoolBuffers);
-    std::printf("  pixel copies per frame:             %10s\n", zero_copy ? "0" : ">0 (copies seen)");
+    std::printf("  pixel copies per frame:             %10s\n",
+                zero_copy ? "0" : ">0 (copies seen)");
     return Status::ok();
 }
 
@@ -163,9 +172,11 @@ Status benchSynchronizer(const BenchGraphOptions& options) {
 Result<double> rawDiskMBps(const fs::path& dir, uint64_t megabytes) {
     const fs::path path = dir / "mixray-bench-raw.bin";
     const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd < 0) return {ErrorCode::kIoError, "cannot create " + path.string()};
+    if (fd < 0)
+        return {ErrorCode::kIoError, "cannot create " + path.string()};
     std::vector<uint8_t> chunk(4 << 20);
-    for (size_t i = 0; i < chunk.size(); ++i) chunk[i] = static_cast<uint8_t>(i * 2654435761u >> 13);
+    for (size_t i = 0; i < chunk.size(); ++i)
+        chunk[i] = static_cast<uint8_t>(i * 2654435761u >> 13);
     const int64_t t0 = monotonicNowNs();
     bool ok = true;
     for (uint64_t written = 0; ok && written < megabytes << 20; written += chunk.size()) {
@@ -175,17 +186,20 @@ Result<double> rawDiskMBps(const fs::path& dir, uint64_t megabytes) {
     const int64_t t1 = monotonicNowNs();
     ::close(fd);
     fs::remove(path);
-    if (!ok) return {ErrorCode::kIoError, "writing " + path.string() + " failed"};
+    if (!ok)
+        return {ErrorCode::kIoError, "writing " + path.string() + " failed"};
     return static_cast<double>(megabytes << 20) / 1e6 / seconds(t1 - t0);
 }
 
 // The first frame of the first stream of `kind` in a recording, as an owned image.
 Result<Image> firstFrameOf(const fs::path& path, StreamKind kind) {
     auto reader = replay::openRecording(path);
-    if (!reader) return reader.status();
+    if (!reader)
+        return reader.status();
     for (;;) {
         auto frame = (*reader)->next();
-        if (!frame) return frame.status();
+        if (!frame)
+            return frame.status();
         if ((*reader)->streams()[frame->meta().stream].kind == kind) {
             return Image::copyOf(frame->image());
         }
@@ -195,7 +209,8 @@ Result<Image> firstFrameOf(const fs::path& path, StreamKind kind) {
 // A TUM folder with the real TUM frame pair from shared data, in `dir`.
 Result<fs::path> makeTumFolder(const fs::path& shared, const fs::path& dir) {
     const fs::path src = shared / "02_rgbd_single_frames_open3d";
-    if (!fs::exists(src / "TUM_depth.png")) return {ErrorCode::kNotFound, src.string()};
+    if (!fs::exists(src / "TUM_depth.png"))
+        return {ErrorCode::kNotFound, src.string()};
     const fs::path tum = dir / "mixray-bench-tum";
     fs::remove_all(tum);
     fs::create_directories(tum / "rgb");
@@ -228,7 +243,8 @@ Result<WriteResult> writeCopies(const fs::path& path, const std::vector<Image>& 
         info.nominal_fps = 30;
         header.streams.push_back(info);
         pools.push_back(BufferPool::create({info.format, 0, 2, info.name}));
-        if (!pools.back()) return {ErrorCode::kInvalidArgument, "bad image layout for " + info.name};
+        if (!pools.back())
+            return {ErrorCode::kInvalidArgument, "bad image layout for " + info.name};
         // Fill both buffers once; the pool hands them out again with their pixels intact.
         std::vector<WritableFrame> fill;
         for (int b = 0; b < 2; ++b) {
@@ -238,7 +254,8 @@ Result<WriteResult> writeCopies(const fs::path& path, const std::vector<Image>& 
         }
     }
     auto writer = createMkvWriter(path, header);
-    if (!writer) return writer.status();
+    if (!writer)
+        return writer.status();
     WriteResult result;
     const int64_t t0 = monotonicNowNs();
     for (uint64_t k = 0; k < count; ++k) {
@@ -266,7 +283,8 @@ Result<WriteResult> writeCopies(const fs::path& path, const std::vector<Image>& 
 
 Status benchRecording(const BenchGraphOptions& options, const fs::path& dir) {
     auto disk = rawDiskMBps(dir, options.disk_mb);
-    if (!disk) return disk.status();
+    if (!disk)
+        return disk.status();
 
     std::vector<Image> images;
     std::string source = "real TUM RGB-D frame pair (640x480 rgb8 + depth16)";
@@ -274,7 +292,8 @@ Status benchRecording(const BenchGraphOptions& options, const fs::path& dir) {
     if (tum) {
         auto color = firstFrameOf(*tum, StreamKind::kColor);
         auto depth = firstFrameOf(*tum, StreamKind::kDepth);
-        if (color && depth) images = {std::move(*color), std::move(*depth)};
+        if (color && depth)
+            images = {std::move(*color), std::move(*depth)};
         fs::remove_all(*tum);
     }
     if (images.empty()) {
@@ -284,14 +303,16 @@ Status benchRecording(const BenchGraphOptions& options, const fs::path& dir) {
     const fs::path path = dir / "mixray-bench-record.mkv";
     auto written = writeCopies(path, images, options.record_frames);
     fs::remove(path);
-    if (!written) return written.status();
+    if (!written)
+        return written.status();
     const double mbps = static_cast<double>(written->raw_bytes) / 1e6 / written->seconds;
     std::printf("recording: %llu frame pairs of the %s, FFV1, fdatasync at the end\n",
                 static_cast<unsigned long long>(options.record_frames), source.c_str());
     std::printf("  raw disk write (same folder):       %10.1f MB/s  (%s)\n", *disk, dir.c_str());
-    std::printf("  recording, uncompressed input:      %10.1f MB/s  = %.0f %% of raw disk "
-                "(aim >= 80 %%)\n",
-                mbps, 100.0 * mbps / *disk);
+    std::printf(
+        "  recording, uncompressed input:      %10.1f MB/s  = %.0f %% of raw disk "
+        "(aim >= 80 %%)\n",
+        mbps, 100.0 * mbps / *disk);
     std::printf("  recording, bytes to disk:           %10.1f MB/s  (%.2f:1 compression)\n",
                 static_cast<double>(written->file_bytes) / 1e6 / written->seconds,
                 static_cast<double>(written->raw_bytes) / written->file_bytes);
@@ -332,13 +353,15 @@ Status benchDepthCompression(const BenchGraphOptions& options, const fs::path& d
         auto b = writeCopies(many, images, 31);
         fs::remove(one);
         fs::remove(many);
-        if (!a || !b) return !a ? a.status() : b.status();
+        if (!a || !b)
+            return !a ? a.status() : b.status();
         const double stored = static_cast<double>(b->file_bytes - a->file_bytes) / 30.0;
         const double raw = static_cast<double>(images[0].desc().bufferBytes());
         std::printf("  %-34s %6.2f:1  (%.0f kB -> %.0f kB per frame)\n", source.name.c_str(),
                     raw / stored, raw / 1e3, stored / 1e3);
     }
-    if (sources[0].path) fs::remove_all(*sources[0].path);
+    if (sources[0].path)
+        fs::remove_all(*sources[0].path);
     return Status::ok();
 }
 
@@ -348,21 +371,26 @@ int runBenchGraph(BenchGraphOptions options) {
     if (!fs::is_directory(dir)) {
         return fail("bench graph", {ErrorCode::kNotFound, "no folder " + dir.string()});
     }
-    if (options.shared_data.empty()) options.shared_data = defaultSharedDataDir().string();
+    if (options.shared_data.empty())
+        options.shared_data = defaultSharedDataDir().string();
     Status status = benchSynchronizer(options);
-    if (!status) return fail("bench graph", status);
+    if (!status)
+        return fail("bench graph", status);
     status = benchRecording(options, dir);
-    if (!status) return fail("bench graph", status);
+    if (!status)
+        return fail("bench graph", status);
     status = benchDepthCompression(options, dir);
-    if (!status) return fail("bench graph", status);
+    if (!status)
+        return fail("bench graph", status);
     return kExitOk;
 }
 
 }  // namespace
 
 void registerBenchCommand(CLI::App& app, Commands& commands) {
-    auto* bench = app.add_subcommand("bench", "Measure mixray's hot paths against baselines "
-                                              "taken in the same run");
+    auto* bench = app.add_subcommand("bench",
+                                     "Measure mixray's hot paths against baselines "
+                                     "taken in the same run");
     bench->require_subcommand(1, 1);
     auto* graph = bench->add_subcommand(
         "graph",
@@ -373,8 +401,8 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
     graph->add_option("--frames", options->frames, "Capture instants for the synchronizer run")
         ->check(CLI::Range(200, 10'000'000))
         ->capture_default_str();
-    graph->add_option("--record-frames", options->record_frames,
-                      "Frame pairs for the recording run")
+    graph
+        ->add_option("--record-frames", options->record_frames, "Frame pairs for the recording run")
         ->check(CLI::Range(10, 1'000'000))
         ->capture_default_str();
     graph->add_option("--disk-mb", options->disk_mb, "Megabytes for the raw disk baseline")

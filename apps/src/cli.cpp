@@ -7,16 +7,22 @@ namespace mixray::cli {
 
 int exitCodeFor(const Status& status) {
     switch (status.code()) {
-        case ErrorCode::kOk: return kExitOk;
-        case ErrorCode::kInvalidArgument: return kExitUsage;
+        case ErrorCode::kOk:
+            return kExitOk;
+        case ErrorCode::kInvalidArgument:
+            return kExitUsage;
         case ErrorCode::kNotFound:
         case ErrorCode::kCorruptData:
         case ErrorCode::kIoError:
-        case ErrorCode::kUnsupported: return kExitBadInput;
-        case ErrorCode::kUnavailable: return kExitUnavailable;
-        case ErrorCode::kCancelled: return kExitInterrupted;
+        case ErrorCode::kUnsupported:
+            return kExitBadInput;
+        case ErrorCode::kUnavailable:
+            return kExitUnavailable;
+        case ErrorCode::kCancelled:
+            return kExitInterrupted;
         case ErrorCode::kEndOfStream:
-        case ErrorCode::kInternal: return kExitInternal;
+        case ErrorCode::kInternal:
+            return kExitInternal;
     }
     return kExitInternal;
 }

@@ -10,7 +10,9 @@
 namespace mixray::cli {
 namespace {
 std::atomic<bool> g_interrupted{false};
-extern "C" void onSignal(int) { g_interrupted.store(true); }
+extern "C" void onSignal(int) {
+    g_interrupted.store(true);
+}
 }  // namespace
 
 std::string formatBytes(uint64_t bytes) {
@@ -50,7 +52,9 @@ int64_t monotonicNowNs() {
 
 StatusLine::StatusLine() : tty_(isatty(STDERR_FILENO) != 0) {}
 
-StatusLine::~StatusLine() { finish(); }
+StatusLine::~StatusLine() {
+    finish();
+}
 
 void StatusLine::update(const std::string& text) {
     const int64_t now = monotonicNowNs();
@@ -72,8 +76,10 @@ void StatusLine::update(const std::string& text) {
 }
 
 void StatusLine::finish() {
-    if (tty_ && dirty_) std::fprintf(stderr, "\n");
-    if (!tty_ && !pending_.empty()) std::fprintf(stderr, "%s\n", pending_.c_str());
+    if (tty_ && dirty_)
+        std::fprintf(stderr, "\n");
+    if (!tty_ && !pending_.empty())
+        std::fprintf(stderr, "%s\n", pending_.c_str());
     dirty_ = false;
     pending_.clear();
 }
@@ -89,6 +95,8 @@ InterruptFlag::~InterruptFlag() {
     std::signal(SIGTERM, SIG_DFL);
 }
 
-bool InterruptFlag::raised() const { return g_interrupted.load(); }
+bool InterruptFlag::raised() const {
+    return g_interrupted.load();
+}
 
 }  // namespace mixray::cli

@@ -23,10 +23,14 @@ struct ConvertOptions {
 Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& options,
                                                       const RecordingHeader& header) {
     std::string to = options.to;
-    if (to.empty()) to = std::filesystem::path(options.output).extension() == ".mkv" ? "mkv" : "tum";
-    if (to == "mkv") return createMkvWriter(options.output, header);
-    if (to == "tum") return replay::createTumWriter(options.output, header);
-    if (to == "pcl-tiff") return replay::createPclTiffWriter(options.output, header);
+    if (to.empty())
+        to = std::filesystem::path(options.output).extension() == ".mkv" ? "mkv" : "tum";
+    if (to == "mkv")
+        return createMkvWriter(options.output, header);
+    if (to == "tum")
+        return replay::createTumWriter(options.output, header);
+    if (to == "pcl-tiff")
+        return replay::createPclTiffWriter(options.output, header);
     return {ErrorCode::kInvalidArgument, "--to " + to + ": expected mkv, tum or pcl-tiff"};
 }
 
@@ -43,20 +47,23 @@ int runConvert(const ConvertOptions& options) {
                                 options.output + " exists (use --force to overwrite a file)"});
     }
     auto reader = replay::openRecording(options.input);
-    if (!reader) return fail("convert", reader.status());
+    if (!reader)
+        return fail("convert", reader.status());
     auto writer = createWriter(options, replay::headerOf(**reader));
-    if (!writer) return fail("convert", writer.status().withContext(options.output));
+    if (!writer)
+        return fail("convert", writer.status().withContext(options.output));
 
     InterruptFlag interrupt;
     StatusLine status;
-    auto summary = replay::convertRecording(
-        **reader, **writer, [&](const replay::ConvertProgress& p) {
+    auto summary =
+        replay::convertRecording(**reader, **writer, [&](const replay::ConvertProgress& p) {
             status.update("converted " + std::to_string(p.frames) + " frames, " +
                           formatBytes(p.bytes_written) + " written");
             return !interrupt.raised();
         });
     status.finish();
-    if (!summary) return fail("convert", summary.status());
+    if (!summary)
+        return fail("convert", summary.status());
     std::printf("%s (%s) -> %s: %llu frames, %s, %.2f s\n", options.input.c_str(),
                 (*reader)->format().c_str(), options.output.c_str(),
                 static_cast<unsigned long long>(summary->frames),

@@ -15,7 +15,8 @@ int runDevices(bool as_json, bool include_virtual) {
     bool any_failed = false;
     for (DeviceBackend* backend : registry.backends()) {
         const bool is_virtual = backend->name() == "pattern" || backend->name() == "replay";
-        if (is_virtual && !include_virtual) continue;
+        if (is_virtual && !include_virtual)
+            continue;
         auto devices = backend->enumerate();
         if (!devices) {
             any_failed = true;
@@ -24,17 +25,25 @@ int runDevices(bool as_json, bool include_virtual) {
             continue;
         }
         for (const auto& d : *devices) {
-            if (!is_virtual) ++real_devices;
+            if (!is_virtual)
+                ++real_devices;
             if (as_json) {
-                j.push_back({{"backend", d.backend}, {"id", d.id}, {"model", d.model},
-                             {"serial", d.serial}, {"location", d.location}, {"modes", d.modes}});
+                j.push_back({{"backend", d.backend},
+                             {"id", d.id},
+                             {"model", d.model},
+                             {"serial", d.serial},
+                             {"location", d.location},
+                             {"modes", d.modes}});
                 continue;
             }
             std::printf("%-8s %-16s %s", d.backend.c_str(), d.id.c_str(), d.model.c_str());
-            if (!d.serial.empty()) std::printf("  serial %s", d.serial.c_str());
-            if (!d.location.empty()) std::printf("  at %s", d.location.c_str());
+            if (!d.serial.empty())
+                std::printf("  serial %s", d.serial.c_str());
+            if (!d.location.empty())
+                std::printf("  at %s", d.location.c_str());
             std::printf("\n");
-            for (const auto& mode : d.modes) std::printf("           %s\n", mode.c_str());
+            for (const auto& mode : d.modes)
+                std::printf("           %s\n", mode.c_str());
         }
     }
     if (as_json) {
@@ -43,13 +52,15 @@ int runDevices(bool as_json, bool include_virtual) {
         std::printf("No camera or sensor found by any backend (");
         bool first = true;
         for (DeviceBackend* backend : registry.backends()) {
-            if (backend->name() == "pattern" || backend->name() == "replay") continue;
+            if (backend->name() == "pattern" || backend->name() == "replay")
+                continue;
             std::printf("%s%s", first ? "" : ", ", std::string(backend->name()).c_str());
             first = false;
         }
-        std::printf("%s).\nRecordings replay with the 'replay' driver; '--virtual' lists the "
-                    "built-in test-pattern devices.\n",
-                    first ? "no hardware backend in this build" : "");
+        std::printf(
+            "%s).\nRecordings replay with the 'replay' driver; '--virtual' lists the "
+            "built-in test-pattern devices.\n",
+            first ? "no hardware backend in this build" : "");
     }
     return any_failed ? kExitUnavailable : kExitOk;
 }
@@ -63,7 +74,8 @@ void registerDevicesCommand(CLI::App& app, Commands& commands) {
     sub->add_flag("--json", *json, "Print the list as JSON");
     sub->add_flag("--virtual", *include_virtual,
                   "Also list the virtual test-pattern devices (driver 'pattern')");
-    commands.push_back({sub, [json, include_virtual] { return runDevices(*json, *include_virtual); }});
+    commands.push_back(
+        {sub, [json, include_virtual] { return runDevices(*json, *include_virtual); }});
 }
 
 }  // namespace mixray::cli

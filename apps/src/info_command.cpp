@@ -36,7 +36,8 @@ struct GapReport {
 
 GapReport gapsOf(const StreamSummary& s, double nominal_fps) {
     GapReport report;
-    if (s.intervals_ns.empty()) return report;
+    if (s.intervals_ns.empty())
+        return report;
     std::vector<int64_t> sorted = s.intervals_ns;
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
     const int64_t median = sorted[sorted.size() / 2];
@@ -54,7 +55,8 @@ GapReport gapsOf(const StreamSummary& s, double nominal_fps) {
         at += interval;
     }
     const int64_t span = s.last_ns - s.first_ns;
-    if (span > 0) report.measured_fps = static_cast<double>(s.frames - 1) * 1e9 / span;
+    if (span > 0)
+        report.measured_fps = static_cast<double>(s.frames - 1) * 1e9 / span;
     return report;
 }
 
@@ -68,7 +70,8 @@ std::string layoutOf(const StreamInfo& info) {
 int runInfo(const std::string& path, bool as_json) {
     setFfmpegLogging(false);
     auto opened = replay::openRecording(path);
-    if (!opened) return fail("info", opened.status());
+    if (!opened)
+        return fail("info", opened.status());
     RecordingReader& reader = **opened;
     const auto& streams = reader.streams();
     std::vector<StreamSummary> summaries(streams.size());
@@ -82,37 +85,41 @@ int runInfo(const std::string& path, bool as_json) {
                 std::this_thread::sleep_for(std::chrono::milliseconds(1));
                 continue;
             }
-            if (frame.status().code() != ErrorCode::kEndOfStream) end_status = frame.status();
+            if (frame.status().code() != ErrorCode::kEndOfStream)
+                end_status = frame.status();
             break;
         }
         const auto& meta = frame->meta();
-        if (meta.stream >= summaries.size()) continue;
+        if (meta.stream >= summaries.size())
+            continue;
         StreamSummary& s = summaries[meta.stream];
         if (s.frames == 0) {
             s.first_ns = meta.host_stamp_ns;
         } else {
             s.intervals_ns.push_back(meta.host_stamp_ns - s.last_ns);
-            if (meta.sequence > s.last_sequence + 1) s.sequence_gaps += meta.sequence - s.last_sequence - 1;
+            if (meta.sequence > s.last_sequence + 1)
+                s.sequence_gaps += meta.sequence - s.last_sequence - 1;
         }
         s.last_ns = meta.host_stamp_ns;
         s.last_sequence = meta.sequence;
         ++s.frames;
-        if (meta.status != FrameStatus::kOk) ++s.bad_frames;
+        if (meta.status != FrameStatus::kOk)
+            ++s.bad_frames;
         s.payload_bytes += frame->image().size_bytes;
         ++total;
     }
 
     int64_t first = INT64_MAX, last = INT64_MIN;
     for (const auto& s : summaries) {
-        if (s.frames == 0) continue;
+        if (s.frames == 0)
+            continue;
         first = std::min(first, s.first_ns);
         last = std::max(last, s.last_ns);
     }
     const int64_t duration = total > 0 ? last - first : 0;
     std::error_code ec;
-    const auto file_bytes = std::filesystem::is_regular_file(path, ec)
-                                ? std::filesystem::file_size(path, ec)
-                                : 0;
+    const auto file_bytes =
+        std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
 
     if (as_json) {
         nlohmann::json j;
@@ -123,7 +130,8 @@ int runInfo(const std::string& path, bool as_json) {
         j["duration_ns"] = duration;
         j["first_stamp_ns"] = total ? first : 0;
         j["complete"] = end_status.isOk();
-        if (!end_status.isOk()) j["error"] = end_status.toString();
+        if (!end_status.isOk())
+            j["error"] = end_status.toString();
         j["tags"] = reader.tags();
         for (size_t i = 0; i < streams.size(); ++i) {
             const auto& info = streams[i];
@@ -154,7 +162,8 @@ int runInfo(const std::string& path, bool as_json) {
         std::printf("%s\n", j.dump(2).c_str());
     } else {
         std::printf("%s: %s", path.c_str(), reader.format().c_str());
-        if (file_bytes) std::printf(", %s", formatBytes(file_bytes).c_str());
+        if (file_bytes)
+            std::printf(", %s", formatBytes(file_bytes).c_str());
         std::printf("\n  %llu frames over %s\n", static_cast<unsigned long long>(total),
                     formatDuration(duration).c_str());
         for (const auto& [key, value] : reader.tags()) {
@@ -168,10 +177,12 @@ int runInfo(const std::string& path, bool as_json) {
             std::printf("  #%zu %-22s %-9s %-18s %6llu frames  %6.2f fps", i, info.name.c_str(),
                         std::string(toString(info.kind)).c_str(), layoutOf(info).c_str(),
                         static_cast<unsigned long long>(s.frames), gaps.measured_fps);
-            if (info.nominal_fps > 0) std::printf(" (nominal %.2f)", info.nominal_fps);
+            if (info.nominal_fps > 0)
+                std::printf(" (nominal %.2f)", info.nominal_fps);
             std::printf("  %s\n", formatBytes(s.payload_bytes).c_str());
             if (s.frames > 0) {
-                std::printf("     stamps %s .. %s after start", formatDuration(s.first_ns - first).c_str(),
+                std::printf("     stamps %s .. %s after start",
+                            formatDuration(s.first_ns - first).c_str(),
                             formatDuration(s.last_ns - first).c_str());
                 if (gaps.count) {
                     std::printf(", %llu gaps (longest %s at %s)",
@@ -192,7 +203,8 @@ int runInfo(const std::string& path, bool as_json) {
                 std::printf("\n");
             }
         }
-        if (!reader.attachments().empty()) std::printf("attachments:\n");
+        if (!reader.attachments().empty())
+            std::printf("attachments:\n");
         for (const auto& a : reader.attachments()) {
             std::printf("  %-24s %-26s %s\n", a.name.c_str(), a.mime_type.c_str(),
                         formatBytes(a.data.size()).c_str());

@@ -5,8 +5,9 @@
 
 int main(int argc, char** argv) {
     using namespace mixray::cli;
-    CLI::App app{"mixray: photoreal augmented reality from a rig of real cameras.\n"
-                 "Run 'mixray <command> --help' for the options of one command."};
+    CLI::App app{
+        "mixray: photoreal augmented reality from a rig of real cameras.\n"
+        "Run 'mixray <command> --help' for the options of one command."};
     app.set_version_flag("--version", "mixray 0.1.0");
     app.require_subcommand(1, 1);
 
@@ -25,7 +26,8 @@ int main(int argc, char** argv) {
         return rc == 0 ? kExitOk : kExitUsage;
     }
     for (const auto& command : commands) {
-        if (command.app->parsed()) return command.run();
+        if (command.app->parsed())
+            return command.run();
     }
     return kExitUsage;
 }

@@ -38,25 +38,29 @@ int runPlay(const PlayOptions& options) {
     config.driver = "replay";
     config.id = options.path;
     config.options["pace"] = options.fast ? "fast" : "original";
-    if (!options.fast) config.options["speed"] = std::to_string(options.speed);
+    if (!options.fast)
+        config.options["speed"] = std::to_string(options.speed);
     config.options["loop"] = options.loop ? "true" : "false";
     config.options["start"] = std::to_string(options.start_s);
 
     replay::ReplayBackend backend;
     auto device = backend.open(config);
-    if (!device) return fail("play", device.status());
+    if (!device)
+        return fail("play", device.status());
     auto* replay_device = static_cast<replay::ReplayDevice*>(device->get());
 
     Graph graph;
     Status added = graph.addNode(std::move(*device));
-    if (!added) return fail("play", added);
+    if (!added)
+        return fail("play", added);
 
     std::vector<std::unique_ptr<StreamCounter>> counters;
     for (StreamId id = 0; id < graph.streamCount(); ++id) {
         auto counter = std::make_unique<StreamCounter>();
         counter->name = graph.stream(id).name;
         auto queue = graph.subscribe(id, {4, QueuePolicy::kLive, "play"});
-        if (!queue) return fail("play", queue.status());
+        if (!queue)
+            return fail("play", queue.status());
         counter->queue = *queue;
         counters.push_back(std::move(counter));
     }
@@ -65,11 +69,13 @@ int runPlay(const PlayOptions& options) {
             for (;;) {
                 auto frame = c->queue->pop(std::chrono::milliseconds(200));
                 if (!frame) {
-                    if (c->queue->closed()) break;  // a timeout only means a pause
+                    if (c->queue->closed())
+                        break;  // a timeout only means a pause
                     continue;
                 }
                 const int64_t now = monotonicNowNs();
-                if (c->frames == 0) c->first_ns = now;
+                if (c->frames == 0)
+                    c->first_ns = now;
                 c->last_ns = now;
                 ++c->frames;
             }
@@ -83,7 +89,8 @@ int runPlay(const PlayOptions& options) {
     if (start_status.isOk()) {
         while (!replay_device->finished() && !interrupt.raised()) {
             const int64_t elapsed = monotonicNowNs() - started;
-            if (options.duration_s > 0 && elapsed >= options.duration_s * 1e9) break;
+            if (options.duration_s > 0 && elapsed >= options.duration_s * 1e9)
+                break;
             std::string line = formatDuration(elapsed);
             for (const auto& c : counters) {
                 line += "  " + c->name + " " + std::to_string(c->frames.load());
@@ -94,10 +101,12 @@ int runPlay(const PlayOptions& options) {
     }
     graph.stop();
     for (auto& c : counters) {
-        if (c->thread.joinable()) c->thread.join();
+        if (c->thread.joinable())
+            c->thread.join();
     }
     status.finish();
-    if (!start_status) return fail("play", start_status);
+    if (!start_status)
+        return fail("play", start_status);
 
     const double seconds = static_cast<double>(monotonicNowNs() - started) / 1e9;
     std::printf("played %s in %.2f s (%s pace%s)\n", options.path.c_str(), seconds,
@@ -106,13 +115,15 @@ int runPlay(const PlayOptions& options) {
     for (size_t i = 0; i < counters.size(); ++i) {
         const auto& c = counters[i];
         const double span = static_cast<double>(c->last_ns - c->first_ns) / 1e9;
-        const double rate = c->frames > 1 && span > 0 ? static_cast<double>(c->frames - 1) / span : 0;
+        const double rate =
+            c->frames > 1 && span > 0 ? static_cast<double>(c->frames - 1) / span : 0;
         std::printf("  %-24s %8llu frames  %8.2f fps  %llu dropped by the live queue\n",
                     c->name.c_str(), static_cast<unsigned long long>(c->frames.load()), rate,
                     static_cast<unsigned long long>(i < edges.size() ? edges[i].queue.dropped : 0));
     }
     Status replay_status = replay_device->status();
-    if (!replay_status) return fail("play", replay_status);
+    if (!replay_status)
+        return fail("play", replay_status);
     return interrupt.raised() ? kExitInterrupted : kExitOk;
 }
 

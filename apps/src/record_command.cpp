@@ -39,8 +39,8 @@ Result<std::vector<Attachment>> attachmentsOf(const RigDescription& rig) {
         }
         Attachment a;
         a.name = calibration.resolved.filename().string();
-        a.mime_type = calibration.resolved.extension() == ".json" ? "application/json"
-                                                                   : "application/x-yaml";
+        a.mime_type =
+            calibration.resolved.extension() == ".json" ? "application/json" : "application/x-yaml";
         a.data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
         if (a.data.empty()) {
             return {ErrorCode::kCorruptData, calibration.where.toString() + ": calibration file " +
@@ -59,13 +59,16 @@ Result<std::vector<Attachment>> attachmentsOf(const RigDescription& rig) {
 }
 
 QueuePolicy policyOf(const RecordOptions& options, const RigDescription& rig) {
-    if (options.policy == "live") return QueuePolicy::kLive;
-    if (options.policy == "lossless") return QueuePolicy::kLossless;
+    if (options.policy == "live")
+        return QueuePolicy::kLive;
+    if (options.policy == "lossless")
+        return QueuePolicy::kLossless;
     // The rig's choice: lossless unless every stream it configures asks for live.
     bool any = false;
     for (const auto& device : rig.devices) {
         for (const auto& stream : device.streams) {
-            if (stream.queue == QueuePolicy::kLossless) return QueuePolicy::kLossless;
+            if (stream.queue == QueuePolicy::kLossless)
+                return QueuePolicy::kLossless;
             any = true;
         }
     }
@@ -79,17 +82,21 @@ int runRecord(const RecordOptions& options) {
                                options.output + " exists (use --force to overwrite it)"});
     }
     auto rig = loadRig(options.rig_path);
-    if (!rig) return fail("record", rig.status());
+    if (!rig)
+        return fail("record", rig.status());
     auto attachments = attachmentsOf(*rig);
-    if (!attachments) return fail("record", attachments.status());
+    if (!attachments)
+        return fail("record", attachments.status());
 
     BackendRegistry registry = makeBackendRegistry();
     Graph graph;
     for (const auto& config : rig->deviceConfigs()) {
         auto device = registry.open(config);
-        if (!device) return fail("record", device.status());
+        if (!device)
+            return fail("record", device.status());
         Status added = graph.addNode(std::move(*device));
-        if (!added) return fail("record", added);
+        if (!added)
+            return fail("record", added);
     }
     if (graph.streamCount() == 0) {
         return fail("record", {ErrorCode::kInvalidArgument, "the rig's devices have no streams"});
@@ -99,7 +106,8 @@ int runRecord(const RecordOptions& options) {
     std::vector<std::shared_ptr<FrameQueue>> watches;
     for (StreamId id = 0; id < graph.streamCount(); ++id) {
         auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "record-watch"});
-        if (!queue) return fail("record", queue.status());
+        if (!queue)
+            return fail("record", queue.status());
         watches.push_back(*queue);
     }
 
@@ -107,13 +115,15 @@ int runRecord(const RecordOptions& options) {
     if (!rig->sync.streams.empty()) {
         SyncNodeOptions sync_options;
         sync_options.name = "record-sync";
-        for (const auto& ref : rig->sync.streams) sync_options.streams.push_back(ref.name());
+        for (const auto& ref : rig->sync.streams)
+            sync_options.streams.push_back(ref.name());
         sync_options.queue = {8, QueuePolicy::kLive, "record-sync"};
         sync_options.sync.max_skew_ns = static_cast<int64_t>(rig->sync.max_skew_ms * 1e6);
         auto node = std::make_unique<SyncNode>(sync_options, [](const SyncSet&) {});
         sync = node.get();
         Status added = graph.addNode(std::move(node));
-        if (!added) return fail("record", added);
+        if (!added)
+            return fail("record", added);
     }
 
     RecorderOptions recorder_options;
@@ -126,12 +136,14 @@ int runRecord(const RecordOptions& options) {
     auto recorder_node = std::make_unique<Recorder>(recorder_options);
     Recorder* recorder = recorder_node.get();
     Status added = graph.addNode(std::move(recorder_node));
-    if (!added) return fail("record", added);
+    if (!added)
+        return fail("record", added);
 
     InterruptFlag interrupt;
     StatusLine status;
     Status started = graph.start();
-    if (!started) return fail("record", started);
+    if (!started)
+        return fail("record", started);
     const int64_t t0 = monotonicNowNs();
     std::vector<uint64_t> last_published(graph.streamCount(), 0);
     int64_t last_tick = t0;
@@ -143,8 +155,8 @@ int runRecord(const RecordOptions& options) {
             }
         }
         const int64_t now = monotonicNowNs();
-        const bool all_ended = std::all_of(watches.begin(), watches.end(),
-                                           [](const auto& w) { return w->closed(); });
+        const bool all_ended =
+            std::all_of(watches.begin(), watches.end(), [](const auto& w) { return w->closed(); });
         const bool timed_out = options.duration_s > 0 && now - t0 >= options.duration_s * 1e9;
         const RecorderStats stats = recorder->stats();
         if (now - last_tick >= 500'000'000 || all_ended || timed_out) {
@@ -173,7 +185,8 @@ int runRecord(const RecordOptions& options) {
             status.update(line);
             last_tick = now;
         }
-        if (!stats.error.isOk() || all_ended || timed_out || interrupt.raised()) break;
+        if (!stats.error.isOk() || all_ended || timed_out || interrupt.raised())
+            break;
     }
     graph.stop();
     status.finish();

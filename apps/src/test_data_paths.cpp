@@ -6,7 +6,8 @@
 namespace mixray::cli {
 
 std::filesystem::path defaultSharedDataDir() {
-    if (const char* env = std::getenv("MIXRAY_SHARED_DATA")) return env;
+    if (const char* env = std::getenv("MIXRAY_SHARED_DATA"))
+        return env;
     return std::filesystem::path(MIXRAY_SOURCE_DIR).parent_path() / "shared" / "data";
 }
 

@@ -27,16 +27,20 @@ CliRun mixray(const std::string& args) {
     const std::string command = std::string(MIXRAY_CLI_PATH) + " " + args + " 2>&1";
     CliRun run;
     FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe) return run;
+    if (!pipe)
+        return run;
     std::array<char, 4096> buffer;
     size_t n;
-    while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) run.output.append(buffer.data(), n);
+    while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+        run.output.append(buffer.data(), n);
     const int status = pclose(pipe);
     run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return run;
 }
 
-std::string q(const fs::path& path) { return "'" + path.string() + "'"; }
+std::string q(const fs::path& path) {
+    return "'" + path.string() + "'";
+}
 
 const fs::path kSession = test::fixturesDir() / "sessions" / "pattern_rgbd.mkv";
 
@@ -109,14 +113,14 @@ TEST(Cli, BadInputGivesExitCode3AndNamesTheFile) {
 TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
     const fs::path dir = test::tempDir();
     const fs::path out = dir / "session.mkv";
-    CliRun record = mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") +
-                        " -o " + q(out));
+    CliRun record =
+        mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") + " -o " + q(out));
     ASSERT_EQ(record.exit_code, 0) << record.output;
     EXPECT_NE(record.output.find("recorded 150 frames"), std::string::npos) << record.output;
     EXPECT_NE(record.output.find("sync"), std::string::npos) << record.output;
 
-    CliRun again = mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") +
-                       " -o " + q(out));
+    CliRun again =
+        mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") + " -o " + q(out));
     EXPECT_EQ(again.exit_code, 2) << "refuses to overwrite without --force";
 
     CliRun play = mixray("play --fast " + q(out));
@@ -150,8 +154,10 @@ TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
     fs::create_directories(tum / "depth");
     fs::copy_file(src / "TUM_color.png", tum / "rgb" / "1305031102.175304.png");
     fs::copy_file(src / "TUM_depth.png", tum / "depth" / "1305031102.160407.png");
-    std::ofstream(tum / "rgb.txt") << "# color images\n1305031102.175304 rgb/1305031102.175304.png\n";
-    std::ofstream(tum / "depth.txt") << "# depth maps\n1305031102.160407 depth/1305031102.160407.png\n";
+    std::ofstream(tum / "rgb.txt")
+        << "# color images\n1305031102.175304 rgb/1305031102.175304.png\n";
+    std::ofstream(tum / "depth.txt")
+        << "# depth maps\n1305031102.160407 depth/1305031102.160407.png\n";
 
     CliRun to_mkv = mixray("convert " + q(tum) + " " + q(dir / "tum.mkv"));
     ASSERT_EQ(to_mkv.exit_code, 0) << to_mkv.output;
@@ -170,10 +176,11 @@ TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
 
 TEST(Cli, BenchGraphPrintsItsFigures) {
     CliRun run = mixray("bench graph --frames 300 --record-frames 10 --disk-mb 16 --dir " +
-                     q(test::tempDir()));
+                        q(test::tempDir()));
     ASSERT_EQ(run.exit_code, 0) << run.output;
-    for (const char* line : {"synchronized sets/s", "heap allocations per set",
-                             "pixel copies per frame", "raw disk write", "recording, uncompressed"}) {
+    for (const char* line :
+         {"synchronized sets/s", "heap allocations per set", "pixel copies per frame",
+          "raw disk write", "recording, uncompressed"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
 }

@@ -7,25 +7,13 @@
 #include <cstdint>
 #include <vector>
 
+#include "mixray/pattern/random.h"
+
 namespace mixray {
 namespace {
 
 // splitmix64: the same numbers on every platform, unlike std distributions.
-class Random {
-public:
-    explicit Random(uint64_t seed) : state_(seed) {}
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-    double exponential(double mean) { return -std::log1p(-uniform()) * mean; }
-
-private:
-    uint64_t state_;
-};
+using Random = pattern::SplitMix64;
 
 // A device clock observed through a jittery link: capture instants t_k on the host clock,
 // device stamps offset + (1 + drift)·(t_k − t_0), arrival t_k + latency + random delay.

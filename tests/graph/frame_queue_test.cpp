@@ -19,7 +19,8 @@ FrameRef makeFrame(BufferPool& pool, uint64_t sequence) {
 TEST(FrameQueue, LiveDropsOldestAndCounts) {
     auto pool = BufferPool::create({ImageDesc::packed(PixelFormat::kMono8, 8, 8), 0, 16, "q"});
     FrameQueue queue({3, QueuePolicy::kLive, "consumer"});
-    for (uint64_t i = 0; i < 10; ++i) EXPECT_TRUE(queue.push(makeFrame(*pool, i)));
+    for (uint64_t i = 0; i < 10; ++i)
+        EXPECT_TRUE(queue.push(makeFrame(*pool, i)));
     auto stats = queue.stats();
     EXPECT_EQ(stats.pushed, 10u);
     EXPECT_EQ(stats.dropped, 7u);
@@ -38,7 +39,8 @@ TEST(FrameQueue, LosslessBlocksUntilConsumed) {
     auto pool = BufferPool::create({ImageDesc::packed(PixelFormat::kMono8, 8, 8), 0, 16, "q"});
     FrameQueue queue({2, QueuePolicy::kLossless, "recorder"});
     std::thread producer([&] {
-        for (uint64_t i = 0; i < 12; ++i) ASSERT_TRUE(queue.push(makeFrame(*pool, i)));
+        for (uint64_t i = 0; i < 12; ++i)
+            ASSERT_TRUE(queue.push(makeFrame(*pool, i)));
     });
     for (uint64_t expected = 0; expected < 12; ++expected) {
         auto frame = queue.pop(std::chrono::seconds(5));

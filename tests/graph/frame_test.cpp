@@ -75,9 +75,11 @@ TEST(BufferPool, ConcurrentReleaseRecyclesEveryBuffer) {
         FrameRef frame = pool->acquire().publish();
         ASSERT_TRUE(frame);
         std::vector<std::thread> threads;
-        for (int t = 0; t < 4; ++t) threads.emplace_back([copy = frame]() mutable { copy.reset(); });
+        for (int t = 0; t < 4; ++t)
+            threads.emplace_back([copy = frame]() mutable { copy.reset(); });
         frame.reset();
-        for (auto& t : threads) t.join();
+        for (auto& t : threads)
+            t.join();
     }
     EXPECT_EQ(pool->inFlight(), 0u);
     EXPECT_EQ(pool->acquiredCount(), 200u);

@@ -75,7 +75,8 @@ public:
     Status connect(Graph& graph) override {
         graph_ = &graph;
         auto id = graph.addStream(depthStream("burst/depth"));
-        if (!id) return id.status();
+        if (!id)
+            return id.status();
         stream_ = *id;
         pool_ = BufferPool::create({depthStream("").format, 0, 16, "burst/depth"});
         return Status::ok();
@@ -99,7 +100,8 @@ public:
         return Status::ok();
     }
     void stop() override {
-        if (thread_.joinable()) thread_.join();
+        if (thread_.joinable())
+            thread_.join();
     }
     std::shared_ptr<BufferPool> pool() const { return pool_; }
     int poolEmpty() const { return pool_empty_; }
@@ -136,12 +138,13 @@ TEST(Graph, SlowLiveConsumerNeitherGrowsMemoryNorSlowsOthers) {
         EXPECT_EQ(frame->meta().sequence, expected++);
         ++fast_count;
         size_t now = src->pool()->inFlight();
-        if (now > max_in_flight) max_in_flight = now;
+        if (now > max_in_flight)
+            max_in_flight = now;
     }
     graph.stop();
     slow_consumer.join();
 
-    EXPECT_EQ(fast_count, kFrames);              // the fast consumer saw every frame
+    EXPECT_EQ(fast_count, kFrames);  // the fast consumer saw every frame
     EXPECT_EQ(fast->stats().dropped, 0u);
     EXPECT_GT(slow->stats().dropped, kFrames / 2u);  // the slow one lost most of them...
     EXPECT_LE(slow->stats().high_water, 2u);         // ...while holding at most its capacity
@@ -160,7 +163,8 @@ TEST(Graph, LosslessConsumerGetsEveryFrameInOrder) {
     uint64_t expected = 0;
     while (auto frame = recorder->pop(std::chrono::seconds(5))) {
         ASSERT_EQ(frame->meta().sequence, expected++);
-        if (expected % 50 == 0) std::this_thread::sleep_for(milliseconds(3));
+        if (expected % 50 == 0)
+            std::this_thread::sleep_for(milliseconds(3));
     }
     graph.stop();
     EXPECT_EQ(expected, static_cast<uint64_t>(kFrames));

@@ -14,6 +14,8 @@
 #include <utility>
 #include <vector>
 
+#include "mixray/pattern/random.h"
+
 // Counts heap allocations, to show the synchronizer's steady state makes none. GCC flags the
 // malloc/free pair inside replaced operators once they are inlined; the pairing is correct.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
@@ -41,21 +43,7 @@ void operator delete(void* p, std::size_t) noexcept {
 namespace mixray {
 namespace {
 
-class Random {
-public:
-    explicit Random(uint64_t seed) : state_(seed) {}
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-    double exponential(double mean) { return -std::log1p(-uniform()) * mean; }
-
-private:
-    uint64_t state_;
-};
+using Random = pattern::SplitMix64;
 
 // A simulated device: its clock and the link its frames arrive through.
 struct DeviceSim {

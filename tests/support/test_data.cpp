@@ -7,12 +7,17 @@
 
 namespace mixray::test {
 
-std::filesystem::path sourceDir() { return MIXRAY_SOURCE_DIR; }
+std::filesystem::path sourceDir() {
+    return MIXRAY_SOURCE_DIR;
+}
 
-std::filesystem::path fixturesDir() { return sourceDir() / "fixtures"; }
+std::filesystem::path fixturesDir() {
+    return sourceDir() / "fixtures";
+}
 
 std::filesystem::path sharedDataDir() {
-    if (const char* env = std::getenv("MIXRAY_SHARED_DATA")) return env;
+    if (const char* env = std::getenv("MIXRAY_SHARED_DATA"))
+        return env;
     return sourceDir().parent_path() / "shared" / "data";
 }
 
@@ -20,7 +25,8 @@ std::filesystem::path tempDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "global";
     for (char& c : name) {
-        if (c == '/') c = '_';
+        if (c == '/')
+            c = '_';
     }
     auto dir = std::filesystem::path(MIXRAY_BINARY_DIR) / "test-tmp" / name;
     std::filesystem::remove_all(dir);

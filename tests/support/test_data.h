@@ -16,10 +16,10 @@ std::filesystem::path tempDir();
 }  // namespace mixray::test
 
 // Skips the calling test with a clear message when `path` (under shared data) is absent.
-#define MIXRAY_REQUIRE_SHARED_DATA(path)                                                       \
-    do {                                                                                       \
-        if (!std::filesystem::exists(path)) {                                                  \
-            GTEST_SKIP() << "real data not available: " << (path)                              \
-                         << " (expected under ../shared/data; see its MANIFEST.md)";           \
-        }                                                                                      \
+#define MIXRAY_REQUIRE_SHARED_DATA(path)                                             \
+    do {                                                                             \
+        if (!std::filesystem::exists(path)) {                                        \
+            GTEST_SKIP() << "real data not available: " << (path)                    \
+                         << " (expected under ../shared/data; see its MANIFEST.md)"; \
+        }                                                                            \
     } while (0)

@@ -4,7 +4,8 @@
 namespace mixray {
 
 Status BackendRegistry::add(std::unique_ptr<DeviceBackend> backend) {
-    if (!backend) return {ErrorCode::kInvalidArgument, "null backend"};
+    if (!backend)
+        return {ErrorCode::kInvalidArgument, "null backend"};
     if (find(backend->name())) {
         return {ErrorCode::kInvalidArgument,
                 "backend '" + std::string(backend->name()) + "' registered twice"};
@@ -15,14 +16,16 @@ Status BackendRegistry::add(std::unique_ptr<DeviceBackend> backend) {
 
 DeviceBackend* BackendRegistry::find(std::string_view name) const {
     for (const auto& b : backends_) {
-        if (b->name() == name) return b.get();
+        if (b->name() == name)
+            return b.get();
     }
     return nullptr;
 }
 
 std::vector<DeviceBackend*> BackendRegistry::backends() const {
     std::vector<DeviceBackend*> out;
-    for (const auto& b : backends_) out.push_back(b.get());
+    for (const auto& b : backends_)
+        out.push_back(b.get());
     return out;
 }
 
@@ -30,12 +33,14 @@ Result<std::unique_ptr<Device>> BackendRegistry::open(const DeviceConfig& config
     DeviceBackend* backend = find(config.driver);
     if (!backend) {
         std::string known;
-        for (const auto& b : backends_) known += (known.empty() ? "" : ", ") + std::string(b->name());
+        for (const auto& b : backends_)
+            known += (known.empty() ? "" : ", ") + std::string(b->name());
         return {ErrorCode::kNotFound, "device '" + config.name + "': unknown driver '" +
                                           config.driver + "' (known: " + known + ")"};
     }
     auto device = backend->open(config);
-    if (!device) return device.status().withContext("device '" + config.name + "'");
+    if (!device)
+        return device.status().withContext("device '" + config.name + "'");
     return device;
 }
 

@@ -16,20 +16,25 @@ void detail::AlignedBytesDelete::operator()(uint8_t* p) const {
 
 std::string_view toString(FrameStatus status) {
     switch (status) {
-        case FrameStatus::kOk: return "ok";
-        case FrameStatus::kIncomplete: return "incomplete";
-        case FrameStatus::kCorrupt: return "corrupt";
+        case FrameStatus::kOk:
+            return "ok";
+        case FrameStatus::kIncomplete:
+            return "incomplete";
+        case FrameStatus::kCorrupt:
+            return "corrupt";
     }
     return "unknown";
 }
 
 FrameRef::FrameRef(const FrameRef& other) : slot_(other.slot_) {
-    if (slot_) slot_->refs.fetch_add(1, std::memory_order_relaxed);
+    if (slot_)
+        slot_->refs.fetch_add(1, std::memory_order_relaxed);
 }
 
 FrameRef& FrameRef::operator=(const FrameRef& other) {
     if (this != &other) {
-        if (other.slot_) other.slot_->refs.fetch_add(1, std::memory_order_relaxed);
+        if (other.slot_)
+            other.slot_->refs.fetch_add(1, std::memory_order_relaxed);
         reset();
         slot_ = other.slot_;
     }
@@ -54,7 +59,8 @@ void FrameRef::reset() {
 
 WritableFrame& WritableFrame::operator=(WritableFrame&& other) noexcept {
     if (this != &other) {
-        if (slot_) BufferPool::recycle(slot_);
+        if (slot_)
+            BufferPool::recycle(slot_);
         slot_ = other.slot_;
         other.slot_ = nullptr;
     }
@@ -62,7 +68,8 @@ WritableFrame& WritableFrame::operator=(WritableFrame&& other) noexcept {
 }
 
 WritableFrame::~WritableFrame() {
-    if (slot_) BufferPool::recycle(slot_);
+    if (slot_)
+        BufferPool::recycle(slot_);
 }
 
 void WritableFrame::setPayloadBytes(size_t bytes) {
@@ -73,7 +80,8 @@ void WritableFrame::setPayloadBytes(size_t bytes) {
 void WritableFrame::setDesc(const ImageDesc& desc) {
     assert(desc.bufferBytes() <= slot_->capacity_bytes);
     slot_->desc = desc;
-    if (!pixelFormatInfo(desc.format).compressed) slot_->payload_bytes = desc.bufferBytes();
+    if (!pixelFormatInfo(desc.format).compressed)
+        slot_->payload_bytes = desc.bufferBytes();
 }
 
 FrameRef WritableFrame::publish() && {
@@ -86,7 +94,8 @@ FrameRef WritableFrame::publish() && {
 WritableFrame WritableFrame::reclaim(FrameRef& frame) {
     detail::FrameSlot* slot = frame.slot_;
     // With a single handle nobody else can take a new reference, so the check cannot race.
-    if (!slot || slot->refs.load(std::memory_order_acquire) != 1) return {};
+    if (!slot || slot->refs.load(std::memory_order_acquire) != 1)
+        return {};
     frame.slot_ = nullptr;
     slot->refs.store(0, std::memory_order_relaxed);
     return WritableFrame(slot);
@@ -95,23 +104,27 @@ WritableFrame WritableFrame::reclaim(FrameRef& frame) {
 bool BufferPoolOptions::validate(std::string* why) const {
     const size_t bytes = buffer_bytes ? buffer_bytes : desc.bufferBytes();
     if (bytes == 0) {
-        if (why) *why = "buffer pool '" + name + "': zero-sized buffers (bad image layout)";
+        if (why)
+            *why = "buffer pool '" + name + "': zero-sized buffers (bad image layout)";
         return false;
     }
     if (buffer_bytes && buffer_bytes < desc.bufferBytes() &&
         !pixelFormatInfo(desc.format).compressed) {
-        if (why) *why = "buffer pool '" + name + "': buffer_bytes smaller than one image";
+        if (why)
+            *why = "buffer pool '" + name + "': buffer_bytes smaller than one image";
         return false;
     }
     if (buffer_count == 0) {
-        if (why) *why = "buffer pool '" + name + "': buffer_count is 0";
+        if (why)
+            *why = "buffer pool '" + name + "': buffer_count is 0";
         return false;
     }
     return true;
 }
 
 std::shared_ptr<BufferPool> BufferPool::create(const BufferPoolOptions& options) {
-    if (!options.validate(nullptr)) return nullptr;
+    if (!options.validate(nullptr))
+        return nullptr;
     return std::shared_ptr<BufferPool>(new BufferPool(options));
 }
 
@@ -121,7 +134,7 @@ BufferPool::BufferPool(const BufferPoolOptions& options)
     size_t bytes = options_.buffer_bytes ? options_.buffer_bytes : options_.desc.bufferBytes();
     bytes = (bytes + kAlign - 1) / kAlign * kAlign;
     options_.buffer_bytes = bytes;
-    storage_.reset(static_cast<uint8_t*>(::operator new[](bytes * slots_.size(), kPoolAlignment)));
+    storage_.reset(static_cast<uint8_t*>(::operator new[](bytes* slots_.size(), kPoolAlignment)));
     free_.reserve(slots_.size());
     for (size_t i = 0; i < slots_.size(); ++i) {
         slots_[i].data = storage_.get() + i * bytes;
@@ -146,9 +159,8 @@ WritableFrame BufferPool::acquire() {
     acquired_.fetch_add(1, std::memory_order_relaxed);
     slot->meta = FrameMetadata{};
     slot->desc = options_.desc;
-    slot->payload_bytes = pixelFormatInfo(options_.desc.format).compressed
-                              ? 0
-                              : options_.desc.bufferBytes();
+    slot->payload_bytes =
+        pixelFormatInfo(options_.desc.format).compressed ? 0 : options_.desc.bufferBytes();
     slot->owner = shared_from_this();
     return WritableFrame(slot);
 }
@@ -170,10 +182,12 @@ void BufferPool::recycle(detail::FrameSlot* slot) {
 
 FrameRef copyIntoPool(BufferPool& pool, const ImageView& view, const FrameMetadata& meta) {
     WritableFrame frame = pool.acquire();
-    if (!frame) return {};
+    if (!frame)
+        return {};
     const bool compressed = pixelFormatInfo(view.desc.format).compressed;
     const size_t bytes = compressed ? view.size_bytes : view.desc.bufferBytes();
-    if (bytes > frame.capacityBytes()) return {};
+    if (bytes > frame.capacityBytes())
+        return {};
     frame.setDesc(view.desc);
     std::memcpy(frame.image().data, view.data, bytes);
     frame.setPayloadBytes(bytes);

@@ -16,7 +16,8 @@ FrameQueue::FrameQueue(const QueueOptions& options)
 
 bool FrameQueue::push(FrameRef frame) {
     std::unique_lock lock(mutex_);
-    if (closed_) return false;
+    if (closed_)
+        return false;
     ++stats_.pushed;
     if (size_ == ring_.size()) {
         if (options_.policy == QueuePolicy::kLive) {
@@ -29,10 +30,12 @@ bool FrameQueue::push(FrameRef frame) {
             lock.unlock();
             dropped.reset();  // recycling takes the pool's lock: not under ours
             lock.lock();
-            if (closed_) return false;
+            if (closed_)
+                return false;
         } else {
             not_full_.wait(lock, [&] { return closed_ || size_ < ring_.size(); });
-            if (closed_) return false;
+            if (closed_)
+                return false;
         }
     }
     ring_[(head_ + size_) % ring_.size()] = std::move(frame);
@@ -48,7 +51,8 @@ std::optional<FrameRef> FrameQueue::pop(std::chrono::nanoseconds timeout) {
     if (!not_empty_.wait_for(lock, timeout, [&] { return closed_ || size_ > 0; })) {
         return std::nullopt;
     }
-    if (size_ == 0) return std::nullopt;
+    if (size_ == 0)
+        return std::nullopt;
     FrameRef frame = std::move(ring_[head_]);
     head_ = (head_ + 1) % ring_.size();
     --size_;
@@ -58,7 +62,9 @@ std::optional<FrameRef> FrameQueue::pop(std::chrono::nanoseconds timeout) {
     return frame;
 }
 
-std::optional<FrameRef> FrameQueue::tryPop() { return pop(std::chrono::nanoseconds(0)); }
+std::optional<FrameRef> FrameQueue::tryPop() {
+    return pop(std::chrono::nanoseconds(0));
+}
 
 void FrameQueue::close() {
     {

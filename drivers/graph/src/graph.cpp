@@ -7,10 +7,13 @@ namespace mixray {
 
 using QueueList = std::vector<std::shared_ptr<FrameQueue>>;
 
-Graph::~Graph() { stop(); }
+Graph::~Graph() {
+    stop();
+}
 
 Result<StreamId> Graph::addStream(StreamInfo info) {
-    if (info.name.empty()) return {ErrorCode::kInvalidArgument, "stream without a name"};
+    if (info.name.empty())
+        return {ErrorCode::kInvalidArgument, "stream without a name"};
     std::lock_guard lock(mutex_);
     for (const auto& s : streams_) {
         if (s->info.name == info.name) {
@@ -38,14 +41,16 @@ std::vector<StreamInfo> Graph::streams() const {
     std::lock_guard lock(mutex_);
     std::vector<StreamInfo> out;
     out.reserve(streams_.size());
-    for (const auto& s : streams_) out.push_back(s->info);
+    for (const auto& s : streams_)
+        out.push_back(s->info);
     return out;
 }
 
 std::optional<StreamId> Graph::findStream(std::string_view name) const {
     std::lock_guard lock(mutex_);
     for (size_t i = 0; i < streams_.size(); ++i) {
-        if (streams_[i]->info.name == name) return static_cast<StreamId>(i);
+        if (streams_[i]->info.name == name)
+            return static_cast<StreamId>(i);
     }
     return std::nullopt;
 }
@@ -64,15 +69,18 @@ Result<std::shared_ptr<FrameQueue>> Graph::subscribe(StreamId stream, const Queu
 }
 
 void Graph::unsubscribe(const std::shared_ptr<FrameQueue>& queue) {
-    if (!queue) return;
+    if (!queue)
+        return;
     queue->close();
     std::lock_guard lock(mutex_);
     for (auto& s : streams_) {
         const auto& current = *s->subscribers;
-        if (std::find(current.begin(), current.end(), queue) == current.end()) continue;
+        if (std::find(current.begin(), current.end(), queue) == current.end())
+            continue;
         auto list = std::make_shared<QueueList>();
         for (const auto& q : current) {
-            if (q != queue) list->push_back(q);
+            if (q != queue)
+                list->push_back(q);
         }
         s->subscribers = std::move(list);
     }
@@ -80,41 +88,49 @@ void Graph::unsubscribe(const std::shared_ptr<FrameQueue>& queue) {
 
 std::shared_ptr<const QueueList> Graph::subscribersOf(StreamId stream) const {
     std::lock_guard lock(mutex_);
-    if (stream >= streams_.size()) return nullptr;
+    if (stream >= streams_.size())
+        return nullptr;
     streams_[stream]->published.fetch_add(1, std::memory_order_relaxed);
     return streams_[stream]->subscribers;
 }
 
 void Graph::publish(const FrameRef& frame) {
-    if (!frame) return;
+    if (!frame)
+        return;
     auto subscribers = subscribersOf(frame.meta().stream);
     if (!subscribers) {
         unknown_stream_frames_.fetch_add(1, std::memory_order_relaxed);
         return;
     }
-    for (const auto& queue : *subscribers) queue->push(frame);
+    for (const auto& queue : *subscribers)
+        queue->push(frame);
 }
 
 void Graph::endStream(StreamId stream) {
     std::shared_ptr<const QueueList> subscribers;
     {
         std::lock_guard lock(mutex_);
-        if (stream >= streams_.size()) return;
+        if (stream >= streams_.size())
+            return;
         subscribers = streams_[stream]->subscribers;
     }
-    for (const auto& queue : *subscribers) queue->close();
+    for (const auto& queue : *subscribers)
+        queue->close();
 }
 
 Status Graph::addNode(std::unique_ptr<Node> node) {
-    if (!node) return {ErrorCode::kInvalidArgument, "addNode: null node"};
-    if (running_) return {ErrorCode::kInvalidArgument, "addNode: graph is running"};
+    if (!node)
+        return {ErrorCode::kInvalidArgument, "addNode: null node"};
+    if (running_)
+        return {ErrorCode::kInvalidArgument, "addNode: graph is running"};
     MIXRAY_RETURN_IF_ERROR(node->connect(*this).withContext("node '" + node->name() + "'"));
     nodes_.push_back(std::move(node));
     return Status::ok();
 }
 
 Status Graph::start() {
-    if (running_) return Status::ok();
+    if (running_)
+        return Status::ok();
     running_ = true;
     for (started_nodes_ = 0; started_nodes_ < nodes_.size(); ++started_nodes_) {
         Status status = nodes_[started_nodes_]->start();
@@ -128,18 +144,22 @@ Status Graph::start() {
 }
 
 void Graph::stop() {
-    if (!running_.exchange(false)) return;
+    if (!running_.exchange(false))
+        return;
     // Close every queue first: nodes blocked on a lossless push or a pop wake up and see the
     // end, so stopping in reverse order cannot deadlock.
     std::vector<std::shared_ptr<const QueueList>> lists;
     {
         std::lock_guard lock(mutex_);
-        for (const auto& s : streams_) lists.push_back(s->subscribers);
+        for (const auto& s : streams_)
+            lists.push_back(s->subscribers);
     }
     for (const auto& list : lists) {
-        for (const auto& queue : *list) queue->close();
+        for (const auto& queue : *list)
+            queue->close();
     }
-    while (started_nodes_ > 0) nodes_[--started_nodes_]->stop();
+    while (started_nodes_ > 0)
+        nodes_[--started_nodes_]->stop();
 }
 
 uint64_t Graph::publishedCount(StreamId stream) const {
@@ -152,8 +172,8 @@ std::vector<EdgeStats> Graph::edgeStats() const {
     std::vector<EdgeStats> out;
     for (const auto& s : streams_) {
         for (const auto& queue : *s->subscribers) {
-            out.push_back({s->info.name, queue->options().name, queue->options().policy,
-                           queue->stats()});
+            out.push_back(
+                {s->info.name, queue->options().name, queue->options().policy, queue->stats()});
         }
     }
     return out;

@@ -32,11 +32,14 @@ const PixelFormatInfo& pixelFormatInfo(PixelFormat format) {
     return index < kFormats.size() ? kFormats[index] : kFormats[0];
 }
 
-std::string_view toString(PixelFormat format) { return pixelFormatInfo(format).name; }
+std::string_view toString(PixelFormat format) {
+    return pixelFormatInfo(format).name;
+}
 
 std::optional<PixelFormat> pixelFormatFromString(std::string_view name) {
     for (size_t i = 1; i < kFormats.size(); ++i) {
-        if (kFormats[i].name == name) return static_cast<PixelFormat>(i);
+        if (kFormats[i].name == name)
+            return static_cast<PixelFormat>(i);
     }
     return std::nullopt;
 }
@@ -55,17 +58,22 @@ ImageDesc ImageDesc::packed(PixelFormat format, int width, int height) {
 }
 
 size_t ImageDesc::bufferBytes() const {
-    if (width <= 0 || height <= 0) return 0;
+    if (width <= 0 || height <= 0)
+        return 0;
     const auto w = static_cast<size_t>(width);
     const auto h = static_cast<size_t>(height);
     switch (format) {
-        case PixelFormat::kUnknown: return 0;
+        case PixelFormat::kUnknown:
+            return 0;
         case PixelFormat::kMJPEG:
             // A JPEG of any sane quality stays below 4 bytes per pixel plus headers.
             return w * h * 4 + 65536;
-        case PixelFormat::kNV12: return static_cast<size_t>(stride_bytes) * h * 3 / 2;
-        case PixelFormat::kBinary: return w * h;
-        default: return static_cast<size_t>(stride_bytes) * h;
+        case PixelFormat::kNV12:
+            return static_cast<size_t>(stride_bytes) * h * 3 / 2;
+        case PixelFormat::kBinary:
+            return w * h;
+        default:
+            return static_cast<size_t>(stride_bytes) * h;
     }
 }
 

@@ -19,14 +19,16 @@ constexpr std::array<std::pair<StreamKind, std::string_view>, 7> kKinds = {{
 
 std::string_view toString(StreamKind kind) {
     for (const auto& [k, name] : kKinds) {
-        if (k == kind) return name;
+        if (k == kind)
+            return name;
     }
     return "data";
 }
 
 std::optional<StreamKind> streamKindFromString(std::string_view name) {
     for (const auto& [k, n] : kKinds) {
-        if (n == name) return k;
+        if (n == name)
+            return k;
     }
     return std::nullopt;
 }

@@ -481,6 +481,10 @@ void Synchronizer::flush() {
         publishCandidate();
         process();
     }
+    dropAllQueued();
+}
+
+void Synchronizer::dropAllQueued() {
     for (size_t i = 0; i < queues_.size(); ++i) {
         StreamQueue& q = queues_[i];
         q.past = 0;
@@ -497,18 +501,7 @@ void Synchronizer::flush() {
 
 void Synchronizer::clear() {
     pivot_ = kNoPivot;
-    for (size_t i = 0; i < queues_.size(); ++i) {
-        StreamQueue& q = queues_[i];
-        q.past = 0;
-        while (q.size > 0) {
-            FrameRef frame = std::move(q.at(0).frame);
-            q.begin = (q.begin + 1) % q.ring.size();
-            --q.size;
-            dropFrame(frame, i, DropReason::kFlushed);
-        }
-        q.has_dropped = false;
-    }
-    non_empty_ = 0;
+    dropAllQueued();
     while (ready_size_ > 0) {
         SyncSet& old = ready_[ready_begin_];
         for (size_t i = 0; i < queues_.size(); ++i) {

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <set>
 
+#include "mixray/pattern/random.h"
+
 namespace mixray::pattern {
 namespace {
 
@@ -154,22 +156,7 @@ private:
 };
 
 // splitmix64: tiny, fast and the same on every platform (std distributions are not).
-class Random {
-public:
-    explicit Random(uint64_t seed) : state_(seed) {}
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    // Uniform in [0, 1).
-    double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-    double exponential(double mean) { return mean > 0 ? -std::log1p(-uniform()) * mean : 0.0; }
-
-private:
-    uint64_t state_;
-};
+using Random = SplitMix64;
 
 uint32_t fnv1a(std::string_view text) {
     uint32_t h = 2166136261u;

@@ -201,6 +201,23 @@ Status prepareOutputDir(const std::filesystem::path& dir) {
     return Status::ok();
 }
 
+Result<ColorAndDepth> pickColorAndDepth(const RecordingHeader& header, std::string_view color,
+                                        std::string_view depth, std::string_view writer) {
+    auto c = pickStream(header, color, StreamKind::kColor, writer);
+    if (!c)
+        return c.status();
+    auto d = pickStream(header, depth, StreamKind::kDepth, writer);
+    if (!d)
+        return d.status();
+    if (*c == kInvalidStream && *d == kInvalidStream) {
+        return {ErrorCode::kUnsupported,
+                std::string(writer) +
+                    ": the recording has neither a colour stream (rgb8, bgr8, "
+                    "mjpeg) nor a depth16 stream"};
+    }
+    return ColorAndDepth{*c, *d};
+}
+
 std::string_view shortStreamName(std::string_view name) {
     const size_t slash = name.rfind('/');
     return slash == std::string_view::npos ? name : name.substr(slash + 1);

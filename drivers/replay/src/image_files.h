@@ -55,13 +55,21 @@ Status prepareOutputDir(const std::filesystem::path& dir);
 Result<StreamId> pickStream(const RecordingHeader& header, std::string_view wanted, StreamKind kind,
                             std::string_view writer);
 
+// The colour and depth streams a folder writer stores (see pickStream); at least one of them.
+struct ColorAndDepth {
+    StreamId color = kInvalidStream;
+    StreamId depth = kInvalidStream;
+};
+Result<ColorAndDepth> pickColorAndDepth(const RecordingHeader& header, std::string_view color,
+                                        std::string_view depth, std::string_view writer);
+
 // Part of a stream name after its last '/': "kinect/depth" -> "depth".
 std::string_view shortStreamName(std::string_view name);
 
 // A RecordingReader over a sorted list of image files, one pool per stream. Decodes a file
 // per next(); seek() is a binary search. Thread-bound.
 class ImageSequenceReader : public RecordingReader {
-  public:
+public:
     ImageSequenceReader(std::string format, std::vector<StreamInfo> streams,
                         std::vector<Attachment> attachments,
                         std::map<std::string, std::string> tags, std::vector<SequenceEntry> entries,
@@ -74,7 +82,7 @@ class ImageSequenceReader : public RecordingReader {
     Result<FrameRef> next() override;
     Status seek(int64_t host_stamp_ns) override;
 
-  private:
+private:
     std::string format_;
     std::vector<StreamInfo> streams_;
     std::vector<Attachment> attachments_;

@@ -57,37 +57,28 @@ struct PclOutput {
 };
 
 class PclTiffWriter : public RecordingWriter {
-  public:
+public:
     static Result<std::unique_ptr<RecordingWriter>> create(const std::filesystem::path& dir,
                                                            const RecordingHeader& header,
                                                            const PclTiffWriterOptions& options) {
-        auto color =
-            detail::pickStream(header, options.color_stream, StreamKind::kColor, "PCL TIFF writer");
-        if (!color)
-            return color.status();
-        auto depth =
-            detail::pickStream(header, options.depth_stream, StreamKind::kDepth, "PCL TIFF writer");
-        if (!depth)
-            return depth.status();
-        if (*color == kInvalidStream && *depth == kInvalidStream) {
-            return {ErrorCode::kUnsupported,
-                    "PCL TIFF writer: the recording has neither a colour stream (rgb8, bgr8, "
-                    "mjpeg) nor a depth16 stream"};
-        }
+        auto picked = detail::pickColorAndDepth(header, options.color_stream, options.depth_stream,
+                                                "PCL TIFF writer");
+        if (!picked)
+            return picked.status();
         MIXRAY_RETURN_IF_ERROR(detail::prepareOutputDir(dir));
         std::unique_ptr<PclTiffWriter> writer(new PclTiffWriter(dir));
         writer->color_.suffix = "_rgb.tiff";
         writer->depth_.suffix = "_depth.tiff";
-        if (*color != kInvalidStream) {
-            writer->color_.stream = *color;
-            writer->color_.digits = stampDigitsOf(header.streams[*color]);
+        if (picked->color != kInvalidStream) {
+            writer->color_.stream = picked->color;
+            writer->color_.digits = stampDigitsOf(header.streams[picked->color]);
         }
-        if (*depth != kInvalidStream) {
-            auto scale = depthScalePerMetre(header.streams[*depth]);
+        if (picked->depth != kInvalidStream) {
+            auto scale = depthScalePerMetre(header.streams[picked->depth]);
             if (!scale)
                 return scale.status();
-            writer->depth_.stream = *depth;
-            writer->depth_.digits = stampDigitsOf(header.streams[*depth]);
+            writer->depth_.stream = picked->depth;
+            writer->depth_.digits = stampDigitsOf(header.streams[picked->depth]);
             writer->depth_.depth_from_per_m = *scale;
         }
         for (const Attachment& a : header.attachments) {
@@ -149,7 +140,7 @@ class PclTiffWriter : public RecordingWriter {
     }
     uint64_t bytesWritten() const override { return bytes_; }
 
-  private:
+private:
     explicit PclTiffWriter(std::filesystem::path dir) : dir_(std::move(dir)) {}
 
     std::filesystem::path dir_;

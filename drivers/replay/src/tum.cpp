@@ -108,7 +108,7 @@ Result<std::optional<TumList>> readList(const std::filesystem::path& dir, const 
 
 // Writes one list file: header comments, then a line per frame, flushed as it goes.
 class TumListWriter {
-  public:
+public:
     Status open(const std::filesystem::path& file, const std::string& header) {
         out_.open(file, std::ios::binary | std::ios::trunc);
         if (!out_)
@@ -135,7 +135,7 @@ class TumListWriter {
     }
     uint64_t bytes() const { return bytes_; }
 
-  private:
+private:
     std::filesystem::path file_;
     std::ofstream out_;
     uint64_t bytes_ = 0;
@@ -152,36 +152,27 @@ struct TumOutput {
 };
 
 class TumWriter : public RecordingWriter {
-  public:
+public:
     static Result<std::unique_ptr<RecordingWriter>> create(const std::filesystem::path& dir,
                                                            const RecordingHeader& header,
                                                            const TumWriterOptions& options) {
-        auto color =
-            detail::pickStream(header, options.color_stream, StreamKind::kColor, "TUM writer");
-        if (!color)
-            return color.status();
-        auto depth =
-            detail::pickStream(header, options.depth_stream, StreamKind::kDepth, "TUM writer");
-        if (!depth)
-            return depth.status();
-        if (*color == kInvalidStream && *depth == kInvalidStream) {
-            return {ErrorCode::kUnsupported,
-                    "TUM writer: the recording has neither a colour stream (rgb8, bgr8, mjpeg) "
-                    "nor a depth16 stream"};
-        }
+        auto picked = detail::pickColorAndDepth(header, options.color_stream, options.depth_stream,
+                                                "TUM writer");
+        if (!picked)
+            return picked.status();
         MIXRAY_RETURN_IF_ERROR(detail::prepareOutputDir(dir));
         std::unique_ptr<TumWriter> writer(new TumWriter(dir));
-        if (*color != kInvalidStream) {
+        if (picked->color != kInvalidStream) {
             MIXRAY_RETURN_IF_ERROR(
-                writer->openOutput(writer->color_, header, *color, "rgb", "# color images"));
+                writer->openOutput(writer->color_, header, picked->color, "rgb", "# color images"));
         }
-        if (*depth != kInvalidStream) {
-            auto scale = depthScalePerMetre(header.streams[*depth]);
+        if (picked->depth != kInvalidStream) {
+            auto scale = depthScalePerMetre(header.streams[picked->depth]);
             if (!scale)
                 return scale.status();
             writer->depth_.depth_from_per_m = *scale;
             MIXRAY_RETURN_IF_ERROR(
-                writer->openOutput(writer->depth_, header, *depth, "depth", "# depth maps"));
+                writer->openOutput(writer->depth_, header, picked->depth, "depth", "# depth maps"));
         }
         for (const Attachment& a : header.attachments) {
             for (const char* side : kSideFiles) {
@@ -250,7 +241,7 @@ class TumWriter : public RecordingWriter {
         return bytes_ + color_.list.bytes() + depth_.list.bytes();
     }
 
-  private:
+private:
     explicit TumWriter(std::filesystem::path dir) : dir_(std::move(dir)) {}
 
     Status openOutput(TumOutput& out, const RecordingHeader& header, StreamId stream,

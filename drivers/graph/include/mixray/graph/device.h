@@ -15,11 +15,11 @@ namespace mixray {
 
 // A device as a backend sees it before opening: enough to list and to pick one.
 struct DeviceDescriptor {
-    std::string backend;   // "openni2", "aravis", "replay", ...
-    std::string id;        // what DeviceConfig::id must say to open this one
-    std::string model;     // human-readable model name
-    std::string serial;    // empty when the device has none
-    std::string location;  // URI, bus path or IP address
+    std::string backend;             // "openni2", "aravis", "replay", ...
+    std::string id;                  // what DeviceConfig::id must say to open this one
+    std::string model;               // human-readable model name
+    std::string serial;              // empty when the device has none
+    std::string location;            // URI, bus path or IP address
     std::vector<std::string> modes;  // "depth 640x480@30 depth16", ...
 };
 

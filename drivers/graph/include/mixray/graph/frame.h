@@ -29,7 +29,7 @@ struct FrameMetadata {
     int64_t device_stamp_ns = 0;  // in the device clock `clock_domain`
     int64_t host_stamp_ns = 0;    // host CLOCK_MONOTONIC when the frame arrived
     ClockDomainId clock_domain = kHostClockDomain;
-    int64_t exposure_us = -1;     // -1 when unknown
+    int64_t exposure_us = -1;  // -1 when unknown
     FrameStatus status = FrameStatus::kOk;
 };
 
@@ -119,10 +119,10 @@ private:
 
 // Options of a BufferPool.
 struct BufferPoolOptions {
-    ImageDesc desc;            // layout of every buffer
-    size_t buffer_bytes = 0;   // 0: desc.bufferBytes()
-    size_t buffer_count = 8;   // buffers allocated up front; the pool never grows
-    std::string name;          // for statistics and errors, usually the stream name
+    ImageDesc desc;           // layout of every buffer
+    size_t buffer_bytes = 0;  // 0: desc.bufferBytes()
+    size_t buffer_count = 8;  // buffers allocated up front; the pool never grows
+    std::string name;         // for statistics and errors, usually the stream name
 
     bool validate(std::string* why) const;
 };

@@ -22,17 +22,17 @@ enum class QueuePolicy : uint8_t {
 std::string_view toString(QueuePolicy policy);
 
 struct QueueOptions {
-    size_t capacity = 4;                  // frames held at most; memory is capacity buffers
+    size_t capacity = 4;  // frames held at most; memory is capacity buffers
     QueuePolicy policy = QueuePolicy::kLive;
-    std::string name;                     // consumer name, for statistics
+    std::string name;  // consumer name, for statistics
 };
 
 struct QueueStats {
-    uint64_t pushed = 0;   // frames offered by the producer
-    uint64_t popped = 0;   // frames taken by the consumer
-    uint64_t dropped = 0;  // frames discarded under the live policy
-    size_t size = 0;       // frames queued now
-    size_t high_water = 0; // most frames ever queued at once
+    uint64_t pushed = 0;    // frames offered by the producer
+    uint64_t popped = 0;    // frames taken by the consumer
+    uint64_t dropped = 0;   // frames discarded under the live policy
+    size_t size = 0;        // frames queued now
+    size_t high_water = 0;  // most frames ever queued at once
 };
 
 // Fixed-capacity FIFO of FrameRefs between one producer side and one consumer. Storage is

@@ -20,20 +20,20 @@ enum class PixelFormat : uint8_t {
     kBayerGRBG8,
     kBayerGBRG8,
     kBayerBGGR8,
-    kYUYV,        // YUV 4:2:2 packed, Y0 U Y1 V, 2 bytes per pixel (UVC)
-    kNV12,        // YUV 4:2:0, Y plane then interleaved UV plane (Azure Kinect)
-    kMJPEG,       // one JPEG image per frame, compressed: size varies, stride is 0
-    kDepth16,     // uint16 depth in millimetres; 0 means no measurement
-    kIR16,        // uint16 infrared intensity
-    kBinary,      // opaque bytes (IMU samples, poses); width is the byte count, height 1
+    kYUYV,     // YUV 4:2:2 packed, Y0 U Y1 V, 2 bytes per pixel (UVC)
+    kNV12,     // YUV 4:2:0, Y plane then interleaved UV plane (Azure Kinect)
+    kMJPEG,    // one JPEG image per frame, compressed: size varies, stride is 0
+    kDepth16,  // uint16 depth in millimetres; 0 means no measurement
+    kIR16,     // uint16 infrared intensity
+    kBinary,   // opaque bytes (IMU samples, poses); width is the byte count, height 1
 };
 
 // Static facts about a pixel format.
 struct PixelFormatInfo {
-    std::string_view name;      // stable lowercase name used in files: "rgb8", "depth16"
-    uint32_t bits_per_pixel;    // average bits per pixel; 0 for compressed formats
-    uint32_t channels;          // colour channels after decoding
-    bool compressed;            // payload size varies frame to frame
+    std::string_view name;    // stable lowercase name used in files: "rgb8", "depth16"
+    uint32_t bits_per_pixel;  // average bits per pixel; 0 for compressed formats
+    uint32_t channels;        // colour channels after decoding
+    bool compressed;          // payload size varies frame to frame
 };
 
 const PixelFormatInfo& pixelFormatInfo(PixelFormat format);

@@ -67,7 +67,8 @@ public:
     // indices (published frames are immutable, so the id cannot be rewritten). Writers that
     // cannot remap accept only stream == frame.meta().stream.
     virtual Status writeAs(StreamId stream, const FrameRef& frame) {
-        if (frame && stream == frame.meta().stream) return write(frame);
+        if (frame && stream == frame.meta().stream)
+            return write(frame);
         return {ErrorCode::kUnsupported, "this recording writer cannot remap stream ids"};
     }
     // Finishes the file (index, durations). A writer destroyed without close() leaves a file

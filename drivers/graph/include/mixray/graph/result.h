@@ -54,7 +54,7 @@ private:
 template <typename T>
 class [[nodiscard]] Result {
 public:
-    Result(T value) : storage_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
+    Result(T value) : storage_(std::move(value)) {}        // NOLINT(google-explicit-constructor)
     Result(Status status) : storage_(std::move(status)) {  // NOLINT(google-explicit-constructor)
         assert(!std::get<Status>(storage_).isOk() && "Result built from an ok Status has no value");
     }
@@ -90,8 +90,9 @@ private:
 }  // namespace mixray
 
 // Returns early from a function returning Status or Result<T> when `expr` (a Status) failed.
-#define MIXRAY_RETURN_IF_ERROR(expr)                  \
-    do {                                              \
-        ::mixray::Status mixray_status_ = (expr);     \
-        if (!mixray_status_.isOk()) return mixray_status_; \
+#define MIXRAY_RETURN_IF_ERROR(expr)              \
+    do {                                          \
+        ::mixray::Status mixray_status_ = (expr); \
+        if (!mixray_status_.isOk())               \
+            return mixray_status_;                \
     } while (0)

@@ -36,11 +36,11 @@ std::optional<StreamKind> streamKindFromString(std::string_view name);
 
 // Description of one stream. Plain value, copied freely.
 struct StreamInfo {
-    std::string name;         // unique in a graph, "device/stream": "kinect/depth"
-    std::string device;       // the device that publishes it: "kinect"
+    std::string name;    // unique in a graph, "device/stream": "kinect/depth"
+    std::string device;  // the device that publishes it: "kinect"
     StreamKind kind = StreamKind::kData;
-    ImageDesc format;         // layout of every frame; width/height fixed for the stream
-    double nominal_fps = 0;   // 0 when unknown or irregular
+    ImageDesc format;        // layout of every frame; width/height fixed for the stream
+    double nominal_fps = 0;  // 0 when unknown or irregular
     ClockDomainId clock_domain = kHostClockDomain;
     std::map<std::string, std::string> tags;  // free-form metadata, recorded as Matroska tags
 };

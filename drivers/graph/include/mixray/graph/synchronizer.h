@@ -193,6 +193,8 @@ private:
     void dropFrame(const FrameRef& frame, size_t i, DropReason reason);
     void moveFrontToPast(size_t i);
     void recoverAll();
+    // Drops every frame still queued (reason kFlushed) and empties the queues.
+    void dropAllQueued();
     void makeCandidate(int64_t start, int64_t end);
     void publishCandidate();
     void countNonEmpty();
