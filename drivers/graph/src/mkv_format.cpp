@@ -159,7 +159,82 @@ Result<FrameRecord> decodeFrameRecord(const uint8_t* data, size_t size) {
     return record;
 }
 
-std::optional<Storage> storageFor(PixelFormat format) {
+namespace {
+
+// Uncompressed images with MkvCompression::kNone: the packed rows as FFmpeg rawvideo, tagged
+// with FFmpeg's own FourCC for the layout (its raw-video table, the one the Matroska demuxer
+// and the rawvideo decoder look up), so ffprobe names the pixel format. Fixed here rather than
+// asked of FFmpeg: the file format must not change with the library's table order.
+std::optional<Storage> rawStorageFor(PixelFormat format) {
+    auto raw = [](AVPixelFormat pixel, uint32_t tag) {
+        return Storage{AVMEDIA_TYPE_VIDEO, AV_CODEC_ID_RAWVIDEO, pixel, tag};
+    };
+    switch (format) {
+        case PixelFormat::kMono8:
+            return raw(AV_PIX_FMT_GRAY8, MKTAG('Y', '8', '0', '0'));
+        case PixelFormat::kMono16:
+        case PixelFormat::kDepth16:
+        case PixelFormat::kIR16:
+            // Native 16-bit samples: little-endian on every host mixray builds for.
+            return raw(AV_PIX_FMT_GRAY16LE, MKTAG('Y', '1', 0, 16));
+        case PixelFormat::kRGB8:
+            return raw(AV_PIX_FMT_RGB24, MKTAG('R', 'G', 'B', 24));
+        case PixelFormat::kBGR8:
+            return raw(AV_PIX_FMT_BGR24, MKTAG('B', 'G', 'R', 24));
+        case PixelFormat::kBayerRGGB8:
+            return raw(AV_PIX_FMT_BAYER_RGGB8, MKTAG(0xBA, 'R', 'G', 8));
+        case PixelFormat::kBayerGRBG8:
+            return raw(AV_PIX_FMT_BAYER_GRBG8, MKTAG(0xBA, 'G', 'R', 8));
+        case PixelFormat::kBayerGBRG8:
+            return raw(AV_PIX_FMT_BAYER_GBRG8, MKTAG(0xBA, 'G', 'B', 8));
+        case PixelFormat::kBayerBGGR8:
+            return raw(AV_PIX_FMT_BAYER_BGGR8, MKTAG(0xBA, 'B', 'G', 8));
+        case PixelFormat::kYUYV:
+            return raw(AV_PIX_FMT_YUYV422, MKTAG('Y', 'U', 'Y', '2'));
+        case PixelFormat::kNV12:
+            return raw(AV_PIX_FMT_NV12, MKTAG('N', 'V', '1', '2'));
+        default:
+            return std::nullopt;
+    }
+}
+
+int storedRows(const ImageDesc& desc) {
+    return desc.format == PixelFormat::kNV12 ? desc.height / 2 * 3 : desc.height;
+}
+
+}  // namespace
+
+size_t packedBytes(const ImageDesc& desc) {
+    return rowBytes(desc) * static_cast<size_t>(storedRows(desc));
+}
+
+void packRows(const ImageView& image, uint8_t* out) {
+    const size_t bytes = rowBytes(image.desc);
+    const int rows = storedRows(image.desc);
+    if (static_cast<size_t>(image.desc.stride_bytes) == bytes) {
+        std::memcpy(out, image.data, bytes * static_cast<size_t>(rows));
+        return;
+    }
+    for (int y = 0; y < rows; ++y, out += bytes)
+        std::memcpy(out, image.row<uint8_t>(y), bytes);
+}
+
+void unpackRows(const uint8_t* in, const MutableImageView& out) {
+    const size_t bytes = rowBytes(out.desc);
+    const int rows = storedRows(out.desc);
+    if (static_cast<size_t>(out.desc.stride_bytes) == bytes) {
+        std::memcpy(out.data, in, bytes * static_cast<size_t>(rows));
+        return;
+    }
+    for (int y = 0; y < rows; ++y, in += bytes)
+        std::memcpy(out.row<uint8_t>(y), in, bytes);
+}
+
+std::optional<Storage> storageFor(PixelFormat format, MkvCompression compression) {
+    if (compression == MkvCompression::kNone) {
+        if (auto raw = rawStorageFor(format))
+            return raw;
+    }
     switch (format) {
         case PixelFormat::kMono8:
         case PixelFormat::kBayerRGGB8:

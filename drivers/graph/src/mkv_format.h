@@ -18,6 +18,7 @@ extern "C" {
 
 #include "mixray/graph/frame.h"
 #include "mixray/graph/image.h"
+#include "mixray/graph/mkv.h"
 #include "mixray/graph/recording.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/stream.h"
@@ -64,10 +65,27 @@ Result<FrameRecord> decodeFrameRecord(const uint8_t* data, size_t size);
 struct Storage {
     AVMediaType media = AVMEDIA_TYPE_VIDEO;
     AVCodecID codec = AV_CODEC_ID_NONE;
-    AVPixelFormat pixel = AV_PIX_FMT_NONE;  // FFV1's input/output format; NONE for copied payloads
+    // FFV1's input/output format, or the layout of raw frames; NONE for copied payloads.
+    AVPixelFormat pixel = AV_PIX_FMT_NONE;
+    // Raw frames: FFmpeg's FourCC for `pixel`, stored as the track's ColourSpace so that other
+    // tools know the layout; 0 otherwise.
+    uint32_t codec_tag = 0;
     bool encoded() const { return codec == AV_CODEC_ID_FFV1; }
+    // Packed rows as they are (Matroska V_UNCOMPRESSED).
+    bool raw() const { return codec == AV_CODEC_ID_RAWVIDEO; }
 };
-std::optional<Storage> storageFor(PixelFormat format);
+// With MkvCompression::kNone every uncompressed format is stored raw; MJPEG and binary streams
+// are stored the same way in both modes.
+std::optional<Storage> storageFor(PixelFormat format,
+                                  MkvCompression compression = MkvCompression::kFfv1);
+
+// Raw frames: the bytes of an image's rows without padding (NV12: the Y rows, then the UV rows),
+// exactly the payload of a raw block.
+size_t packedBytes(const ImageDesc& desc);
+// Copies the rows of `image` (at its stride) to `out`, packedBytes(image.desc) bytes.
+void packRows(const ImageView& image, uint8_t* out);
+// The inverse of packRows: packed rows at `in` to `out`'s stride.
+void unpackRows(const uint8_t* in, const MutableImageView& out);
 
 // Copies `image` into `frame` (allocated with storageFor(format).pixel and the image's size)
 // without loss: grey as is, RGB/BGR into BGR0, YUYV into planar 4:2:2, NV12 into 4:2:0.

@@ -39,6 +39,7 @@ using FormatPtr = std::unique_ptr<AVFormatContext, FormatCloser>;
 // How a track's packets become frame payloads.
 enum class Payload {
     kFfv1,         // FFV1-decoded then unpacked (mixray images)
+    kRawRows,      // packed rows (mixray MkvCompression::kNone), copied to the stream's stride
     kCopy,         // the packet bytes as they are (MJPEG, binary, Azure NV12/YUY2)
     kBigEndian16,  // Azure "b16g": 16-bit big-endian samples, swapped to native
     kImuSamples,   // Azure IMU: one frame per 40-byte sample in the packet
@@ -306,16 +307,26 @@ Status MkvReader::openMixray() {
         auto info = mkv::parseStreamTags(title, st->metadata);
         if (!info)
             return info.status().withContext(path_.string());
-        const mkv::Storage storage = *mkv::storageFor(info->format.format);
+        // The codec says how the writer stored the images (MkvCompression): FFV1 or raw.
+        const MkvCompression compression = st->codecpar->codec_id == AV_CODEC_ID_RAWVIDEO
+                                               ? MkvCompression::kNone
+                                               : MkvCompression::kFfv1;
+        const mkv::Storage storage = *mkv::storageFor(info->format.format, compression);
+        const bool image = storage.encoded() || storage.raw();
         if (st->codecpar->codec_id != storage.codec ||
-            (storage.encoded() && (st->codecpar->width != info->format.width ||
-                                   st->codecpar->height != info->format.height))) {
+            (storage.raw() && st->codecpar->codec_tag != storage.codec_tag) ||
+            (image && (st->codecpar->width != info->format.width ||
+                       st->codecpar->height != info->format.height))) {
             return corrupt("track '" + info->name + "' is not stored as its description says");
         }
         Track track;
         track.info = std::move(*info);
         track.av_index = static_cast<int>(i);
-        track.payload = storage.encoded() ? Payload::kFfv1 : Payload::kCopy;
+        track.payload = storage.encoded() ? Payload::kFfv1
+                        : storage.raw()   ? Payload::kRawRows
+                                          : Payload::kCopy;
+        if (storage.raw())
+            track.exact_bytes = mkv::packedBytes(track.info.format);
         if (storage.encoded())
             MIXRAY_RETURN_IF_ERROR(openDecoder(track, st));
         tracks_.push_back(std::move(track));
@@ -472,6 +483,10 @@ Status MkvReader::demuxMixray(Track& track, size_t index, AVPacket* packet) {
     if (static_cast<size_t>(packet->size) > kMaxPayloadBytes ||
         ffmpeg::crc32(packet->data, static_cast<size_t>(packet->size)) != record->payload_crc) {
         return corrupt(where + ": damaged or cut off (payload CRC mismatch)");
+    }
+    if (track.exact_bytes && static_cast<size_t>(packet->size) != track.exact_bytes) {
+        return corrupt(where + ": holds " + std::to_string(packet->size) + " bytes, the image " +
+                       std::to_string(track.exact_bytes));
     }
     const FrameMetadata& meta = record->meta;
     if (packet->pts != AV_NOPTS_VALUE) {
@@ -677,6 +692,9 @@ Result<FrameRef> MkvReader::materialize(const Pending& pending) {
             av_frame_unref(decoded);
             break;
         }
+        case Payload::kRawRows:
+            mkv::unpackRows(bytes, out);
+            break;
         case Payload::kBigEndian16: {
             auto* samples = reinterpret_cast<uint16_t*>(out.data);
             for (size_t i = 0; i < pending.size / 2; ++i) {

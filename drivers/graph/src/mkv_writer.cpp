@@ -1,7 +1,9 @@
-// Lossless Matroska recordings through libavformat: FFV1 images, copied MJPEG and binary
+// Lossless Matroska recordings through libavformat: FFV1 or raw images, copied MJPEG and binary
 // blocks, exact per-frame metadata as BlockAdditional, one flushed cluster per frame.
+#include <algorithm>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -22,8 +24,13 @@ using ffmpeg::PacketPtr;
 
 constexpr uint64_t kNsPerMs = 1000000;
 
-// createMkvWriter's writer: one libavformat muxer, one FFV1 encoder per image stream.
-// Thread-bound, like every RecordingWriter.
+// Frees the FrameRef whose bytes a raw packet borrowed (av_buffer_create's free callback).
+void releaseFrame(void* opaque, uint8_t* /*data*/) {
+    delete static_cast<FrameRef*>(opaque);
+}
+
+// createMkvWriter's writer: one libavformat muxer, one FFV1 encoder per image stream stored
+// with FFV1. Thread-bound, like every RecordingWriter.
 class MkvWriter final : public RecordingWriter {
 public:
     MkvWriter(std::filesystem::path path, const MkvWriterOptions& options)
@@ -56,6 +63,7 @@ private:
     Status addTrack(const StreamInfo& info);
     Status addAttachment(const Attachment& attachment);
     Status encode(Track& track, const FrameRef& frame);
+    Status wrapRaw(const FrameRef& frame, AVPacket* packet);
     Status checkFrame(const Track& track, const ImageView& image) const;
     std::string context() const { return "writing " + path_.string(); }
     // Remembers the first failure: after it the file is left as it is and every call reports it.
@@ -113,6 +121,15 @@ Status MkvWriter::open(const RecordingHeader& header) {
         return ffmpeg::toStatus(err, context() + ": no Matroska muxer");
     for (const StreamInfo& info : header.streams)
         MIXRAY_RETURN_IF_ERROR(addTrack(info));
+    const bool raw = std::any_of(tracks_.begin(), tracks_.end(),
+                                 [](const Track& track) { return track.storage.raw(); });
+    if (raw) {
+        // FFmpeg 5.1's muxer checks codec tags against the AVI (RIFF) list, which lacks
+        // FFmpeg's own raw-video FourCCs for 16-bit grey, RGB24, BGR24 and Bayer; Matroska
+        // refuses raw video without a FourCC. "Unofficial" lets the tags through and changes
+        // nothing else (an FFV1 file comes out byte-identical with it).
+        fmt_->strict_std_compliance = FF_COMPLIANCE_UNOFFICIAL;
+    }
     for (const Attachment& attachment : header.attachments) {
         MIXRAY_RETURN_IF_ERROR(addAttachment(attachment));
     }
@@ -131,6 +148,13 @@ Status MkvWriter::open(const RecordingHeader& header) {
         // Bounds what a crash can lose when clusters are not closed after every frame.
         av_dict_set(&muxer_options, "cluster_time_limit", "1000", 0);
     }
+    if (raw) {
+        // Matroska's optional CRC-32 element over each cluster would be a second pass over
+        // every raw frame, costing about as much CPU as writing it, and guards nothing more:
+        // every block's frame record holds the CRC of its payload, the header tags and
+        // attachments have theirs, and FFmpeg's demuxer skips CRC-32 elements.
+        av_dict_set(&muxer_options, "write_crc32", "0", 0);
+    }
     err = avformat_write_header(fmt_, &muxer_options);
     av_dict_free(&muxer_options);
     if (err < 0)
@@ -143,7 +167,7 @@ Status MkvWriter::open(const RecordingHeader& header) {
 }
 
 Status MkvWriter::addTrack(const StreamInfo& info) {
-    const mkv::Storage storage = *mkv::storageFor(info.format.format);
+    const mkv::Storage storage = *mkv::storageFor(info.format.format, options_.compression);
     Track track;
     track.info = info;
     track.storage = storage;
@@ -211,6 +235,11 @@ Status MkvWriter::addTrack(const StreamInfo& info) {
         if (storage.media == AVMEDIA_TYPE_VIDEO) {
             st->codecpar->width = info.format.width;
             st->codecpar->height = info.format.height;
+        }
+        if (storage.raw()) {
+            // The muxer writes the tag as the track's ColourSpace: the layout other tools read.
+            st->codecpar->format = storage.pixel;
+            st->codecpar->codec_tag = storage.codec_tag;
         }
     }
     av_dict_set(&st->metadata, "title", info.name.c_str(), 0);
@@ -280,9 +309,39 @@ Status MkvWriter::checkFrame(const Track& track, const ImageView& image) const {
     return Status::ok();
 }
 
+Status MkvWriter::wrapRaw(const FrameRef& frame, AVPacket* pkt) {
+    const ImageView image = frame.image();
+    const size_t bytes = mkv::packedBytes(image.desc);
+    const ImageDesc packed =
+        ImageDesc::packed(image.desc.format, image.desc.width, image.desc.height);
+    if (image.desc.stride_bytes == packed.stride_bytes) {
+        // The frame's own bytes, no copy: the packet holds a reference to the frame, dropped
+        // when libavformat has written them. Published frames are immutable and the buffer is
+        // marked read-only, so the const_cast lets nothing write to it.
+        auto owner = std::make_unique<FrameRef>(frame);
+        pkt->buf = av_buffer_create(const_cast<uint8_t*>(image.data), bytes, releaseFrame,
+                                    owner.get(), AV_BUFFER_FLAG_READONLY);
+        if (!pkt->buf)
+            return {ErrorCode::kUnavailable, context() + ": out of memory"};
+        owner.release();
+        pkt->data = pkt->buf->data;
+        pkt->size = static_cast<int>(bytes);
+        return Status::ok();
+    }
+    // Padded rows: the file holds packed rows, so that other tools read the layout its tag
+    // names. One copy of the rows, no per-pixel work.
+    const int err = av_new_packet(pkt, static_cast<int>(bytes));
+    if (err < 0)
+        return ffmpeg::toStatus(err, context());
+    mkv::packRows(image, pkt->data);
+    return Status::ok();
+}
+
 Status MkvWriter::encode(Track& track, const FrameRef& frame) {
     const ImageView image = frame.image();
     AVPacket* pkt = packet_.get();
+    if (track.storage.raw())
+        return wrapRaw(frame, pkt);
     if (!track.storage.encoded()) {
         const int err = av_new_packet(pkt, static_cast<int>(image.size_bytes));
         if (err < 0)
@@ -359,8 +418,10 @@ Status MkvWriter::writeAs(StreamId stream, const FrameRef& frame) {
     const std::vector<uint8_t> side = mkv::encodeFrameRecord(record);
     uint8_t* side_data =
         av_packet_new_side_data(pkt, AV_PKT_DATA_MATROSKA_BLOCKADDITIONAL, side.size());
-    if (!side_data)
+    if (!side_data) {
+        av_packet_unref(pkt);  // a raw packet holds its frame: let it go now
         return {ErrorCode::kUnavailable, context() + ": out of memory"};
+    }
     std::memcpy(side_data, side.data(), side.size());
 
     int err = av_write_frame(fmt_, pkt);
@@ -425,6 +486,11 @@ bool MkvWriterOptions::validate(std::string* why) const {
     if (threads < 0) {
         if (why)
             *why = "threads must not be negative";
+        return false;
+    }
+    if (compression != MkvCompression::kFfv1 && compression != MkvCompression::kNone) {
+        if (why)
+            *why = "compression must be kFfv1 or kNone";
         return false;
     }
     return true;

@@ -13,7 +13,22 @@
 
 namespace mixray {
 
+// How createMkvWriter stores uncompressed images (every pixel format except MJPEG and binary,
+// which are always stored as delivered). Both are lossless; the reader tells them apart by the
+// track's codec, so one reader reads both.
+enum class MkvCompression : uint8_t {
+    // FFV1 (lossless): smaller files, but encoding is CPU-bound, so fast streams on a fast
+    // disk may outrun it.
+    kFfv1,
+    // No compression: each frame's packed rows as Matroska uncompressed video (V_UNCOMPRESSED,
+    // FFmpeg rawvideo), so recording is bound by the disk rather than the CPU. Frames with
+    // packed rows are handed to libavformat without a copy; padded rows are packed first.
+    kNone,
+};
+
 struct MkvWriterOptions {
+    // Storage of uncompressed images.
+    MkvCompression compression = MkvCompression::kFfv1;
     // FFV1 slices per frame (more slices: more threads can encode/decode one frame).
     int ffv1_slices = 4;
     // Encoder threads per stream; 0 lets FFmpeg choose.
@@ -27,10 +42,11 @@ struct MkvWriterOptions {
 };
 
 // Creates `path` (overwriting it) and writes the header: streams, attachments, tags.
-// Depth, IR, mono, Bayer and raw colour are stored losslessly with FFV1 (16 bits kept
-// exactly); MJPEG is stored as delivered; binary streams as opaque blocks. Every frame's
-// metadata (sequence, device and host stamps in ns, clock domain, exposure, status) is stored
-// with it exactly, as Matroska BlockAdditional data with CRCs of the record and the payload.
+// Depth, IR, mono, Bayer and raw colour are stored losslessly, with FFV1 (16 bits kept
+// exactly) or uncompressed as options.compression says; MJPEG is stored as delivered; binary
+// streams as opaque blocks. Every frame's metadata (sequence, device and host stamps in ns,
+// clock domain, exposure, status) is stored with it exactly, as Matroska BlockAdditional data
+// with CRCs of the record and the payload.
 // Block timestamps are host time in ms since the first frame, so players pace correctly.
 // Attachments must be non-empty (Matroska drops empty ones). The writer's write() and
 // writeAs() accept frames of the header's streams; see RecordingWriter for thread-safety.
@@ -50,12 +66,13 @@ struct MkvReaderOptions {
 // IR and IMU tracks, timestamps and calibration.json attachment). Errors name the file and
 // what is wrong with it (missing, empty, not Matroska, no usable track).
 //
-// mixray files (format() "mixray-mkv") give back exactly what was written. A file cut off by a
-// crash or a full disk gives every complete frame, then kCorruptData (or kEndOfStream when the
-// cut cannot be told from the end); a frame whose bytes or record fail their CRC ends the
-// reading with kCorruptData. Frames come in host-stamp order, merged across streams over a
-// window of 4 frames per stream (at least 8): files written by the Recorder or in stamp order
-// come back ordered; where a file is interleaved worse, the reader keeps its order there.
+// mixray files (format() "mixray-mkv") give back exactly what was written, whichever
+// MkvCompression wrote them (the track's codec says which). A file cut off by a crash or a
+// full disk gives every complete frame, then kCorruptData (or kEndOfStream when the cut cannot
+// be told from the end); a frame whose bytes or record fail their CRC ends the reading with
+// kCorruptData. Frames come in host-stamp order, merged across streams over a window of 4
+// frames per stream (at least 8): files written by the Recorder or in stamp order come back
+// ordered; where a file is interleaved worse, the reader keeps its order there.
 // Format details: docs/recording-format.md.
 //
 // Azure Kinect files (format() "azure-kinect-mkv") give streams "azure_kinect/color" (mjpeg,
