@@ -23,6 +23,7 @@ struct RecordOptions {
     double duration_s = 0;
     std::string policy;  // live | lossless; empty: from the rig
     size_t queue = 32;
+    std::string compression = "ffv1";
     bool force = false;
 };
 
@@ -130,6 +131,8 @@ int runRecord(const RecordOptions& options) {
     recorder_options.path = options.output;
     recorder_options.policy = policyOf(options, *rig);
     recorder_options.queue_capacity = options.queue;
+    recorder_options.writer.compression =
+        options.compression == "none" ? MkvCompression::kNone : MkvCompression::kFfv1;
     recorder_options.attachments = std::move(*attachments);
     recorder_options.tags["rig"] = rig->name;
     recorder_options.tags["software"] = "mixray 0.1.0";
@@ -225,6 +228,10 @@ void registerRecordCommand(CLI::App& app, Commands& commands) {
         ->check(CLI::IsMember({"live", "lossless"}));
     sub->add_option("--queue", options->queue, "Frames queued per stream")
         ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    sub->add_option("--compression", options->compression,
+                    "ffv1: lossless, 2-4x smaller, CPU-bound; none: uncompressed, disk-bound")
+        ->check(CLI::IsMember({"ffv1", "none"}))
         ->capture_default_str();
     sub->add_flag("--force", options->force, "Overwrite an existing output file");
     commands.push_back({sub, [options] { return runRecord(*options); }});
