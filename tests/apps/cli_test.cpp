@@ -180,7 +180,7 @@ TEST(Cli, BenchGraphPrintsItsFigures) {
     ASSERT_EQ(run.exit_code, 0) << run.output;
     for (const char* line :
          {"synchronized sets/s", "heap allocations per set", "pixel copies per frame",
-          "raw disk write, ", "recording, uncompressed"}) {
+          "raw disk write, ", "recording uncompressed,", "recording FFV1,"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
 }
