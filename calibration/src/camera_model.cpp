@@ -1,0 +1,349 @@
+// Lens models: names, validation, projection and unprojection (pinhole+OpenCV distortion,
+// Kannala–Brandt fish-eye), matching cv::projectPoints and cv::fisheye::projectPoints.
+#include "mixray/calibration/camera_model.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+namespace mixray::calibration {
+
+namespace {
+
+// The fish-eye model is used up to 100° off the optical axis (a 200° field of view). Beyond
+// that the polynomial is extrapolated far past any calibration data, so such directions are
+// treated as outside the field of view. The limit shrinks further where θ_d(θ) stops
+// increasing, since there the model folds over and no longer has a unique inverse.
+constexpr double kFisheyeMaxThetaRad = 100.0 * std::numbers::pi / 180.0;
+
+// Iteration limits for unproject(). Newton converges in a handful of steps for real lenses;
+// the generous cap leaves room for damped steps near the image corners.
+constexpr int kMaxIterations = 100;
+// Convergence threshold on the reprojection residual, in pixels: far below the 1e-6 px the
+// header promises, and well above double rounding noise for images up to ~10^4 px.
+constexpr double kResidualTolerancePx = 1e-9;
+
+double coefficient(const std::vector<double>& d, size_t i) {
+    return i < d.size() ? d[i] : 0.0;
+}
+
+bool allFinite(const std::vector<double>& values) {
+    return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+// ---- pinhole (OpenCV rational model) ----
+
+struct PinholeCoefficients {
+    double k1, k2, p1, p2, k3, k4, k5, k6;
+};
+
+PinholeCoefficients pinholeCoefficients(const std::vector<double>& d) {
+    return {coefficient(d, 0), coefficient(d, 1), coefficient(d, 2), coefficient(d, 3),
+            coefficient(d, 4), coefficient(d, 5), coefficient(d, 6), coefficient(d, 7)};
+}
+
+// Distorts normalised coordinates (x, y) = (X/Z, Y/Z) as cv::projectPoints does, with the
+// same operation order so results agree to the last bits. Optionally returns the Jacobian.
+Eigen::Vector2d distortPinhole(const PinholeCoefficients& c, const Eigen::Vector2d& xy,
+                               Eigen::Matrix2d* jacobian) {
+    const double x = xy.x(), y = xy.y();
+    const double r2 = x * x + y * y;
+    const double r4 = r2 * r2;
+    const double r6 = r4 * r2;
+    const double a1 = 2 * x * y;
+    const double a2 = r2 + 2 * x * x;
+    const double a3 = r2 + 2 * y * y;
+    const double num = 1 + c.k1 * r2 + c.k2 * r4 + c.k3 * r6;
+    const double den = 1 + c.k4 * r2 + c.k5 * r4 + c.k6 * r6;
+    const double inv_den = 1 / den;
+    const double radial = num * inv_den;
+    const Eigen::Vector2d out(x * radial + c.p1 * a1 + c.p2 * a2,
+                              y * radial + c.p1 * a3 + c.p2 * a1);
+    if (jacobian) {
+        // d(radial)/d(r2) by the quotient rule; d(r2)/dx = 2x.
+        const double dnum = c.k1 + 2 * c.k2 * r2 + 3 * c.k3 * r4;
+        const double dden = c.k4 + 2 * c.k5 * r2 + 3 * c.k6 * r4;
+        const double dradial_dr2 = (dnum * den - num * dden) * inv_den * inv_den;
+        const double drdx = dradial_dr2 * 2 * x;
+        const double drdy = dradial_dr2 * 2 * y;
+        (*jacobian)(0, 0) = radial + x * drdx + 2 * c.p1 * y + 6 * c.p2 * x;
+        (*jacobian)(0, 1) = x * drdy + 2 * c.p1 * x + 2 * c.p2 * y;
+        (*jacobian)(1, 0) = y * drdx + 2 * c.p1 * x + 2 * c.p2 * y;
+        (*jacobian)(1, 1) = radial + y * drdy + 6 * c.p1 * y + 2 * c.p2 * x;
+    }
+    return out;
+}
+
+// ---- fish-eye (Kannala–Brandt as cv::fisheye) ----
+
+struct FisheyeCoefficients {
+    double k1, k2, k3, k4;
+};
+
+FisheyeCoefficients fisheyeCoefficients(const std::vector<double>& d) {
+    return {coefficient(d, 0), coefficient(d, 1), coefficient(d, 2), coefficient(d, 3)};
+}
+
+double fisheyeThetaD(const FisheyeCoefficients& c, double theta) {
+    const double t2 = theta * theta;
+    const double t4 = t2 * t2;
+    const double t6 = t4 * t2;
+    const double t8 = t4 * t4;
+    return theta * (1 + c.k1 * t2 + c.k2 * t4 + c.k3 * t6 + c.k4 * t8);
+}
+
+double fisheyeThetaDDerivative(const FisheyeCoefficients& c, double theta) {
+    const double t2 = theta * theta;
+    return 1 + t2 * (3 * c.k1 + t2 * (5 * c.k2 + t2 * (7 * c.k3 + t2 * 9 * c.k4)));
+}
+
+// True when θ_d surely increases on [0, theta]: a lower bound of its derivative, keeping only
+// the negative terms at their worst, stays positive. Cheap, so it runs before any scan.
+bool fisheyeSurelyMonotonicUpTo(const FisheyeCoefficients& c, double theta) {
+    const double s = theta * theta;
+    const double lower = 1 + std::min(0.0, 3 * c.k1) * s + std::min(0.0, 5 * c.k2) * s * s +
+                         std::min(0.0, 7 * c.k3) * s * s * s +
+                         std::min(0.0, 9 * c.k4) * s * s * s * s;
+    return lower > 0;
+}
+
+// The largest θ the fish-eye model is used for: kFisheyeMaxThetaRad, or less where θ_d(θ)
+// stops increasing (there the model folds over and has no unique inverse).
+double fisheyeMaxTheta(const FisheyeCoefficients& c) {
+    if (fisheyeSurelyMonotonicUpTo(c, kFisheyeMaxThetaRad))
+        return kFisheyeMaxThetaRad;
+    // The derivative is a quartic in θ²: a coarse scan finds its first sign change (real lens
+    // models have no dip narrower than a step), bisection then pins it down.
+    constexpr int kSteps = 64;
+    double previous = 0;
+    for (int i = 1; i <= kSteps; ++i) {
+        const double theta = kFisheyeMaxThetaRad * i / kSteps;
+        if (fisheyeThetaDDerivative(c, theta) <= 0) {
+            double lo = previous, hi = theta;
+            for (int k = 0; k < 44; ++k) {
+                const double mid = 0.5 * (lo + hi);
+                (fisheyeThetaDDerivative(c, mid) > 0 ? lo : hi) = mid;
+            }
+            return lo;
+        }
+        previous = theta;
+    }
+    return kFisheyeMaxThetaRad;
+}
+
+// An upper end for the search of θ_d(θ) = theta_d on which θ_d surely increases and that
+// brackets the root: shrinks from the field-of-view limit while the cheap bound fails, and
+// falls back to the exact limit only for pixels far out on a folding lens.
+double fisheyeSearchLimit(const FisheyeCoefficients& c, double theta_d) {
+    double limit = kFisheyeMaxThetaRad;
+    for (int i = 0; i < 24 && !fisheyeSurelyMonotonicUpTo(c, limit); ++i)
+        limit *= 0.9;
+    if (fisheyeSurelyMonotonicUpTo(c, limit) && fisheyeThetaD(c, limit) >= theta_d)
+        return limit;
+    return fisheyeMaxTheta(c);
+}
+
+// Solves θ_d(θ) = theta_d for θ in [0, theta_max] by Newton with a bisection fallback; θ_d is
+// increasing on that interval, so the bracket always holds the root.
+std::optional<double> solveFisheyeTheta(const FisheyeCoefficients& c, double theta_d,
+                                        double theta_max, double tolerance) {
+    if (theta_d <= 0)
+        return 0.0;
+    if (theta_d > fisheyeThetaD(c, theta_max))
+        return std::nullopt;
+    double lo = 0, hi = theta_max;
+    double theta = std::min(theta_d, theta_max);
+    for (int i = 0; i < kMaxIterations; ++i) {
+        const double f = fisheyeThetaD(c, theta) - theta_d;
+        if (std::abs(f) < tolerance)
+            return theta;
+        if (f > 0) {
+            hi = theta;
+        } else {
+            lo = theta;
+        }
+        const double step = f / fisheyeThetaDDerivative(c, theta);
+        double next = theta - step;
+        if (!(next > lo && next < hi))
+            next = 0.5 * (lo + hi);
+        theta = next;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+std::string_view toString(LensModel model) {
+    return model == LensModel::kFisheye ? "fisheye" : "pinhole";
+}
+
+std::optional<LensModel> lensModelFromString(std::string_view name) {
+    if (name == "pinhole")
+        return LensModel::kPinhole;
+    if (name == "fisheye")
+        return LensModel::kFisheye;
+    return std::nullopt;
+}
+
+CameraModel CameraModel::pinhole(int width, int height, double fx, double fy, double cx,
+                                 double cy) {
+    CameraModel model;
+    model.lens = LensModel::kPinhole;
+    model.width = width;
+    model.height = height;
+    model.fx = fx;
+    model.fy = fy;
+    model.cx = cx;
+    model.cy = cy;
+    return model;
+}
+
+Status CameraModel::validate() const {
+    auto invalid = [](std::string message) {
+        return Status(ErrorCode::kInvalidArgument, "camera model: " + std::move(message));
+    };
+    if (width <= 0 || height <= 0) {
+        return invalid("width and height must be > 0, got " + std::to_string(width) + "x" +
+                       std::to_string(height));
+    }
+    if (!std::isfinite(fx) || fx <= 0)
+        return invalid("fx must be finite and > 0");
+    if (!std::isfinite(fy) || fy <= 0)
+        return invalid("fy must be finite and > 0");
+    if (!std::isfinite(cx))
+        return invalid("cx must be finite");
+    if (!std::isfinite(cy))
+        return invalid("cy must be finite");
+    const size_t n = distortion.size();
+    if (lens == LensModel::kPinhole) {
+        if (n != 0 && n != 4 && n != 5 && n != 8) {
+            return invalid("distortion: pinhole takes 0, 4, 5 or 8 coefficients, got " +
+                           std::to_string(n));
+        }
+    } else if (lens == LensModel::kFisheye) {
+        if (n != 4) {
+            return invalid("distortion: fisheye takes 4 coefficients (k1 k2 k3 k4), got " +
+                           std::to_string(n));
+        }
+    } else {
+        return invalid("lens: unknown lens model");
+    }
+    if (!allFinite(distortion))
+        return invalid("distortion: coefficients must be finite");
+    return Status::ok();
+}
+
+std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam) const {
+    if (lens == LensModel::kFisheye) {
+        const FisheyeCoefficients c = fisheyeCoefficients(distortion);
+        const double rho = std::hypot(p_cam.x(), p_cam.y());
+        if (rho == 0 && p_cam.z() <= 0)
+            return std::nullopt;
+        // atan2 instead of OpenCV's atan(r) extends the model behind the image plane (z <= 0);
+        // for z > 0 both give the same θ.
+        const double theta = std::atan2(rho, p_cam.z());
+        if (theta > kFisheyeMaxThetaRad ||
+            (!fisheyeSurelyMonotonicUpTo(c, theta) && theta > fisheyeMaxTheta(c)))
+            return std::nullopt;
+        const double theta_d = fisheyeThetaD(c, theta);
+        // OpenCV scales a = X/Z by θ_d/r; for r ~ 0 it uses 1, i.e. the point itself.
+        double xd, yd;
+        if (p_cam.z() > 0) {
+            const double a = p_cam.x() / p_cam.z();
+            const double b = p_cam.y() / p_cam.z();
+            const double r = std::sqrt(a * a + b * b);
+            const double inv_r = r > 1e-8 ? 1.0 / r : 1.0;
+            const double cdist = r > 1e-8 ? theta_d * inv_r : 1.0;
+            xd = a * cdist;
+            yd = b * cdist;
+        } else {
+            xd = p_cam.x() / rho * theta_d;
+            yd = p_cam.y() / rho * theta_d;
+        }
+        return Eigen::Vector2d(fx * xd + cx, fy * yd + cy);
+    }
+    if (p_cam.z() <= 0)
+        return std::nullopt;
+    const Eigen::Vector2d xy(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
+    const Eigen::Vector2d d = distortPinhole(pinholeCoefficients(distortion), xy, nullptr);
+    return Eigen::Vector2d(fx * d.x() + cx, fy * d.y() + cy);
+}
+
+std::optional<Eigen::Vector3d> CameraModel::unproject(const Eigen::Vector2d& pixel) const {
+    if (!(fx > 0) || !(fy > 0) || !pixel.allFinite())
+        return std::nullopt;
+    const Eigen::Vector2d target((pixel.x() - cx) / fx, (pixel.y() - cy) / fy);
+    // Residual tolerance in normalised units, from the pixel tolerance and the larger focal
+    // length (the one that magnifies errors most).
+    const double tolerance = kResidualTolerancePx / std::max(fx, fy);
+
+    if (lens == LensModel::kFisheye) {
+        const FisheyeCoefficients c = fisheyeCoefficients(distortion);
+        const double theta_d = target.norm();
+        if (theta_d == 0)
+            return Eigen::Vector3d(0, 0, 1);
+        const std::optional<double> theta =
+            solveFisheyeTheta(c, theta_d, fisheyeSearchLimit(c, theta_d), tolerance);
+        if (!theta)
+            return std::nullopt;
+        const double s = std::sin(*theta) / theta_d;
+        return Eigen::Vector3d(target.x() * s, target.y() * s, std::cos(*theta));
+    }
+
+    if (distortion.empty())
+        return Eigen::Vector3d(target.x(), target.y(), 1).normalized();
+    const PinholeCoefficients c = pinholeCoefficients(distortion);
+    // Damped Newton from the distorted point: it starts close for real lenses, and halving a
+    // step that does not reduce the residual keeps it from jumping to the far fold of the
+    // polynomial near the image corners.
+    Eigen::Vector2d xy = target;
+    Eigen::Matrix2d jacobian;
+    Eigen::Vector2d residual = distortPinhole(c, xy, &jacobian) - target;
+    double residual_norm = residual.norm();
+    for (int i = 0; i < kMaxIterations && residual_norm >= tolerance; ++i) {
+        const double det = jacobian.determinant();
+        if (!std::isfinite(det) || std::abs(det) < 1e-300)
+            return std::nullopt;
+        const Eigen::Vector2d step = jacobian.inverse() * residual;
+        double scale = 1.0;
+        bool improved = false;
+        for (int halvings = 0; halvings < 30; ++halvings, scale *= 0.5) {
+            const Eigen::Vector2d candidate = xy - scale * step;
+            Eigen::Matrix2d candidate_jacobian;
+            const Eigen::Vector2d candidate_residual =
+                distortPinhole(c, candidate, &candidate_jacobian) - target;
+            const double candidate_norm = candidate_residual.norm();
+            if (std::isfinite(candidate_norm) && candidate_norm < residual_norm) {
+                xy = candidate;
+                residual = candidate_residual;
+                residual_norm = candidate_norm;
+                jacobian = candidate_jacobian;
+                improved = true;
+                break;
+            }
+        }
+        if (!improved)
+            break;
+    }
+    // A root where the distortion map is orientation-reversing lies beyond the fold of the
+    // polynomial: it reprojects, but it is not the ray a real lens imaged there.
+    if (!(residual_norm < tolerance) || !(jacobian.determinant() > 0))
+        return std::nullopt;
+    return Eigen::Vector3d(xy.x(), xy.y(), 1).normalized();
+}
+
+CameraModel CameraModel::scaled(double scale) const {
+    CameraModel out = *this;
+    out.width = static_cast<int>(std::lround(width * scale));
+    out.height = static_cast<int>(std::lround(height * scale));
+    out.fx = fx * scale;
+    out.fy = fy * scale;
+    // Pixel centres sit at integer coordinates, so the image edge is at -0.5: scale about it.
+    out.cx = (cx + 0.5) * scale - 0.5;
+    out.cy = (cy + 0.5) * scale - 0.5;
+    return out;
+}
+
+}  // namespace mixray::calibration
