@@ -1,0 +1,120 @@
+// The AR scene as plain data: virtual objects, ghost proxies of real objects, materials,
+// lights. Parsed from scene files (scene_file.h) or built in code; turned into an Embree scene
+// by the Renderer.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mixray/calibration/camera_model.h"
+#include "mixray/graph/rig.h"
+
+namespace mixray::render {
+
+// Linear-light RGB (not sRGB-encoded).
+using Rgb = Eigen::Vector3f;
+
+enum class MaterialType : uint8_t {
+    kDiffuse,  // Lambertian
+    kPhong,    // Lambertian + Blinn-Phong specular highlight
+    kMirror,   // perfect specular reflector (reflectance `reflectance`, default 1)
+    kMetal,    // specular reflector with Schlick Fresnel from a coloured F0
+    kGlass,    // dielectric: Schlick Fresnel split into reflection and refraction, per-channel IOR
+};
+
+// How a surface responds to light. Unused fields for a type are ignored. Plain value.
+struct Material {
+    std::string name;
+    MaterialType type = MaterialType::kDiffuse;
+    Rgb albedo{0.8f, 0.8f, 0.8f};   // diffuse reflectance
+    std::filesystem::path albedo_texture;  // sRGB image over the object's uv; empty: none
+    Rgb specular{0.04f, 0.04f, 0.04f};     // Blinn-Phong specular colour
+    float shininess = 32;                  // Blinn-Phong exponent
+    Rgb f0{0.95f, 0.64f, 0.54f};           // metal: reflectance at normal incidence
+    Rgb ior{1.5f, 1.5f, 1.5f};             // glass: index of refraction per channel
+    Rgb transmission{1, 1, 1};             // glass: colour kept per unit path (1 = clear)
+    // RT²AR reflectance: how much a diffuse/Phong surface also mirrors, 0..1, optionally
+    // modulated by a grey map over uv saying where it reflects.
+    float reflectance = 0;
+    std::filesystem::path reflectance_map;
+    SourceLocation where;
+};
+
+enum class ShapeType : uint8_t { kMesh, kSphere, kBox, kPlane, kDisk };
+
+// Geometry of one object in its own frame. Plain value.
+struct Shape {
+    ShapeType type = ShapeType::kSphere;
+    std::filesystem::path mesh;  // kMesh: OBJ, PLY or glTF 2.0 file (loaded with assimp)
+    float scale = 1;             // kMesh: uniform scale applied to the file's coordinates
+    float radius = 0.05f;        // kSphere, kDisk: metres; sphere centred at the origin
+    Eigen::Vector3f size{0.1f, 0.1f, 0.1f};  // kBox: edge lengths, centred; kPlane: x, y extent
+    // kPlane and kDisk lie in the object's z = 0 plane, normal +z.
+};
+
+enum class ObjectRole : uint8_t {
+    kVirtual,  // rendered into the image
+    kGhost,    // proxy of a real object: occludes, receives and casts shadows, reflects, but
+               // primary rays that hit it show the camera pixel (differential rendering)
+};
+
+// One object. `anchor` names the frame it is attached to: "world", or "marker:<id>" for an
+// object bound to a tracked marker. Plain value.
+struct SceneObject {
+    std::string name;
+    ObjectRole role = ObjectRole::kVirtual;
+    Shape shape;
+    std::string material;  // name in SceneDescription::materials
+    std::string anchor = "world";
+    Eigen::Isometry3d T_anchor_object = Eigen::Isometry3d::Identity();
+    SourceLocation where;
+};
+
+enum class LightType : uint8_t {
+    kPoint,        // position, intensity (W/sr-like radiant intensity, linear RGB)
+    kSphere,       // spherical area light: position, radius, intensity (soft shadows)
+    kDirectional,  // direction the light travels, irradiance (the sun)
+    kEnvironment,  // equirectangular environment map around the scene
+};
+
+struct Light {
+    std::string name;
+    LightType type = LightType::kPoint;
+    std::string anchor = "world";
+    Eigen::Vector3d position{0, 0, 1};       // in the anchor frame
+    Eigen::Vector3d direction{0, 0, -1};     // kDirectional: travel direction, anchor frame
+    float radius = 0.05f;                    // kSphere
+    Rgb intensity{1, 1, 1};                  // point/sphere: intensity; directional: irradiance
+    std::filesystem::path environment;       // kEnvironment: .hdr or .exr equirectangular map
+    float environment_scale = 1;             // multiplies the map's radiance
+    Eigen::Isometry3d T_world_environment = Eigen::Isometry3d::Identity();
+    bool mirror_lower_hemisphere = false;    // fill the lower half from the upper (fish-eye maps)
+    SourceLocation where;
+};
+
+// A fixed camera for rendering without tracking: the pose of the camera in the world and,
+// optionally, its intrinsics (else the recording's calibration is used).
+struct FixedCamera {
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    std::optional<calibration::CameraModel> model;
+};
+
+// A whole scene. Plain value; reentrant.
+struct SceneDescription {
+    std::map<std::string, Material> materials;
+    std::vector<SceneObject> objects;
+    std::vector<Light> lights;
+    std::optional<FixedCamera> camera;
+    std::filesystem::path source_path;  // where it was loaded from, for messages
+
+    // kCorruptData with the entry's location on the first problem: unknown material names,
+    // non-positive sizes, IOR < 1, non-finite numbers, bad anchors, duplicate names.
+    Status validate() const;
+};
+
+}  // namespace mixray::render

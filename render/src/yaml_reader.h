@@ -1,0 +1,92 @@
+// Strict YAML reading for render's input files: a size and nesting pre-scan, one document only,
+// and typed accessors whose errors read "file:line:col: field.path: what is wrong".
+// Internal to mixray::render (the same approach as drivers/graph/src/rig.cpp).
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mixray/graph/result.h"
+#include "mixray/graph/rig.h"
+
+namespace mixray::render::yaml {
+
+// kCorruptData with "where: path: what" (parts left out when empty).
+Status corrupt(const SourceLocation& where, std::string_view path, std::string_view what);
+
+// A value for a message: quoted, escaped, cut short when long.
+std::string quote(std::string_view text);
+std::string joinNames(std::span<const std::string_view> names);
+// The allowed name `key` is probably a typo of; empty when none is close.
+std::string_view closestName(std::string_view key, std::span<const std::string_view> names);
+
+// A YAML value with where it was written and its field path ("objects[1].pose.translation").
+struct Item {
+    YAML::Node node;
+    SourceLocation where;
+    std::string path;
+};
+
+struct Field {
+    std::string key;
+    SourceLocation key_where;
+    Item item;
+};
+
+using Fields = std::vector<Field>;
+
+const Item* find(const Fields& fields, std::string_view key);
+std::string indexPath(const std::string& path, size_t index);
+std::string keyPath(const std::string& path, std::string_view key);
+
+// Typed, located access to one file's YAML. Thread-bound: one reader per parse. Methods may
+// throw YAML exceptions for malformed documents; the caller catches them at its API boundary.
+class Reader {
+public:
+    explicit Reader(std::string file) : file_(std::move(file)) {}
+
+    const std::string& file() const { return file_; }
+
+    // Pre-scans `text` (at most `max_bytes`, nesting at most `max_nesting`, no control
+    // characters or tab indentation), loads it and refuses a second document. `kind` names the
+    // file in messages ("a scene file").
+    Result<Item> load(std::string_view text, size_t max_bytes, int max_nesting,
+                      std::string_view kind) const;
+
+    SourceLocation locate(const YAML::Node& node, const SourceLocation& fallback) const;
+
+    Status fail(const Item& item, std::string_view what) const {
+        return corrupt(item.where, item.path, what);
+    }
+    Status expected(const Item& item, std::string_view what) const;
+
+    // A mapping's entries; plain, unique keys, each among `allowed` when it is non-empty
+    // (else an error with a "did you mean" hint).
+    Result<Fields> readMap(const Item& item, std::span<const std::string_view> allowed,
+                           std::string_view expectation) const;
+    Status require(const Fields& fields, const Item& parent, std::string_view key) const;
+    Item element(const Item& list, const YAML::Node& node, size_t index) const {
+        return {node, locate(node, list.where), indexPath(list.path, index)};
+    }
+    // A sequence's elements; `expectation` when it is not one or its length is outside
+    // [min_size, max_size].
+    Result<std::vector<Item>> readList(const Item& item, size_t min_size, size_t max_size,
+                                       std::string_view expectation) const;
+
+    Result<std::string> text(const Item& item) const;
+    Result<int64_t> integer(const Item& item, int64_t min, int64_t max) const;
+    // A finite decimal number in [min, max] (above min when min_exclusive).
+    Result<double> number(const Item& item, double min, double max, bool min_exclusive) const;
+    Result<bool> boolean(const Item& item) const;
+
+private:
+    std::string file_;
+};
+
+}  // namespace mixray::render::yaml

@@ -1,0 +1,507 @@
+// Scene files: the fixtures parse into the expected structs; every malformed input is
+// kCorruptData naming the line and field path; validate() checks scenes built in code.
+#include "mixray/render/scene_file.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <string>
+
+#include "test_data.h"
+
+namespace mixray::render {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The message of a failed parse; the test fails when the parse succeeds.
+std::string parseError(const std::string& text, ErrorCode code = ErrorCode::kCorruptData) {
+    auto scene = parseScene(text, "s.yaml");
+    EXPECT_FALSE(scene.isOk()) << text;
+    if (scene.isOk())
+        return {};
+    EXPECT_EQ(scene.status().code(), code) << scene.status().toString();
+    return scene.status().message();
+}
+
+// Expects "s.yaml:LINE:COL: PATH: ..." (column not checked) and `what` in the message.
+void expectError(const std::string& text, int line, const std::string& path,
+                 const std::string& what = {}) {
+    const std::string message = parseError(text);
+    const std::string prefix = "s.yaml:" + std::to_string(line) + ":";
+    EXPECT_EQ(message.rfind(prefix, 0), 0u) << "message: " << message << "\ntext:\n" << text;
+    if (!path.empty()) {
+        EXPECT_NE(message.find(": " + path + ": "), std::string::npos)
+            << "message: " << message << "\nwanted path " << path;
+    }
+    if (!what.empty()) {
+        EXPECT_NE(message.find(what), std::string::npos) << "message: " << message;
+    }
+}
+
+const char* kHeader = R"(materials:
+  m:
+    type: diffuse
+objects:
+)";
+
+TEST(SceneFileTest, TeapotChessboardFixture) {
+    const fs::path file = test::fixturesDir() / "scenes" / "teapot_chessboard.yaml";
+    auto scene = loadScene(file);
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    ASSERT_EQ(scene->materials.size(), 2u);
+    const Material& metal = scene->materials.at("teapot_metal");
+    EXPECT_EQ(metal.type, MaterialType::kMetal);
+    EXPECT_TRUE(metal.f0.isApprox(Rgb(0.95f, 0.93f, 0.88f)));
+    const Material& table = scene->materials.at("table");
+    EXPECT_EQ(table.type, MaterialType::kDiffuse);
+    EXPECT_TRUE(table.albedo.isApprox(Rgb::Constant(0.55f)));
+    EXPECT_FLOAT_EQ(table.reflectance, 0.15f);
+
+    ASSERT_EQ(scene->objects.size(), 2u);
+    const SceneObject& teapot = scene->objects[0];
+    EXPECT_EQ(teapot.name, "teapot");
+    EXPECT_EQ(teapot.role, ObjectRole::kVirtual);
+    EXPECT_EQ(teapot.shape.type, ShapeType::kMesh);
+    EXPECT_FLOAT_EQ(teapot.shape.scale, 0.02f);
+    // Relative to the scene file's folder, made absolute: the shared folder beside the repo.
+    const fs::path mesh = (test::sourceDir() / "../shared/data/06_models/newell_teapot.obj");
+    EXPECT_EQ(teapot.shape.mesh, fs::absolute(mesh).lexically_normal());
+    EXPECT_TRUE(teapot.shape.mesh.is_absolute());
+    EXPECT_EQ(teapot.material, "teapot_metal");
+    EXPECT_EQ(teapot.anchor, "world");
+    EXPECT_TRUE(teapot.T_anchor_object.translation().isApprox(Eigen::Vector3d(0.125, 0.0875, 0)));
+    // 90 degrees about x: the file's +y (up) becomes world +z.
+    EXPECT_TRUE((teapot.T_anchor_object.linear() * Eigen::Vector3d::UnitY())
+                    .isApprox(Eigen::Vector3d::UnitZ(), 1e-12));
+    EXPECT_EQ(teapot.where.line, 16);
+
+    const SceneObject& ghost = scene->objects[1];
+    EXPECT_EQ(ghost.role, ObjectRole::kGhost);
+    EXPECT_EQ(ghost.shape.type, ShapeType::kPlane);
+    EXPECT_FLOAT_EQ(ghost.shape.size.x(), 1.2f);
+    EXPECT_FLOAT_EQ(ghost.shape.size.y(), 0.8f);
+
+    ASSERT_EQ(scene->lights.size(), 1u);
+    const Light& lamp = scene->lights[0];
+    EXPECT_EQ(lamp.type, LightType::kPoint);
+    EXPECT_EQ(lamp.name, "lamp");
+    EXPECT_TRUE(lamp.position.isApprox(Eigen::Vector3d(0.4, -0.3, 0.8)));
+    EXPECT_TRUE(lamp.intensity.isApprox(Rgb::Constant(2.0f)));
+    EXPECT_FALSE(scene->camera.has_value());
+    EXPECT_EQ(scene->source_path, file);
+}
+
+TEST(SceneFileTest, DemoFixture) {
+    auto scene = loadScene(test::fixturesDir() / "scenes" / "demo.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    ASSERT_EQ(scene->materials.size(), 4u);
+    const Material& glass = scene->materials.at("glass");
+    EXPECT_EQ(glass.type, MaterialType::kGlass);
+    EXPECT_TRUE(glass.ior.isApprox(Rgb(1.51f, 1.52f, 1.53f)));
+    EXPECT_TRUE(glass.transmission.isApprox(Rgb(0.98f, 0.99f, 0.98f)));
+    const Material& plastic = scene->materials.at("red_plastic");
+    EXPECT_EQ(plastic.type, MaterialType::kPhong);
+    EXPECT_FLOAT_EQ(plastic.shininess, 64);
+    EXPECT_TRUE(plastic.specular.isApprox(Rgb::Constant(0.04f)));
+
+    ASSERT_EQ(scene->objects.size(), 4u);
+    EXPECT_EQ(scene->objects[0].shape.type, ShapeType::kSphere);
+    EXPECT_FLOAT_EQ(scene->objects[0].shape.radius, 0.05f);
+    EXPECT_EQ(scene->objects[0].anchor, "marker:0");
+    const SceneObject& teapot = scene->objects[1];
+    EXPECT_TRUE((teapot.T_anchor_object.linear() * Eigen::Vector3d::UnitY())
+                    .isApprox(Eigen::Vector3d::UnitZ(), 1e-6));
+    const SceneObject& crate = scene->objects[2];
+    EXPECT_EQ(crate.shape.type, ShapeType::kBox);
+    EXPECT_TRUE(crate.shape.size.isApprox(Eigen::Vector3f::Constant(0.06f)));
+    const Eigen::Vector3d x_rotated = crate.T_anchor_object.linear() * Eigen::Vector3d::UnitX();
+    EXPECT_NEAR(x_rotated.x(), std::cos(kPi / 6), 1e-12);
+    EXPECT_NEAR(x_rotated.y(), std::sin(kPi / 6), 1e-12);
+    EXPECT_EQ(scene->objects[3].role, ObjectRole::kGhost);
+
+    ASSERT_EQ(scene->lights.size(), 1u);
+    EXPECT_EQ(scene->lights[0].type, LightType::kSphere);
+    EXPECT_FLOAT_EQ(scene->lights[0].radius, 0.1f);
+    EXPECT_EQ(scene->lights[0].anchor, "marker:0");
+    EXPECT_TRUE(scene->lights[0].intensity.isApprox(Rgb(3.0f, 2.9f, 2.7f)));
+}
+
+TEST(SceneFileTest, EveryFeature) {
+    const std::string text = R"(version: 1
+objects:
+  - name: disk
+    shape: { disk: { radius: 0.2 } }
+    material: chrome
+    anchor: marker:007
+    pose: { rotation_deg: [0, 90, 0] }
+materials:
+  chrome: { type: mirror }
+  dim_mirror: { type: mirror, reflectance: 0.5 }
+  painted:
+    type: phong
+    albedo_texture: tex/wood.png
+    reflectance_map: /abs/map.png
+lights:
+  - { type: directional, direction: [0, 0, -2], irradiance: [1, 2, 3] }
+  - type: environment
+    file: env/courtyard.exr
+    scale: 0.5
+    mirror_lower_hemisphere: true
+    rotation: { rotation_deg: [0, 0, 90] }
+camera:
+  pose: { translation: [0, -1, 0.5], quaternion: [1, 0, 0, 0] }
+  model:
+    lens: fisheye
+    width: 1280
+    height: 960
+    fx: 400
+    fy: 401
+    cx: 639.5
+    cy: 479.5
+    distortion: [0.1, -0.01, 0.001, 0]
+)";
+    auto scene = parseScene(text, "dir/s.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    EXPECT_EQ(scene->objects[0].shape.type, ShapeType::kDisk);
+    EXPECT_EQ(scene->objects[0].anchor, "marker:7");  // canonical spelling
+    EXPECT_TRUE((scene->objects[0].T_anchor_object.linear() * Eigen::Vector3d::UnitZ())
+                    .isApprox(Eigen::Vector3d::UnitX(), 1e-12));
+    EXPECT_EQ(scene->materials.at("chrome").type, MaterialType::kMirror);
+    EXPECT_FLOAT_EQ(scene->materials.at("chrome").reflectance, 1.0f);
+    EXPECT_FLOAT_EQ(scene->materials.at("dim_mirror").reflectance, 0.5f);
+    EXPECT_EQ(scene->materials.at("painted").albedo_texture, fs::path("dir/tex/wood.png"));
+    EXPECT_EQ(scene->materials.at("painted").reflectance_map, fs::path("/abs/map.png"));
+    EXPECT_EQ(scene->materials.at("painted").where, (SourceLocation{"dir/s.yaml", 11, 3}));
+
+    ASSERT_EQ(scene->lights.size(), 2u);
+    EXPECT_EQ(scene->lights[0].type, LightType::kDirectional);
+    EXPECT_TRUE(scene->lights[0].direction.isApprox(Eigen::Vector3d(0, 0, -1)));
+    EXPECT_TRUE(scene->lights[0].intensity.isApprox(Rgb(1, 2, 3)));
+    const Light& env = scene->lights[1];
+    EXPECT_EQ(env.type, LightType::kEnvironment);
+    EXPECT_EQ(env.environment, fs::path("dir/env/courtyard.exr"));
+    EXPECT_FLOAT_EQ(env.environment_scale, 0.5f);
+    EXPECT_TRUE(env.mirror_lower_hemisphere);
+    EXPECT_TRUE((env.T_world_environment.linear() * Eigen::Vector3d::UnitX())
+                    .isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+
+    ASSERT_TRUE(scene->camera.has_value());
+    EXPECT_TRUE(scene->camera->T_world_cam.translation().isApprox(Eigen::Vector3d(0, -1, 0.5)));
+    ASSERT_TRUE(scene->camera->model.has_value());
+    const calibration::CameraModel& model = *scene->camera->model;
+    EXPECT_EQ(model.lens, calibration::LensModel::kFisheye);
+    EXPECT_EQ(model.width, 1280);
+    EXPECT_EQ(model.height, 960);
+    EXPECT_DOUBLE_EQ(model.fy, 401);
+    EXPECT_DOUBLE_EQ(model.cx, 639.5);
+    EXPECT_EQ(model.distortion.size(), 4u);
+}
+
+TEST(SceneFileTest, EmptyListsAreAScene) {
+    auto scene = parseScene("materials: {}\nobjects: []\nlights: []\n", "s.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    EXPECT_TRUE(scene->objects.empty());
+}
+
+TEST(SceneFileTest, MalformedObjects) {
+    const std::string h = kHeader;
+    // Unknown key with a hint.
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    materal: m\n",
+                8, "objects[0].materal", "did you mean material?");
+    // Negative and zero sizes, NaN, wrong types.
+    expectError(h + "  - name: a\n    shape:\n      sphere: { radius: -1 }\n    material: m\n", 7,
+                "objects[0].shape.sphere.radius", "above 0");
+    expectError(h + "  - name: a\n    shape: { box: { size: [1, 0, 1] } }\n    material: m\n", 6,
+                "objects[0].shape.box.size[1]");
+    expectError(h + "  - name: a\n    shape: { plane: { size: [1, 1, 1] } }\n    material: m\n", 6,
+                "objects[0].shape.plane.size", "[x, y]");
+    expectError(h + "  - name: a\n    shape: { disk: { radius: .nan } }\n    material: m\n", 6,
+                "objects[0].shape.disk.radius", "finite");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: big } }\n    material: m\n", 6,
+                "objects[0].shape.sphere.radius");
+    expectError(h + "  - name: a\n    shape: { cone: { radius: 1 } }\n    material: m\n", 6,
+                "objects[0].shape.cone");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 }, disk: { radius: 1 } }\n"
+                    "    material: m\n",
+                6, "objects[0].shape", "exactly one");
+    expectError(h + "  - name: a\n    shape: { mesh: { scale: 2 } }\n    material: m\n", 6,
+                "objects[0].shape.mesh.file", "missing");
+    expectError(h + "  - name: a\n    shape: { mesh: { file: x.obj, scale: 0 } }\n"
+                    "    material: m\n",
+                6, "objects[0].shape.mesh.scale");
+    // Unknown material, with a hint; duplicate names; bad anchors and roles.
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: mm\n", 7,
+                "objects[0].material", "unknown material \"mm\" (did you mean m?)");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n",
+                8, "objects[1].name", "duplicate object name \"a\" (first at s.yaml:5:");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    anchor: marker:x\n",
+                8, "objects[0].anchor", "marker:<id>");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    anchor: table\n",
+                8, "objects[0].anchor");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    role: real\n",
+                8, "objects[0].role", "virtual or ghost");
+    expectError(h + "  - name: a b\n    shape: { sphere: { radius: 1 } }\n    material: m\n", 5,
+                "objects[0].name");
+    expectError(h + "  - name: a\n    material: m\n", 5, "objects[0].shape", "missing");
+    // Poses.
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    pose: { rotation_deg: [0, 0, 0], quaternion: [1, 0, 0, 0] }\n",
+                8, "objects[0].pose.quaternion", "give one of");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    pose: { quaternion: [1, 1, 0, 0] }\n",
+                8, "objects[0].pose.quaternion", "unit quaternion");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    pose:\n      translation: [0, 0]\n",
+                9, "objects[0].pose.translation", "[x, y, z]");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    pose:\n      translation: [0, 0, .inf]\n",
+                9, "objects[0].pose.translation[2]", "finite");
+    expectError(h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+                    "    pose:\n      rotation: [0, 0, 1]\n",
+                9, "objects[0].pose.rotation", "did you mean rotation_deg?");
+}
+
+TEST(SceneFileTest, MalformedMaterials) {
+    expectError("materials:\n  g:\n    type: glass\n    ior: 0.9\n", 4, "materials.g.ior",
+                "from 1 to");
+    expectError("materials:\n  g:\n    type: glass\n    ior: [1.5, 0.5, 1.5]\n", 4,
+                "materials.g.ior[1]");
+    expectError("materials:\n  g:\n    type: glas\n", 3, "materials.g.type", "did you mean glass?");
+    expectError("materials:\n  g:\n    type: metal\n    ior: 1.5\n", 4, "materials.g.ior",
+                "does not apply to a metal material");
+    expectError("materials:\n  g:\n    albedo: [0.5, 0.5]\n", 3, "materials.g.albedo", "[r, g, b]");
+    expectError("materials:\n  g:\n    albedo: -0.1\n", 3, "materials.g.albedo");
+    expectError("materials:\n  g:\n    albdo: 0.5\n", 3, "materials.g.albdo",
+                "did you mean albedo?");
+    expectError("materials:\n  g:\n    type: phong\n    shininess: 0\n", 4,
+                "materials.g.shininess");
+    expectError("materials:\n  g:\n    reflectance: 1.5\n", 3, "materials.g.reflectance");
+    expectError("materials:\n  g: {}\n  g: {}\n", 3, "materials.g", "duplicate key");
+    expectError("materials:\n  \"a b\": {}\n", 2, "materials.\"a b\"", "material name");
+    expectError("materials:\n  g: diffuse\n", 2, "materials.g", "a material mapping");
+}
+
+TEST(SceneFileTest, MalformedLightsAndCamera) {
+    expectError("lights:\n  - type: point\n    intensity: 1\n", 2, "lights[0].position", "missing");
+    expectError("lights:\n  - type: spot\n    position: [0, 0, 1]\n", 2, "lights[0].type",
+                "point, sphere, directional, environment");
+    expectError("lights:\n  - type: point\n    position: [0, 0, 1]\n    radius: 1\n", 4,
+                "lights[0].radius", "does not apply to a point light");
+    expectError("lights:\n  - type: sphere\n    position: [0, 0, 1]\n    radius: 0\n", 4,
+                "lights[0].radius");
+    expectError("lights:\n  - type: point\n    position: [0, 0, 1]\n    intensity: -1\n", 4,
+                "lights[0].intensity");
+    expectError("lights:\n  - type: directional\n    direction: [0, 0, 0]\n", 3,
+                "lights[0].direction", "zero");
+    expectError(
+        "lights:\n  - { name: a, type: point, position: [0, 0, 1] }\n"
+        "  - { name: a, type: point, position: [0, 0, 1] }\n",
+        3, "lights[1].name", "duplicate light name");
+    expectError(
+        "lights:\n  - type: environment\n    file: e.exr\n"
+        "    mirror_lower_hemisphere: yes please\n",
+        4, "lights[0].mirror_lower_hemisphere", "true or false");
+    expectError("lights:\n  - type: environment\n    file: e.exr\n    rotation: [0, 0, 1]\n", 4,
+                "lights[0].rotation");
+    expectError(
+        "camera:\n  model:\n    lens: orthographic\n    width: 1\n    height: 1\n"
+        "    fx: 1\n    fy: 1\n    cx: 0\n    cy: 0\n",
+        3, "camera.model.lens", "pinhole or fisheye");
+    expectError(
+        "camera:\n  model:\n    width: 0\n    height: 1\n    fx: 1\n    fy: 1\n"
+        "    cx: 0\n    cy: 0\n",
+        3, "camera.model.width");
+    expectError(
+        "camera:\n  model:\n    width: 640\n    height: 480\n    fx: 1\n    fy: 1\n"
+        "    cx: 0\n    cy: 0\n    distortion: [1, 2, 3]\n",
+        9, "camera.model.distortion", "4, 5 or 8");
+    expectError(
+        "camera:\n  model:\n    width: 640\n    height: 480\n    fx: 1\n    fy: 1\n"
+        "    cx: 0\n",
+        3, "camera.model.cy", "missing");
+}
+
+TEST(SceneFileTest, MalformedFiles) {
+    expectError("", 1, "", "empty");
+    expectError("objects: []\nfoo: 1\n", 2, "foo", "unknown field");
+    expectError("version: 2\n", 1, "version", "version 2");
+    expectError("objects: {}\n", 1, "objects", "a list of objects");
+    expectError("- 1\n- 2\n", 1, "", "a mapping");
+    expectError("objects: []\n---\nobjects: []\n", 2, "", "second YAML document");
+    expectError("objects: [\n", 2, "", "YAML syntax error");
+    expectError(", objects: []\n", 1, "", "unexpected ','");
+    expectError("objects:\n\t- name: a\n", 2, "", "tab in indentation");
+    expectError(std::string("objects: [] \x01\n"), 1, "", "control character");
+    std::string deep = "objects: ";
+    for (int i = 0; i < 40; ++i)
+        deep += "[";
+    expectError(deep + "\n", 1, "", "nesting deeper");
+    EXPECT_NE(parseError(std::string(kMaxSceneFileBytes + 1, ' ')).find("at most"),
+              std::string::npos);
+}
+
+// The complete example in docs/scene-format.md parses, and the messages it shows are real.
+TEST(SceneFileTest, DocumentationExamples) {
+    std::ifstream in(test::sourceDir() / "docs" / "scene-format.md");
+    const std::string doc((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t start = doc.find("```yaml\n");
+    ASSERT_NE(start, std::string::npos);
+    const size_t end = doc.find("```\n", start + 8);
+    auto scene = parseScene(doc.substr(start + 8, end - start - 8), "docs/scene.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    EXPECT_EQ(scene->materials.size(), 5u);
+    EXPECT_EQ(scene->objects.size(), 5u);
+    EXPECT_EQ(scene->lights.size(), 4u);
+    ASSERT_TRUE(scene->camera && scene->camera->model);
+    EXPECT_EQ(scene->camera->model->distortion.size(), 5u);
+    EXPECT_EQ(scene->materials.at("red_plastic").albedo_texture,
+              fs::path("docs/textures/plastic.png"));
+
+    const std::string h = kHeader;
+    const std::vector<std::string> inputs = {
+        h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: m\n"
+            "    materal: m\n",
+        h + "  - name: a\n    shape:\n      sphere: { radius: -1 }\n    material: m\n",
+        h + "  - name: a\n    shape: { sphere: { radius: 1 } }\n    material: mm\n",
+        "materials:\n  g:\n    type: glass\n    ior: 0.9\n",
+        "materials:\n  g:\n    type: metal\n    ior: 1.5\n",
+    };
+    for (const std::string& input : inputs) {
+        auto bad = parseScene(input, "scene.yaml");
+        ASSERT_FALSE(bad.isOk());
+        EXPECT_NE(doc.find(bad.status().message() + "\n"), std::string::npos)
+            << "not in the documentation: " << bad.status().message();
+    }
+}
+
+// Mutated fixtures (fixed seed): every parse returns, either a scene that validates or
+// kCorruptData naming the file. A quick, deterministic stand-in for fuzzing.
+TEST(SceneFileTest, MutatedInputsNeverCrash) {
+    std::ifstream in(test::fixturesDir() / "scenes" / "demo.yaml");
+    const std::string original((std::istreambuf_iterator<char>(in)),
+                               std::istreambuf_iterator<char>());
+    ASSERT_FALSE(original.empty());
+    constexpr std::string_view kBytes = " \n:-,[]{}#&*!|>'\"%@`0123456789.eE+-abcxyz\t\x01";
+    std::mt19937 random(12345);
+    int failures = 0;
+    for (int i = 0; i < 1500; ++i) {
+        std::string text = original;
+        const int edits = 1 + static_cast<int>(random() % 4);
+        for (int e = 0; e < edits && !text.empty(); ++e) {
+            const size_t at = random() % text.size();
+            switch (random() % 4) {
+                case 0:
+                    text[at] = kBytes[random() % kBytes.size()];
+                    break;
+                case 1:
+                    text.erase(at, 1 + random() % 8);
+                    break;
+                case 2:
+                    text.insert(at, 1, kBytes[random() % kBytes.size()]);
+                    break;
+                default:
+                    text.resize(at);
+                    break;
+            }
+        }
+        auto scene = parseScene(text, "m.yaml");
+        if (scene.isOk()) {
+            EXPECT_TRUE(scene->validate().isOk());
+        } else {
+            ++failures;
+            EXPECT_EQ(scene.status().code(), ErrorCode::kCorruptData) << scene.status().toString();
+            EXPECT_EQ(scene.status().message().rfind("m.yaml", 0), 0u) << scene.status().message();
+        }
+    }
+    EXPECT_GT(failures, 500);  // the mutations do break things
+}
+
+TEST(SceneFileTest, LoadErrors) {
+    auto missing = loadScene(test::tempDir() / "no_such_scene.yaml");
+    ASSERT_FALSE(missing.isOk());
+    EXPECT_EQ(missing.status().code(), ErrorCode::kNotFound);
+    EXPECT_NE(missing.status().message().find("no_such_scene.yaml"), std::string::npos);
+
+    auto directory = loadScene(test::tempDir());
+    ASSERT_FALSE(directory.isOk());
+    EXPECT_EQ(directory.status().code(), ErrorCode::kInvalidArgument);
+
+    // Content errors name the file as given.
+    const fs::path bad = test::tempDir() / "bad.yaml";
+    std::ofstream(bad) << "objects:\n  - name: x\n";
+    auto corrupt = loadScene(bad);
+    ASSERT_FALSE(corrupt.isOk());
+    EXPECT_EQ(corrupt.status().code(), ErrorCode::kCorruptData);
+    EXPECT_EQ(corrupt.status().message().rfind(bad.string() + ":2:", 0), 0u)
+        << corrupt.status().message();
+}
+
+TEST(SceneFileTest, ValidateScenesBuiltInCode) {
+    SceneDescription scene;
+    scene.materials["m"].name = "m";
+    SceneObject object;
+    object.name = "a";
+    object.material = "m";
+    object.where = {"code", 3, 0};
+    scene.objects.push_back(object);
+    EXPECT_TRUE(scene.validate().isOk()) << scene.validate().toString();
+
+    auto expectInvalid = [](const SceneDescription& s, const std::string& path) {
+        const Status status = s.validate();
+        EXPECT_EQ(status.code(), ErrorCode::kCorruptData);
+        EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+    };
+    SceneDescription s = scene;
+    s.objects[0].material = "nope";
+    expectInvalid(s, "code:3: objects[0].material: unknown material");
+    s = scene;
+    s.objects.push_back(object);
+    expectInvalid(s, "objects[1].name: duplicate");
+    s = scene;
+    s.objects[0].anchor = "marker:";
+    expectInvalid(s, "objects[0].anchor");
+    s = scene;
+    s.objects[0].shape.radius = std::nanf("");
+    expectInvalid(s, "objects[0].shape.radius");
+    s = scene;
+    s.objects[0].shape.type = ShapeType::kBox;
+    s.objects[0].shape.size.z() = -1;
+    expectInvalid(s, "objects[0].shape.size");
+    s = scene;
+    s.objects[0].T_anchor_object.linear() *= 2;
+    expectInvalid(s, "objects[0].pose");
+    s = scene;
+    s.materials["m"].ior.y() = 0.9f;
+    expectInvalid(s, "materials.m.ior");
+    s = scene;
+    s.materials["m"].name = "other";
+    expectInvalid(s, "materials.m");
+    s = scene;
+    s.lights.push_back(Light{});
+    s.lights[0].intensity.x() = std::numeric_limits<float>::infinity();
+    expectInvalid(s, "lights[0].intensity");
+    s = scene;
+    s.camera.emplace();
+    calibration::CameraModel model;
+    model.width = 640;
+    model.height = 480;
+    model.fx = model.fy = 500;
+    model.distortion = {1, 2};
+    s.camera->model = model;
+    expectInvalid(s, "camera.model.distortion");
+}
+
+}  // namespace
+}  // namespace mixray::render
