@@ -44,6 +44,13 @@ find_path(MRCAL_INCLUDE_DIR mrcal.h PATH_SUFFIXES mrcal)
 find_library(MRCAL_LIBRARY mrcal)
 mixray_require(MRCAL_LIBRARY "mrcal 2.2" libmrcal-dev)
 
+find_package(assimp QUIET)
+mixray_require(assimp_FOUND "assimp" libassimp-dev)
+find_package(OpenEXR 3 QUIET)
+mixray_require(OpenEXR_FOUND "OpenEXR" libopenexr-dev)
+find_package(TBB QUIET)
+mixray_require(TBB_FOUND "oneTBB" libtbb-dev)
+
 # Support libraries.
 find_package(yaml-cpp QUIET)
 mixray_require(yaml-cpp_FOUND "yaml-cpp" libyaml-cpp-dev)

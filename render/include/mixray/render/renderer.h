@@ -1,0 +1,109 @@
+// The Embree ray tracer that composites virtual objects into camera frames by one-pass
+// differential rendering (Kán & Kaufmann; RT²AR's ghosts, depth occlusion and shadows).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mixray/calibration/camera_model.h"
+#include "mixray/graph/image.h"
+#include "mixray/graph/result.h"
+#include "mixray/render/scene.h"
+
+namespace mixray::render {
+
+// A float image of linear values, row-major, `channels` per pixel. Plain value.
+struct FloatImage {
+    int width = 0;
+    int height = 0;
+    int channels = 3;
+    std::vector<float> pixels;
+    float* at(int x, int y) { return pixels.data() + (static_cast<size_t>(y) * width + x) * channels; }
+    const float* at(int x, int y) const {
+        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
+    }
+};
+
+enum class SoftShadowMethod : uint8_t {
+    kHard,      // one shadow ray to each light's centre
+    kUniform,   // `shadow_samples` rays spread over each spherical light
+    kAdaptive,  // RT²AR: 5 rays (centre + 4 extremes of the visible hemisphere); all
+                // `shadow_samples` only where they disagree (the penumbra), then a mean filter
+};
+
+enum class DepthSecondaryRays : uint8_t {
+    kNone,         // depth occludes primary rays only
+    kScreenSpace,  // RT²AR Algorithm 2: march secondary rays through the depth image
+    kMesh,         // a triangle mesh built from the depth image each frame (Embree), so real
+                   // depth surfaces also have normals, reflect and receive shadows
+};
+
+struct RenderOptions {
+    int max_depth = 3;              // secondary bounces after the primary hit
+    int samples_per_pixel = 1;      // stratified jittered supersampling; a square number
+    SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
+    int shadow_samples = 20;        // rays per spherical light for kUniform / penumbra pixels
+    bool shadow_mean_filter = true; // smooth adaptive penumbrae (RT²AR)
+    DepthSecondaryRays depth_secondary = DepthSecondaryRays::kScreenSpace;
+    float depth_thickness_m = 0.05f;  // how thick a depth sample is taken to be for rays
+    // Trace only pixels whose rays can touch virtual content (the screen footprint of virtual
+    // objects, their shadows and reflections on ghosts); the rest is the camera image as is.
+    bool only_virtual_footprint = true;
+    bool keep_layers = false;  // also return I_m, I_r and M
+    int threads = 0;           // 0: all hardware threads
+    int tile_size = 16;        // pixels per tile side
+    uint64_t seed = 1;         // sampling is deterministic for a given seed
+
+    Status validate() const;
+};
+
+// One frame to composite into.
+struct RenderInputs {
+    ImageView camera_image;  // I_c: rgb8, sRGB-encoded, camera.width x camera.height
+    ImageView depth_mm;      // optional depth16 registered to the camera image; empty: none
+    calibration::CameraModel camera;
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    // Poses of the anchors objects are bound to, this frame ("marker:3" -> T_world_marker).
+    // "world" is implicit. Objects whose anchor is missing are not drawn this frame.
+    std::map<std::string, Eigen::Isometry3d> T_world_anchor;
+};
+
+struct RenderLayers {
+    Image composite;  // I_f as rgb8 sRGB, the size of the camera image
+    FloatImage mixed;      // I_m (keep_layers), linear
+    FloatImage real_only;  // I_r (keep_layers), linear
+    FloatImage mask;       // M in [0,1], one channel (keep_layers)
+};
+
+struct RenderStats {
+    uint64_t pixels_traced = 0;
+    uint64_t primary_rays = 0;
+    uint64_t secondary_rays = 0;
+    uint64_t shadow_rays = 0;
+    double seconds = 0;
+    uint64_t rays() const { return primary_rays + secondary_rays + shadow_rays; }
+};
+
+// Holds the scene's Embree BVH and renders frames into it. Thread-safety: render() is called
+// from one thread at a time; it parallelises internally over tiles.
+class Renderer {
+public:
+    // Loads meshes, textures and environment maps and builds the BVH. Errors name the file or
+    // the scene entry.
+    static Result<std::unique_ptr<Renderer>> create(const SceneDescription& scene,
+                                                    const RenderOptions& options);
+    virtual ~Renderer() = default;
+
+    // Composites the scene into inputs.camera_image. kInvalidArgument for images of the wrong
+    // size or format, non-finite or non-rigid poses, invalid camera models.
+    virtual Status render(const RenderInputs& inputs, RenderLayers& out,
+                          RenderStats* stats = nullptr) = 0;
+
+    virtual const RenderOptions& options() const = 0;
+};
+
+}  // namespace mixray::render

@@ -1,0 +1,181 @@
+// Embree prototypes (exact spheres, triangle meshes) instanced per object, posed each frame.
+#include "embree_scene.h"
+
+#include <cstring>
+
+namespace mixray::render::detail {
+namespace {
+
+void onEmbreeError(void* user, RTCError code, const char* message) {
+    auto* last = static_cast<std::string*>(user);
+    *last = "embree error " + std::to_string(static_cast<int>(code)) + ": " +
+            (message != nullptr ? message : "");
+}
+
+RTCGeometry sphereGeometry(RTCDevice device, float radius) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    auto* point = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+    if (point != nullptr) {
+        point[0] = point[1] = point[2] = 0;
+        point[3] = radius;
+    }
+    return geometry;
+}
+
+RTCGeometry triangleGeometry(RTCDevice device, const TriangleMesh& mesh) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), mesh.positions.size()));
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(uint32_t), mesh.triangles.size()));
+    if (vertices != nullptr && indices != nullptr) {
+        for (size_t i = 0; i < mesh.positions.size(); ++i)
+            std::memcpy(vertices + 3 * i, mesh.positions[i].data(), 3 * sizeof(float));
+        for (size_t i = 0; i < mesh.triangles.size(); ++i)
+            std::memcpy(indices + 3 * i, mesh.triangles[i].data(), 3 * sizeof(uint32_t));
+    }
+    return geometry;
+}
+
+}  // namespace
+
+EmbreeScene::~EmbreeScene() {
+    for (RTCGeometry g : instances_all_)
+        rtcReleaseGeometry(g);
+    for (RTCGeometry g : instances_ghost_)
+        if (g != nullptr)
+            rtcReleaseGeometry(g);
+    if (all_ != nullptr)
+        rtcReleaseScene(all_);
+    if (ghosts_ != nullptr)
+        rtcReleaseScene(ghosts_);
+    for (RTCScene s : prototypes_)
+        rtcReleaseScene(s);
+    if (device_ != nullptr)
+        rtcReleaseDevice(device_);
+}
+
+Status EmbreeScene::deviceStatus(const std::string& what) const {
+    if (rtcGetDeviceError(device_) == RTC_ERROR_NONE && last_error_->empty())
+        return Status::ok();
+    return {ErrorCode::kInternal, what + ": " + *last_error_};
+}
+
+Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>& objects) {
+    std::unique_ptr<EmbreeScene> scene(new EmbreeScene());
+    scene->device_ = rtcNewDevice(nullptr);
+    if (scene->device_ == nullptr)
+        return Status(ErrorCode::kInternal, "rtcNewDevice failed");
+    rtcSetDeviceErrorFunction(scene->device_, onEmbreeError, scene->last_error_.get());
+    scene->all_ = rtcNewScene(scene->device_);
+    scene->ghosts_ = rtcNewScene(scene->device_);
+
+    for (size_t i = 0; i < objects.size(); ++i) {
+        ObjectData& object = objects[i];
+        RTCScene prototype = rtcNewScene(scene->device_);
+        scene->prototypes_.push_back(prototype);
+        if (object.shape == ShapeType::kSphere) {
+            RTCGeometry g = sphereGeometry(scene->device_, object.sphere_radius);
+            rtcCommitGeometry(g);
+            rtcAttachGeometryByID(prototype, g, 0);
+            rtcReleaseGeometry(g);
+        } else {
+            for (size_t m = 0; m < object.meshes.size(); ++m) {
+                RTCGeometry g = triangleGeometry(scene->device_, object.meshes[m]);
+                rtcCommitGeometry(g);
+                rtcAttachGeometryByID(prototype, g, static_cast<unsigned>(m));
+                rtcReleaseGeometry(g);
+            }
+        }
+        rtcCommitScene(prototype);
+        MIXRAY_RETURN_IF_ERROR(scene->deviceStatus("building object '" + object.name + "'"));
+
+        const auto addInstance = [&](RTCScene top) {
+            RTCGeometry instance = rtcNewGeometry(scene->device_, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(instance, prototype);
+            rtcSetGeometryTimeStepCount(instance, 1);
+            rtcAttachGeometryByID(top, instance, static_cast<unsigned>(i));
+            return instance;
+        };
+        scene->instances_all_.push_back(addInstance(scene->all_));
+        scene->instances_ghost_.push_back(
+            object.role == ObjectRole::kGhost ? addInstance(scene->ghosts_) : nullptr);
+    }
+    MIXRAY_RETURN_IF_ERROR(scene->deviceStatus("building instances"));
+    return scene;
+}
+
+Status EmbreeScene::setPoses(const std::vector<ObjectData>& objects) {
+    for (size_t i = 0; i < objects.size(); ++i) {
+        const ObjectData& object = objects[i];
+        Eigen::Matrix<float, 3, 4> xfm;  // column-major 3x4, as Embree wants
+        xfm.leftCols<3>() = object.R_world_object;
+        xfm.col(3) = object.t_world_object;
+        for (RTCGeometry instance : {instances_all_[i], instances_ghost_[i]}) {
+            if (instance == nullptr)
+                continue;
+            rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm.data());
+            if (object.active)
+                rtcEnableGeometry(instance);
+            else
+                rtcDisableGeometry(instance);
+            rtcCommitGeometry(instance);
+        }
+    }
+    rtcCommitScene(all_);
+    rtcCommitScene(ghosts_);
+    return deviceStatus("posing objects");
+}
+
+Hit EmbreeScene::intersect(RTCScene scene, const Eigen::Vector3f& origin,
+                           const Eigen::Vector3f& direction, float t_far) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh{};
+    rh.ray.org_x = origin.x();
+    rh.ray.org_y = origin.y();
+    rh.ray.org_z = origin.z();
+    rh.ray.dir_x = direction.x();
+    rh.ray.dir_y = direction.y();
+    rh.ray.dir_z = direction.z();
+    rh.ray.tnear = 0;
+    rh.ray.tfar = t_far;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &context, &rh);
+    Hit hit;
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID)
+        return hit;
+    hit.valid = true;
+    hit.t = rh.ray.tfar;
+    hit.object = rh.hit.instID[0];
+    hit.mesh = rh.hit.geomID;
+    hit.prim = rh.hit.primID;
+    hit.u = rh.hit.u;
+    hit.v = rh.hit.v;
+    return hit;
+}
+
+bool EmbreeScene::occluded(RTCScene scene, const Eigen::Vector3f& origin,
+                           const Eigen::Vector3f& direction, float t_far) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay ray{};
+    ray.org_x = origin.x();
+    ray.org_y = origin.y();
+    ray.org_z = origin.z();
+    ray.dir_x = direction.x();
+    ray.dir_y = direction.y();
+    ray.dir_z = direction.z();
+    ray.tnear = 0;
+    ray.tfar = t_far;
+    ray.mask = 0xFFFFFFFFu;
+    rtcOccluded1(scene, &context, &ray);
+    return ray.tfar < 0;
+}
+
+}  // namespace mixray::render::detail

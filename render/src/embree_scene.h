@@ -1,0 +1,98 @@
+// The Renderer's Embree scene: one prototype BVH per object, instanced into a scene of all
+// objects and a scene of ghosts only, so real-only rays never see virtual objects.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mixray/graph/result.h"
+#include "mixray/render/assets.h"
+#include "mixray/render/scene.h"
+
+namespace mixray::render::detail {
+
+// A material with its textures loaded. Plain value.
+struct MaterialData {
+    Material material;
+    Texture albedo_texture;   // empty: albedo only
+    Texture reflectance_map;  // empty: uniform `material.reflectance`
+};
+
+// One scene object as the integrator needs it. `active` and the pose change per frame.
+struct ObjectData {
+    std::string name;
+    ObjectRole role = ObjectRole::kVirtual;
+    ShapeType shape = ShapeType::kSphere;
+    float sphere_radius = 0;
+    int material = 0;
+    std::string anchor;
+    Eigen::Isometry3f T_anchor_object = Eigen::Isometry3f::Identity();
+    std::vector<TriangleMesh> meshes;                        // kSphere: none (traced exactly)
+    Eigen::Vector3f bound_centre = Eigen::Vector3f::Zero();  // bounding sphere, object frame
+    float bound_radius = 0;
+
+    bool active = false;
+    Eigen::Matrix3f R_world_object = Eigen::Matrix3f::Identity();
+    Eigen::Vector3f t_world_object = Eigen::Vector3f::Zero();
+};
+
+struct LightData {
+    Light light;
+    EnvironmentMap environment;  // kEnvironment only
+    bool active = false;
+    Eigen::Vector3f position_world = Eigen::Vector3f::Zero();
+    Eigen::Vector3f direction_world{0, 0, -1};  // unit, travel direction
+    Eigen::Matrix3f R_environment_world = Eigen::Matrix3f::Identity();
+};
+
+// A ray's nearest hit: which object, which of its meshes and triangles, Embree's barycentrics.
+struct Hit {
+    bool valid = false;
+    float t = std::numeric_limits<float>::infinity();
+    unsigned object = 0;
+    unsigned mesh = 0;
+    unsigned prim = 0;
+    float u = 0, v = 0;
+};
+
+// Owns the Embree device and scenes. Thread-safety: intersect/occluded are reentrant once
+// setPoses() returned; setPoses() must not run concurrently with them.
+class EmbreeScene {
+public:
+    ~EmbreeScene();
+
+    // Builds prototypes and instances for `objects` (which keep their meshes afterwards).
+    static Result<std::unique_ptr<EmbreeScene>> build(std::vector<ObjectData>& objects);
+
+    // Moves each object's instances to its pose, disables inactive ones, recommits.
+    Status setPoses(const std::vector<ObjectData>& objects);
+
+    RTCScene all() const { return all_; }
+    RTCScene ghosts() const { return ghosts_; }
+
+    static Hit intersect(RTCScene scene, const Eigen::Vector3f& origin,
+                         const Eigen::Vector3f& direction, float t_far);
+    static bool occluded(RTCScene scene, const Eigen::Vector3f& origin,
+                         const Eigen::Vector3f& direction, float t_far);
+
+private:
+    EmbreeScene() = default;
+    Status deviceStatus(const std::string& what) const;
+
+    RTCDevice device_ = nullptr;
+    RTCScene all_ = nullptr;
+    RTCScene ghosts_ = nullptr;
+    std::vector<RTCScene> prototypes_;
+    std::vector<RTCGeometry> instances_all_;
+    std::vector<RTCGeometry> instances_ghost_;  // nullptr for virtual objects
+    std::unique_ptr<std::string> last_error_ = std::make_unique<std::string>();
+};
+
+}  // namespace mixray::render::detail

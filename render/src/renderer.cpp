@@ -1,0 +1,1010 @@
+// The Renderer: one-pass differential rendering (Kán & Kaufmann) of virtual objects into camera
+// frames with RT²AR's ghosts, shadows, reflection, refraction and depth occlusion on Embree.
+#include "mixray/render/renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "embree_scene.h"
+#include "mixray/render/depth_occlusion.h"
+#include "optics.h"
+
+namespace mixray::render {
+
+Status RenderOptions::validate() const {
+    const auto bad = [](const std::string& what) {
+        return Status(ErrorCode::kInvalidArgument, "render options: " + what);
+    };
+    if (max_depth < 0 || max_depth > 64)
+        return bad("max_depth must be in [0, 64]");
+    const int root = static_cast<int>(std::lround(std::sqrt(std::max(samples_per_pixel, 0))));
+    if (samples_per_pixel < 1 || samples_per_pixel > 256 || root * root != samples_per_pixel)
+        return bad("samples_per_pixel must be a square number in [1, 256]");
+    if (shadow_samples < 1 || shadow_samples > 1024)
+        return bad("shadow_samples must be in [1, 1024]");
+    if (!std::isfinite(depth_thickness_m) || depth_thickness_m <= 0)
+        return bad("depth_thickness_m must be positive and finite");
+    if (threads < 0)
+        return bad("threads must be >= 0");
+    if (tile_size < 1 || tile_size > 1024)
+        return bad("tile_size must be in [1, 1024]");
+    return Status::ok();
+}
+
+namespace {
+
+using detail::EmbreeScene;
+using detail::Hit;
+using detail::LightData;
+using detail::MaterialData;
+using detail::ObjectData;
+using Vec3 = Eigen::Vector3f;
+using Vec2 = Eigen::Vector2f;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+// How far secondary rays look for depth-camera surfaces when nothing in the scene is nearer;
+// beyond any Kinect's range.
+constexpr float kFarDepth_m = 20;
+constexpr float kDepthStart_m = 0.01f;
+
+// Which radiances a ray carries: both (paths made of real surfaces so far), mixed only (after a
+// virtual surface, where the real scene has no counterpart), or real only (the scene without
+// virtual objects, for the I_r of rays a virtual object intercepted).
+enum class Mode : uint8_t { kBoth, kMixed, kReal };
+
+struct Pair {
+    Vec3 m = Vec3::Zero();
+    Vec3 r = Vec3::Zero();
+};
+
+struct Counters {
+    uint64_t secondary = 0;
+    uint64_t shadow = 0;
+};
+
+struct SampleState {
+    optics::Rng rng;
+    Counters* counters;
+    bool penumbra = false;
+};
+
+// What shading needs about a hit, in world coordinates.
+struct Surface {
+    Vec3 p;
+    Vec3 n_geometric;  // unit, outward (as the mesh winds or the sphere bulges)
+    Vec3 n_shading;    // unit, interpolated, same side as n_geometric
+    Vec2 uv = Vec2::Zero();
+    const ObjectData* object = nullptr;
+    const MaterialData* material = nullptr;
+};
+
+struct SphereBound {
+    Vec3 centre;
+    float radius;
+};
+
+Status checkPose(const Eigen::Isometry3d& T, const std::string& what) {
+    if (!T.matrix().allFinite())
+        return {ErrorCode::kInvalidArgument, what + ": pose has non-finite entries"};
+    const Eigen::Matrix3d R = T.linear();
+    const bool orthonormal = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-5;
+    const bool last_row = T.matrix().row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1));
+    if (!orthonormal || std::abs(R.determinant() - 1) > 1e-5 || !last_row)
+        return {ErrorCode::kInvalidArgument, what + ": pose is not a rigid transform"};
+    return Status::ok();
+}
+
+bool sameModel(const calibration::CameraModel& a, const calibration::CameraModel& b) {
+    return a.lens == b.lens && a.width == b.width && a.height == b.height && a.fx == b.fx &&
+           a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion;
+}
+
+uint64_t hashIndex(uint64_t seed, uint64_t a, uint64_t b) {
+    optics::Rng rng(seed ^ (a * 0x9e3779b97f4a7c15ULL) ^ (b * 0xc2b2ae3d27d4eb4fULL));
+    return rng.next();
+}
+
+// Distance from `c` to the segment a + s·(b - a), s in [0, s_max] (s_max = inf: a ray).
+float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir, float length) {
+    const float s = std::clamp((c - a).dot(dir), 0.f, length);
+    return (a + s * dir - c).norm();
+}
+
+float offsetFor(const Vec3& p) {
+    return 1e-4f * (1.f + p.cwiseAbs().maxCoeff());
+}
+
+// Camera directions of every (sub)pixel sample, computed once per camera model through its
+// unproject(), so rays follow the lens distortion exactly. NaN marks samples without a ray.
+struct RayCache {
+    calibration::CameraModel model;
+    int samples = 0;
+    uint64_t seed = 0;
+    std::vector<Vec3> directions;  // ((y * width + x) * samples + s)
+};
+
+// Per-frame tracing context: read-only during the parallel loop.
+struct Frame {
+    const RenderInputs* inputs = nullptr;
+    Eigen::Matrix3f R_world_cam;
+    Vec3 t_world_cam;
+    Eigen::Matrix3d R_cam_world;
+    Eigen::Vector3d t_cam_world;
+    std::vector<SphereBound> virtual_bounds;
+    std::vector<const LightData*> lights;  // active direct lights
+    std::vector<const LightData*> environments;
+    std::optional<DepthView> depth;
+    std::array<float, 256> srgb_lut{};
+};
+
+class EmbreeRenderer final : public Renderer {
+public:
+    EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
+                   std::vector<ObjectData> objects, std::vector<LightData> lights)
+        : options_(options),
+          materials_(std::move(materials)),
+          objects_(std::move(objects)),
+          lights_(std::move(lights)) {}
+
+    Status init() {
+        auto built = EmbreeScene::build(objects_);
+        if (!built)
+            return built.status();
+        scene_ = std::move(built).value();
+        return Status::ok();
+    }
+
+    const RenderOptions& options() const override { return options_; }
+    Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
+
+    // The integrator (const: reentrant over tiles).
+    Pair trace(const Frame& f, const Vec3& origin, const Vec3& d, int depth, Mode mode,
+               SampleState& st) const;
+    Pair shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d, int depth,
+               Mode mode, SampleState& st) const;
+    Pair direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d, const Vec3& albedo,
+                Mode mode, SampleState& st) const;
+    Pair lightVisibility(const LightData& light, const Vec3& origin, const Vec3& to_light,
+                         float dist, Mode mode, SampleState& st) const;
+    Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
+    Vec3 environment(const Frame& f, const Vec3& d) const;
+    std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s) const;
+    bool ghostInfluenced(const Frame& f, const Surface& s) const;
+
+private:
+    Status checkInputs(const RenderInputs& inputs) const;
+    Status prepareFrame(const RenderInputs& inputs, Frame& f);
+    void updateRayCache(const calibration::CameraModel& camera);
+
+    RenderOptions options_;
+    std::vector<MaterialData> materials_;
+    std::vector<ObjectData> objects_;
+    std::vector<LightData> lights_;
+    std::unique_ptr<EmbreeScene> scene_;
+    RayCache rays_;
+};
+
+Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
+    const ObjectData& object = objects_[hit.object];
+    Surface s;
+    s.object = &object;
+    s.material = &materials_[static_cast<size_t>(object.material)];
+    const Eigen::Matrix3f& R = object.R_world_object;
+    if (object.shape == ShapeType::kSphere) {
+        // Recompute the point on the exact sphere: less drift than origin + t·d.
+        const Vec3 p_obj = R.transpose() * (origin + hit.t * d - object.t_world_object);
+        const Vec3 n_obj = p_obj.normalized();
+        s.n_geometric = s.n_shading = R * n_obj;
+        s.p = R * (n_obj * object.sphere_radius) + object.t_world_object;
+        s.uv = {0.5f + std::atan2(n_obj.y(), n_obj.x()) / (2 * optics::kPi),
+                std::acos(std::clamp(n_obj.z(), -1.f, 1.f)) / optics::kPi};
+        return s;
+    }
+    const TriangleMesh& mesh = object.meshes[hit.mesh];
+    const auto& tri = mesh.triangles[hit.prim];
+    const float w = 1.f - hit.u - hit.v;
+    const Vec3& a = mesh.positions[tri[0]];
+    const Vec3& b = mesh.positions[tri[1]];
+    const Vec3& c = mesh.positions[tri[2]];
+    const Vec3 n_geo = (b - a).cross(c - a).normalized();
+    s.n_geometric = R * n_geo;
+    s.p = origin + hit.t * d;
+    if (mesh.normals.size() == mesh.positions.size()) {
+        Vec3 n =
+            w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
+        if (n.squaredNorm() > 1e-12f) {
+            n = R * n.normalized();
+            s.n_shading = n.dot(s.n_geometric) >= 0 ? n : Vec3(-n);
+        } else {
+            s.n_shading = s.n_geometric;
+        }
+    } else {
+        s.n_shading = s.n_geometric;
+    }
+    if (mesh.uvs.size() == mesh.positions.size())
+        s.uv = w * mesh.uvs[tri[0]] + hit.u * mesh.uvs[tri[1]] + hit.v * mesh.uvs[tri[2]];
+    return s;
+}
+
+Vec3 EmbreeRenderer::environment(const Frame& f, const Vec3& d) const {
+    Vec3 sum = Vec3::Zero();
+    for (const LightData* light : f.environments)
+        sum += light->light.environment_scale *
+               light->environment.radiance((light->R_environment_world * d).normalized());
+    return sum;
+}
+
+// Fractions of a light's visible area seen from `origin` in the mixed and the real scene. Both
+// use the same sample points, so they agree bit for bit where no virtual object interferes.
+Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
+                                     const Vec3& to_light, float dist, Mode mode,
+                                     SampleState& st) const {
+    const bool want_m = mode != Mode::kReal;
+    const bool want_r = mode != Mode::kMixed;
+    // One shadow ray towards `target` (a point, or a direction when dist is infinite).
+    const auto test = [&](const Vec3& dir, float length, int& lit_m, int& lit_r) {
+        bool occ_m = false;
+        if (want_m) {
+            ++st.counters->shadow;
+            occ_m = EmbreeScene::occluded(scene_->all(), origin, dir, length);
+            lit_m += occ_m ? 0 : 1;
+        }
+        if (want_r) {
+            bool occ_r = false;
+            if (!want_m || occ_m) {
+                ++st.counters->shadow;
+                occ_r = EmbreeScene::occluded(scene_->ghosts(), origin, dir, length);
+            }
+            lit_r += occ_r ? 0 : 1;
+        }
+    };
+    const float shorten = 1.f - 1e-4f;
+    int lit_m = 0, lit_r = 0;
+    const SoftShadowMethod method = options_.soft_shadows;
+    if (light.light.type != LightType::kSphere || method == SoftShadowMethod::kHard ||
+        dist <= light.light.radius) {
+        test(to_light, std::isfinite(dist) ? dist * shorten : kInf, lit_m, lit_r);
+        return {Vec3::Constant(static_cast<float>(lit_m)),
+                Vec3::Constant(static_cast<float>(lit_r))};
+    }
+    // The disc of the sphere facing `origin` (RT²AR fig. 9), spanned by u and v.
+    const Vec3 w = to_light;
+    const Vec3 u = w.unitOrthogonal();
+    const Vec3 v = w.cross(u);
+    const Vec3 centre = origin + dist * w;
+    const float radius = light.light.radius;
+    const auto toward = [&](const Vec3& target, int& m, int& r) {
+        const Vec3 delta = target - origin;
+        const float length = delta.norm();
+        test(delta / length, length * shorten, m, r);
+    };
+    if (method == SoftShadowMethod::kAdaptive) {
+        const std::array<Vec3, 5> points = {centre, centre + radius * u, centre - radius * u,
+                                            centre + radius * v, centre - radius * v};
+        for (const Vec3& q : points)
+            toward(q, lit_m, lit_r);
+        const bool agree_m = !want_m || lit_m == 0 || lit_m == 5;
+        const bool agree_r = !want_r || lit_r == 0 || lit_r == 5;
+        if (agree_m && agree_r)
+            return {Vec3::Constant(lit_m / 5.f), Vec3::Constant(lit_r / 5.f)};
+        st.penumbra = true;
+        lit_m = lit_r = 0;
+    }
+    const int n = options_.shadow_samples;
+    const float rotation = st.rng.uniform() * 2 * optics::kPi;
+    for (int k = 0; k < n; ++k) {
+        const Vec2 q = optics::discSample(k, n, st.rng.uniform(), rotation);
+        toward(centre + radius * (q.x() * u + q.y() * v), lit_m, lit_r);
+    }
+    return {Vec3::Constant(static_cast<float>(lit_m) / static_cast<float>(n)),
+            Vec3::Constant(static_cast<float>(lit_r) / static_cast<float>(n))};
+}
+
+// Direct light from point, spherical and directional lights: Lambert plus, for Phong, a
+// normalised Blinn-Phong lobe; each light's shadow rays in the scenes the mode asks for.
+Pair EmbreeRenderer::direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
+                            const Vec3& albedo, Mode mode, SampleState& st) const {
+    Pair out;
+    const Material& mat = s.material->material;
+    const Vec3 origin =
+        s.p + offsetFor(s.p) * (s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    for (const LightData* light : f.lights) {
+        Vec3 wi;
+        float dist = kInf;
+        Vec3 irradiance;
+        if (light->light.type == LightType::kDirectional) {
+            wi = -light->direction_world;
+            irradiance = light->light.intensity;
+        } else {
+            const Vec3 delta = light->position_world - s.p;
+            dist = delta.norm();
+            if (dist <= 0)
+                continue;
+            wi = delta / dist;
+            irradiance = light->light.intensity / (dist * dist);
+        }
+        const float cos_theta = n.dot(wi);
+        if (cos_theta <= 0)
+            continue;
+        Vec3 brdf = albedo / optics::kPi;
+        if (mat.type == MaterialType::kPhong) {
+            const Vec3 h = (wi - d).normalized();
+            const float lobe = std::pow(std::max(0.f, n.dot(h)), mat.shininess);
+            brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
+        }
+        const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
+        const Pair visible = lightVisibility(*light, origin, wi, dist, mode, st);
+        out.m += unshadowed.cwiseProduct(visible.m);
+        out.r += unshadowed.cwiseProduct(visible.r);
+    }
+    return out;
+}
+
+Pair scaled(const Pair& p, const Vec3& w) {
+    return {p.m.cwiseProduct(w), p.r.cwiseProduct(w)};
+}
+Pair sum(const Pair& a, const Pair& b) {
+    return {a.m + b.m, a.r + b.r};
+}
+
+Pair EmbreeRenderer::shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d,
+                           int depth, Mode mode, SampleState& st) const {
+    const Material& mat = s.material->material;
+    const bool entering = s.n_geometric.dot(d) < 0;
+    const Vec3 n_geo = entering ? s.n_geometric : Vec3(-s.n_geometric);
+    const Vec3 n = entering ? s.n_shading : Vec3(-s.n_shading);
+    const float eps = offsetFor(s.p);
+    const Vec3 above = s.p + eps * n_geo;
+    const Vec3 below = s.p - eps * n_geo;
+    const bool can_bounce = depth < options_.max_depth;
+    const auto reflected = [&]() {
+        return can_bounce ? trace(f, above, optics::reflect(d, n).normalized(), depth + 1, mode, st)
+                          : Pair{};
+    };
+    float map = 1;
+    if (!s.material->reflectance_map.empty())
+        map = s.material->reflectance_map.sample(s.uv).mean();
+
+    switch (mat.type) {
+        case MaterialType::kDiffuse:
+        case MaterialType::kPhong: {
+            Vec3 albedo = mat.albedo;
+            if (!s.material->albedo_texture.empty())
+                albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
+            Pair local = direct(f, s, n, d, albedo, mode, st);
+            const float rho = std::clamp(mat.reflectance * map, 0.f, 1.f);
+            if (rho <= 0)
+                return local;
+            return sum(scaled(local, Vec3::Constant(1 - rho)),
+                       scaled(reflected(), Vec3::Constant(rho)));
+        }
+        case MaterialType::kMirror: {
+            const float rho =
+                std::clamp((mat.reflectance > 0 ? mat.reflectance : 1.f) * map, 0.f, 1.f);
+            return scaled(reflected(), Vec3::Constant(rho));
+        }
+        case MaterialType::kMetal: {
+            const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
+            Vec3 fresnel;
+            for (int c = 0; c < 3; ++c)
+                fresnel[c] = optics::schlick(mat.f0[c], cos_i);
+            return scaled(reflected(), fresnel);
+        }
+        case MaterialType::kGlass: {
+            const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
+            // Beer-Lambert absorption along the segment just travelled inside the glass.
+            Vec3 absorbed = Vec3::Ones();
+            if (!entering)
+                for (int c = 0; c < 3; ++c)
+                    absorbed[c] = std::pow(std::max(mat.transmission[c], 0.f), hit.t);
+            const bool dispersive = mat.ior.x() != mat.ior.y() || mat.ior.x() != mat.ior.z();
+            const int channels = dispersive ? 3 : 1;
+            Vec3 reflectance;
+            std::array<std::optional<Vec3>, 3> refracted;
+            for (int c = 0; c < channels; ++c) {
+                const float n_from = entering ? 1.f : mat.ior[c];
+                const float n_to = entering ? mat.ior[c] : 1.f;
+                refracted[c] = optics::refract(d, n, n_from / n_to);
+                reflectance[c] =
+                    refracted[c] ? optics::dielectricReflectance(cos_i, n_from, n_to) : 1.f;
+            }
+            if (!dispersive)
+                reflectance = Vec3::Constant(reflectance[0]);
+            Pair result;
+            if (can_bounce) {
+                if (reflectance.maxCoeff() > 0)
+                    result = scaled(reflected(), reflectance);
+                for (int c = 0; c < channels; ++c) {
+                    if (!refracted[c])
+                        continue;
+                    Pair t = trace(f, below, *refracted[c], depth + 1, mode, st);
+                    Vec3 weight = Vec3::Ones() - reflectance;
+                    if (dispersive) {
+                        const float keep = weight[c];
+                        weight = Vec3::Zero();
+                        weight[c] = keep;
+                    }
+                    result = sum(result, scaled(t, weight));
+                }
+            }
+            return scaled(result, absorbed);
+        }
+    }
+    return {};
+}
+
+// The camera pixel a world point projects to (bilinear, linear light); nullopt outside.
+std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
+    const RenderInputs& in = *f.inputs;
+    const Eigen::Vector3d p_cam = f.R_cam_world * p_world.cast<double>() + f.t_cam_world;
+    const auto pixel = in.camera.project(p_cam);
+    if (!pixel)
+        return std::nullopt;
+    const double x = pixel->x(), y = pixel->y();
+    const int w = in.camera.width, h = in.camera.height;
+    if (!(x >= 0 && y >= 0 && x <= w - 1 && y <= h - 1))
+        return std::nullopt;
+    const int x0 = std::min(static_cast<int>(x), w - 1), y0 = std::min(static_cast<int>(y), h - 1);
+    const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+    const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+    const auto texel = [&](int px, int py) {
+        const uint8_t* rgb = in.camera_image.row<uint8_t>(py) + 3 * px;
+        return Vec3(f.srgb_lut[rgb[0]], f.srgb_lut[rgb[1]], f.srgb_lut[rgb[2]]);
+    };
+    return (1 - ay) * ((1 - ax) * texel(x0, y0) + ax * texel(x1, y0)) +
+           ay * ((1 - ax) * texel(x0, y1) + ax * texel(x1, y1));
+}
+
+// The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it
+// into the image; nullopt when it falls outside or something real hides it from the camera.
+std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surface& s) const {
+    const Vec3 to_camera = f.t_world_cam - s.p;
+    const float dist = to_camera.norm();
+    const Vec3 dir = to_camera / dist;
+    const Vec3 origin =
+        s.p + offsetFor(s.p) * (s.n_geometric.dot(dir) > 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    if (EmbreeScene::occluded(scene_->ghosts(), origin, dir, dist * 0.999f))
+        return std::nullopt;
+    return cameraPixelAt(f, s.p);
+}
+
+Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, int depth, Mode mode,
+                           SampleState& st) const {
+    ++st.counters->secondary;
+    const Hit hit = EmbreeScene::intersect(mode == Mode::kReal ? scene_->ghosts() : scene_->all(),
+                                           origin, d, kInf);
+    if (f.depth && options_.depth_secondary == DepthSecondaryRays::kScreenSpace) {
+        // RT²AR Algorithm 2: the depth camera's surfaces, found in screen space, are real and
+        // seen by the camera, so the camera pixel is their radiance in both scenes.
+        // The walk starts a little away from the origin so that a ray leaving a surface the
+        // depth camera also measured does not find that surface again.
+        const Vec3 start = origin + kDepthStart_m * d;
+        const Vec3 o_cam = (f.R_cam_world * start.cast<double>() + f.t_cam_world).cast<float>();
+        const Vec3 d_cam = (f.R_cam_world * d.cast<double>()).cast<float>();
+        const float t_max = (hit.valid ? hit.t : kFarDepth_m) - kDepthStart_m;
+        const auto t =
+            t_max > 0 ? traceDepthMap(*f.depth, o_cam, d_cam, t_max, options_.depth_thickness_m)
+                      : std::nullopt;
+        if (t)
+            if (const auto c = cameraPixelAt(f, start + *t * d))
+                return {*c, *c};
+    }
+    if (!hit.valid) {
+        const Vec3 e = environment(f, d);
+        return {e, e};
+    }
+    const Surface s = surfaceAt(hit, origin, d);
+    if (s.object->role == ObjectRole::kVirtual) {
+        Pair out;
+        out.m = shade(f, s, hit, d, depth, Mode::kMixed, st).m;
+        if (mode == Mode::kBoth)
+            out.r = trace(f, origin, d, depth, Mode::kReal, st).r;
+        return out;
+    }
+    if (mode != Mode::kMixed)
+        return shade(f, s, hit, d, depth, mode, st);
+    // A real surface reached through a virtual one: the camera saw its radiance; add only what
+    // the virtual objects change there.
+    const Pair p = shade(f, s, hit, d, depth, Mode::kBoth, st);
+    const MaterialType type = s.material->material.type;
+    if (type == MaterialType::kDiffuse || type == MaterialType::kPhong) {
+        if (const auto measured = cameraRadianceAt(f, s)) {
+            const Vec3 m = (*measured + p.m - p.r).cwiseMax(0.f);
+            return {m, m};
+        }
+    }
+    return {p.m, p.m};
+}
+
+// Conservative: can virtual objects change the shading of this real point? True for reflective
+// ghosts, and where a virtual bounding sphere meets the segment (or cone) towards a light.
+bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s) const {
+    if (f.virtual_bounds.empty())
+        return false;
+    const Material& mat = s.material->material;
+    if (mat.type != MaterialType::kDiffuse && mat.type != MaterialType::kPhong)
+        return true;
+    if (mat.reflectance > 0)
+        return true;
+    for (const LightData* light : f.lights) {
+        Vec3 dir;
+        float length = kInf;
+        float extra = 0;
+        if (light->light.type == LightType::kDirectional) {
+            dir = -light->direction_world;
+        } else {
+            const Vec3 delta = light->position_world - s.p;
+            length = delta.norm();
+            dir = length > 0 ? Vec3(delta / length) : Vec3::UnitZ();
+            if (light->light.type == LightType::kSphere)
+                extra = light->light.radius;
+        }
+        for (const SphereBound& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, s.p, dir, length) <= b.radius + extra)
+                return true;
+    }
+    return false;
+}
+
+Status EmbreeRenderer::checkInputs(const RenderInputs& in) const {
+    const auto bad = [](const std::string& what) {
+        return Status(ErrorCode::kInvalidArgument, "render inputs: " + what);
+    };
+    MIXRAY_RETURN_IF_ERROR(in.camera.validate().withContext("render inputs: camera model"));
+    const ImageDesc& c = in.camera_image.desc;
+    if (c.format != PixelFormat::kRGB8)
+        return bad("camera image must be rgb8, got " + std::string(toString(c.format)));
+    if (c.width != in.camera.width || c.height != in.camera.height)
+        return bad("camera image is " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                   ", the camera model " + std::to_string(in.camera.width) + "x" +
+                   std::to_string(in.camera.height));
+    if (in.camera_image.data == nullptr || c.stride_bytes < 3 * c.width ||
+        in.camera_image.size_bytes <
+            static_cast<size_t>(c.stride_bytes) * static_cast<size_t>(c.height - 1) +
+                3 * static_cast<size_t>(c.width))
+        return bad("camera image buffer is too small for its size");
+    const ImageDesc& dd = in.depth_mm.desc;
+    if (in.depth_mm.data != nullptr || dd.width != 0 || dd.height != 0) {
+        if (dd.format != PixelFormat::kDepth16)
+            return bad("depth image must be depth16, got " + std::string(toString(dd.format)));
+        if (dd.width != c.width || dd.height != c.height)
+            return bad("depth image size differs from the camera image");
+        if (in.depth_mm.data == nullptr || dd.stride_bytes < 2 * dd.width ||
+            in.depth_mm.size_bytes <
+                static_cast<size_t>(dd.stride_bytes) * static_cast<size_t>(dd.height - 1) +
+                    2 * static_cast<size_t>(dd.width))
+            return bad("depth image buffer is too small for its size");
+    }
+    MIXRAY_RETURN_IF_ERROR(checkPose(in.T_world_cam, "render inputs: T_world_cam"));
+    for (const auto& [name, T] : in.T_world_anchor)
+        MIXRAY_RETURN_IF_ERROR(checkPose(T, "render inputs: T_world_anchor[" + name + "]"));
+    return Status::ok();
+}
+
+void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
+    const int spp = options_.samples_per_pixel;
+    if (!rays_.directions.empty() && sameModel(rays_.model, camera) && rays_.samples == spp &&
+        rays_.seed == options_.seed)
+        return;
+    rays_ = {camera, spp, options_.seed, {}};
+    const int n = static_cast<int>(std::lround(std::sqrt(spp)));
+    const int w = camera.width;
+    rays_.directions.resize(static_cast<size_t>(w) * camera.height * spp);
+    tbb::parallel_for(0, camera.height, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            const size_t pixel = static_cast<size_t>(y) * w + x;
+            optics::Rng rng(hashIndex(options_.seed, pixel, 0x5eed));
+            for (int k = 0; k < spp; ++k) {
+                // Stratified jitter; one sample sits exactly on the pixel centre.
+                double dx = 0, dy = 0;
+                if (spp > 1) {
+                    dx = ((k % n) + rng.uniform()) / n - 0.5;
+                    dy = ((k / n) + rng.uniform()) / n - 0.5;
+                }
+                const auto dir = camera.unproject({x + dx, y + dy});
+                rays_.directions[pixel * spp + k] =
+                    dir ? Vec3(dir->cast<float>().normalized()) : Vec3::Constant(NAN);
+            }
+        }
+    });
+}
+
+Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
+    f.inputs = &in;
+    f.R_world_cam = in.T_world_cam.linear().cast<float>();
+    f.t_world_cam = in.T_world_cam.translation().cast<float>();
+    const Eigen::Isometry3d T_cam_world = in.T_world_cam.inverse();
+    f.R_cam_world = T_cam_world.linear();
+    f.t_cam_world = T_cam_world.translation();
+    for (int i = 0; i < 256; ++i)
+        f.srgb_lut[i] = optics::srgbToLinear(i / 255.f);
+
+    const auto anchorPose = [&](const std::string& anchor) -> std::optional<Eigen::Isometry3d> {
+        if (anchor == "world")
+            return Eigen::Isometry3d::Identity();
+        const auto it = in.T_world_anchor.find(anchor);
+        if (it == in.T_world_anchor.end())
+            return std::nullopt;
+        return it->second;
+    };
+    for (ObjectData& object : objects_) {
+        const auto T_world_anchor = anchorPose(object.anchor);
+        object.active = T_world_anchor.has_value();
+        if (!object.active)
+            continue;
+        const Eigen::Isometry3f T = T_world_anchor->cast<float>() * object.T_anchor_object;
+        object.R_world_object = T.linear();
+        object.t_world_object = T.translation();
+        if (object.role == ObjectRole::kVirtual)
+            f.virtual_bounds.push_back(
+                {object.R_world_object * object.bound_centre + object.t_world_object,
+                 object.bound_radius * 1.001f + 1e-4f});
+    }
+    MIXRAY_RETURN_IF_ERROR(scene_->setPoses(objects_));
+    for (LightData& light : lights_) {
+        const auto T_world_anchor = anchorPose(light.light.anchor);
+        light.active = T_world_anchor.has_value();
+        if (!light.active)
+            continue;
+        const Eigen::Isometry3d T = *T_world_anchor;
+        light.position_world = (T * light.light.position).cast<float>();
+        light.direction_world = (T.linear() * light.light.direction).normalized().cast<float>();
+        if (light.light.type == LightType::kEnvironment) {
+            light.R_environment_world =
+                (T * light.light.T_world_environment).inverse().linear().cast<float>();
+            f.environments.push_back(&light);
+        } else {
+            f.lights.push_back(&light);
+        }
+    }
+    if (in.depth_mm.data != nullptr)
+        f.depth = DepthView{in.depth_mm, in.camera};
+    updateRayCache(in.camera);
+    return Status::ok();
+}
+
+// Per-pixel accumulators of one frame.
+struct PixelBuffers {
+    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
+    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
+    std::vector<float> mask;             // M
+    std::vector<uint8_t> flags;          // kTraced | kPenumbra
+    std::vector<Vec3> mixed, real;       // keep_layers
+};
+constexpr uint8_t kTraced = 1;
+constexpr uint8_t kPenumbra = 2;
+
+// RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
+// neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
+void meanFilterPenumbra(int w, int h, PixelBuffers& b) {
+    const std::vector<Vec3> vr = b.virtual_radiance, diff = b.difference;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = static_cast<size_t>(y) * w + x;
+            if (!(b.flags[i] & kPenumbra))
+                continue;
+            Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
+            int nv = 0, nd = 0;
+            for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
+                for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
+                    const size_t j = static_cast<size_t>(yy) * w + xx;
+                    if (b.mask[j] > 0)
+                        sv += vr[j], ++nv;
+                    if (b.mask[j] < 1)
+                        sd += diff[j], ++nd;
+                }
+            if (b.mask[i] > 0 && nv > 0)
+                b.virtual_radiance[i] = sv / static_cast<float>(nv);
+            if (b.mask[i] < 1 && nd > 0)
+                b.difference[i] = sd / static_cast<float>(nd);
+        }
+}
+
+Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    MIXRAY_RETURN_IF_ERROR(checkInputs(in));
+    Frame f;
+    MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
+
+    const int w = in.camera.width, h = in.camera.height;
+    const size_t count = static_cast<size_t>(w) * h;
+    const int spp = options_.samples_per_pixel;
+    const bool keep = options_.keep_layers;
+    PixelBuffers b;
+    b.virtual_radiance.assign(count, Vec3::Zero());
+    b.difference.assign(count, Vec3::Zero());
+    b.mask.assign(count, 0.f);
+    b.flags.assign(count, 0);
+    if (keep) {
+        b.mixed.assign(count, Vec3::Zero());
+        b.real.assign(count, Vec3::Zero());
+    }
+
+    std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
+    const int ts = options_.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    const auto renderTile = [&](int tile) {
+        const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        Counters counters;
+        uint64_t tile_traced = 0, tile_primary = 0;
+        std::vector<Hit> hits(static_cast<size_t>(spp));
+        std::vector<Vec3> dirs(static_cast<size_t>(spp));
+        for (int y = y0; y < std::min(h, y0 + ts); ++y)
+            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+                const size_t pixel = static_cast<size_t>(y) * w + x;
+                const std::optional<float> depth_limit =
+                    f.depth ? rayDistanceAt(*f.depth, x, y) : std::nullopt;
+                // First pass: primary hits, and whether virtual content can touch this pixel.
+                bool influenced = false;
+                for (int k = 0; k < spp; ++k) {
+                    hits[k] = Hit{};
+                    const Vec3& dir_cam = rays_.directions[pixel * spp + k];
+                    if (!dir_cam.allFinite())
+                        continue;
+                    dirs[k] = f.R_world_cam * dir_cam;
+                    ++tile_primary;
+                    hits[k] = EmbreeScene::intersect(scene_->all(), f.t_world_cam, dirs[k], kInf);
+                    // A real surface the depth camera measured in front hides what was hit.
+                    if (hits[k].valid && depth_limit && *depth_limit < hits[k].t)
+                        hits[k] = Hit{};
+                    if (!hits[k].valid || influenced)
+                        continue;
+                    const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                    influenced = s.object->role == ObjectRole::kVirtual || ghostInfluenced(f, s);
+                }
+                if (!influenced && !keep && options_.only_virtual_footprint)
+                    continue;
+                // Second pass: shade.
+                ++tile_traced;
+                int n_virtual = 0;
+                Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
+                     rsum = Vec3::Zero();
+                bool penumbra = false;
+                for (int k = 0; k < spp; ++k) {
+                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters};
+                    Pair p;
+                    bool is_virtual = false;
+                    if (!hits[k].valid) {
+                        if (rays_.directions[pixel * spp + k].allFinite())
+                            p.m = p.r = environment(f, dirs[k]);
+                    } else {
+                        const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        is_virtual = s.object->role == ObjectRole::kVirtual;
+                        if (is_virtual) {
+                            p.m = shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
+                            if (keep)
+                                p.r = trace(f, f.t_world_cam, dirs[k], 0, Mode::kReal, st).r;
+                        } else {
+                            p = shade(f, s, hits[k], dirs[k], 0, Mode::kBoth, st);
+                        }
+                    }
+                    penumbra |= st.penumbra;
+                    if (is_virtual) {
+                        ++n_virtual;
+                        vsum += p.m;
+                    } else {
+                        dsum += p.m - p.r;
+                    }
+                    msum += p.m;
+                    rsum += p.r;
+                }
+                if (n_virtual > 0)
+                    b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
+                if (n_virtual < spp)
+                    b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
+                b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
+                b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
+                if (keep) {
+                    b.mixed[pixel] = msum / static_cast<float>(spp);
+                    b.real[pixel] = rsum / static_cast<float>(spp);
+                }
+            }
+        traced += tile_traced;
+        primary += tile_primary;
+        secondary += counters.secondary;
+        shadow += counters.shadow;
+    };
+    const int tiles = tiles_x * tiles_y;
+    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
+                          [&](const tbb::blocked_range<int>& r) {
+                              for (int t = r.begin(); t < r.end(); ++t)
+                                  renderTile(t);
+                          });
+    });
+
+    if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
+        meanFilterPenumbra(w, h, b);
+
+    // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); untouched pixels are copied.
+    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
+        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+    MutableImageView dst = out.composite.mutableView();
+    for (int y = 0; y < h; ++y) {
+        const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
+        uint8_t* dst_row = dst.row<uint8_t>(y);
+        for (int x = 0; x < w; ++x) {
+            const size_t i = static_cast<size_t>(y) * w + x;
+            const uint8_t* c = src_row + 3 * x;
+            uint8_t* o = dst_row + 3 * x;
+            const float mask = b.mask[i];
+            if (mask == 0 && b.difference[i] == Vec3::Zero()) {
+                o[0] = c[0], o[1] = c[1], o[2] = c[2];
+                continue;
+            }
+            for (int ch = 0; ch < 3; ++ch) {
+                const float real = f.srgb_lut[c[ch]] + b.difference[i][ch];
+                o[ch] = optics::encodeSrgb8(mask * b.virtual_radiance[i][ch] + (1 - mask) * real);
+            }
+        }
+    }
+    if (keep) {
+        const auto toImage = [&](const std::vector<Vec3>& src, FloatImage& img) {
+            img = FloatImage{w, h, 3, std::vector<float>(count * 3)};
+            for (size_t i = 0; i < count; ++i)
+                for (int ch = 0; ch < 3; ++ch)
+                    img.pixels[3 * i + ch] = src[i][ch];
+        };
+        toImage(b.mixed, out.mixed);
+        toImage(b.real, out.real_only);
+        out.mask = FloatImage{w, h, 1, b.mask};
+    } else {
+        out.mixed = out.real_only = out.mask = FloatImage{};
+    }
+    if (stats != nullptr) {
+        stats->pixels_traced = traced;
+        stats->primary_rays = primary;
+        stats->secondary_rays = secondary;
+        stats->shadow_rays = shadow;
+        stats->seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    return Status::ok();
+}
+
+std::filesystem::path resolve(const SceneDescription& scene, const std::filesystem::path& p) {
+    if (p.empty() || p.is_absolute() || scene.source_path.empty())
+        return p;
+    return scene.source_path.parent_path() / p;
+}
+
+Result<Texture> loadTexture(const SceneDescription& scene, const std::filesystem::path& path,
+                            const std::string& what) {
+    auto texture = Texture::load(resolve(scene, path));
+    if (!texture)
+        return texture.status().withContext(what);
+    return texture;
+}
+
+void boundMeshes(ObjectData& object) {
+    Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+    for (const TriangleMesh& mesh : object.meshes)
+        for (const Vec3& p : mesh.positions) {
+            lo = lo.cwiseMin(p);
+            hi = hi.cwiseMax(p);
+        }
+    object.bound_centre = 0.5f * (lo + hi);
+    object.bound_radius = 0;
+    for (const TriangleMesh& mesh : object.meshes)
+        for (const Vec3& p : mesh.positions)
+            object.bound_radius = std::max(object.bound_radius, (p - object.bound_centre).norm());
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene,
+                                                   const RenderOptions& options) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    if (options.depth_secondary == DepthSecondaryRays::kMesh)
+        return Status(ErrorCode::kUnsupported,
+                      "render options: depth_secondary kMesh is unsupported by this renderer; "
+                      "use kScreenSpace or kNone");
+    MIXRAY_RETURN_IF_ERROR(scene.validate());
+
+    std::vector<MaterialData> materials;
+    std::map<std::string, int> material_index;
+    for (const auto& [name, material] : scene.materials) {
+        MaterialData data{material, {}, {}};
+        const std::string where = "material '" + name + "' (" + material.where.toString() + ")";
+        if (!material.albedo_texture.empty()) {
+            auto texture = loadTexture(scene, material.albedo_texture, where);
+            if (!texture)
+                return texture.status();
+            data.albedo_texture = std::move(texture).value();
+        }
+        if (!material.reflectance_map.empty()) {
+            auto texture = loadTexture(scene, material.reflectance_map, where);
+            if (!texture)
+                return texture.status();
+            data.reflectance_map = std::move(texture).value();
+        }
+        material_index[name] = static_cast<int>(materials.size());
+        materials.push_back(std::move(data));
+    }
+
+    std::vector<ObjectData> objects;
+    for (const SceneObject& obj : scene.objects) {
+        const std::string where = "object '" + obj.name + "' (" + obj.where.toString() + ")";
+        ObjectData data;
+        data.name = obj.name;
+        data.role = obj.role;
+        data.shape = obj.shape.type;
+        data.anchor = obj.anchor;
+        data.T_anchor_object = obj.T_anchor_object.cast<float>();
+        std::optional<MeshMaterialHint> hint;
+        if (obj.shape.type == ShapeType::kSphere) {
+            data.sphere_radius = obj.shape.radius;
+            data.bound_radius = obj.shape.radius;
+        } else if (obj.shape.type == ShapeType::kMesh) {
+            auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
+            if (!loaded)
+                return loaded.status().withContext(where);
+            for (LoadedMesh& mesh : loaded.value()) {
+                if (!hint)
+                    hint = mesh.material;
+                data.meshes.push_back(std::move(mesh.mesh));
+            }
+            boundMeshes(data);
+        } else {
+            data.meshes.push_back(makeShapeMesh(obj.shape));
+            boundMeshes(data);
+        }
+        if (obj.shape.type != ShapeType::kSphere &&
+            std::all_of(data.meshes.begin(), data.meshes.end(),
+                        [](const TriangleMesh& m) { return m.empty(); }))
+            return Status(ErrorCode::kCorruptData, where + ": shape has no triangles");
+        if (const auto it = material_index.find(obj.material); it != material_index.end()) {
+            data.material = it->second;
+        } else if (obj.material.empty()) {
+            // No scene material: what the mesh file says, else the default diffuse grey.
+            MaterialData fallback;
+            if (hint) {
+                fallback.material.albedo = hint->base_color;
+                if (!hint->base_color_texture.empty()) {
+                    auto texture = loadTexture(scene, hint->base_color_texture, where);
+                    if (!texture)
+                        return texture.status();
+                    fallback.albedo_texture = std::move(texture).value();
+                }
+            }
+            data.material = static_cast<int>(materials.size());
+            materials.push_back(std::move(fallback));
+        } else {
+            return Status(ErrorCode::kCorruptData,
+                          where + ": unknown material '" + obj.material + "'");
+        }
+        objects.push_back(std::move(data));
+    }
+
+    std::vector<LightData> lights;
+    for (const Light& light : scene.lights) {
+        LightData data;
+        data.light = light;
+        if (light.type == LightType::kEnvironment) {
+            auto map = EnvironmentMap::load(resolve(scene, light.environment));
+            if (!map)
+                return map.status().withContext("light '" + light.name + "' (" +
+                                                light.where.toString() + ")");
+            data.environment = std::move(map).value();
+            if (light.mirror_lower_hemisphere)
+                data.environment.mirrorUpperIntoLower();
+        }
+        lights.push_back(std::move(data));
+    }
+
+    auto renderer = std::make_unique<EmbreeRenderer>(options, std::move(materials),
+                                                     std::move(objects), std::move(lights));
+    MIXRAY_RETURN_IF_ERROR(renderer->init());
+    return std::unique_ptr<Renderer>(std::move(renderer));
+}
+
+}  // namespace mixray::render

@@ -1,0 +1,642 @@
+// The Renderer against geometry and the differential-rendering equation: exact copies without
+// virtual content, shadow positions and widths, mirrors, glass energy, footprint and errors.
+#include "mixray/render/renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "renderer_test_util.h"
+
+namespace mixray::render::test {
+namespace {
+
+using calibration::CameraModel;
+
+constexpr int kW = 160, kH = 120;
+
+struct Frame {
+    Image image;
+    RenderInputs inputs;
+};
+
+Frame makeFrame(const Eigen::Isometry3d& T_world_cam, Image image, double f = 200) {
+    Frame frame{std::move(image), {}};
+    frame.inputs.camera = CameraModel::pinhole(kW, kH, f, f, (kW - 1) / 2.0, (kH - 1) / 2.0);
+    frame.inputs.camera_image = frame.image.view();
+    frame.inputs.T_world_cam = T_world_cam;
+    return frame;
+}
+
+Image noiseImage() {
+    return filledImage(kW, kH, [](int x, int y) {
+        const uint32_t h =
+            (static_cast<uint32_t>(x) * 73856093u) ^ (static_cast<uint32_t>(y) * 19349663u);
+        return std::array<uint8_t, 3>{static_cast<uint8_t>(h), static_cast<uint8_t>(h >> 8),
+                                      static_cast<uint8_t>(h >> 16)};
+    });
+}
+
+Image greyImage(uint8_t v) {
+    return filledImage(kW, kH, [v](int, int) { return std::array<uint8_t, 3>{v, v, v}; });
+}
+
+std::unique_ptr<Renderer> makeRenderer(const SceneDescription& scene, const RenderOptions& o) {
+    auto renderer = Renderer::create(scene, o);
+    EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
+    return renderer ? std::move(renderer).value() : nullptr;
+}
+
+Light pointLight(const Eigen::Vector3d& position, float intensity) {
+    Light light;
+    light.name = "point";
+    light.type = LightType::kPoint;
+    light.position = position;
+    light.intensity = Rgb::Constant(intensity);
+    return light;
+}
+
+Light directionalLight(const std::string& name, const Eigen::Vector3d& direction, float e) {
+    Light light;
+    light.name = name;
+    light.type = LightType::kDirectional;
+    light.direction = direction.normalized();
+    light.intensity = Rgb::Constant(e);
+    return light;
+}
+
+TEST(Renderer, WithoutVirtualObjectsTheCompositeIsTheCameraImageBitForBit) {
+    SceneDescription scene;
+    addGhostFloor(scene);
+    Material box = material(MaterialType::kPhong, "box");
+    box.reflectance = 0.3f;
+    scene.materials["box"] = box;
+    scene.objects.push_back(
+        object("box", ObjectRole::kGhost, ShapeType::kBox, "box", {0.1, 0, 0.05}));
+    scene.lights.push_back(pointLight({0.5, 0.2, 2}, 3));
+    for (bool footprint : {true, false}) {
+        RenderOptions options;
+        options.only_virtual_footprint = footprint;
+        auto renderer = makeRenderer(scene, options);
+        ASSERT_TRUE(renderer);
+        Frame frame = makeFrame(lookDown({0, 0, 2}), noiseImage());
+        RenderLayers out;
+        RenderStats stats;
+        ASSERT_TRUE(renderer->render(frame.inputs, out, &stats));
+        EXPECT_TRUE(sameImage(out.composite.view(), frame.image.view()));
+        if (footprint) {
+            EXPECT_EQ(stats.pixels_traced, 0u);
+        }
+    }
+}
+
+// A virtual sphere over a real floor lit by two directional lights; the sphere blocks one.
+SceneDescription shadowScene(Eigen::Vector3d direction_a, float e_a, float e_b) {
+    SceneDescription scene;
+    addGhostFloor(scene, 0.6f);
+    scene.materials["red"] = material(MaterialType::kDiffuse, "red");
+    scene.materials["red"].albedo = {0.7f, 0.1f, 0.1f};
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "red", {0, 0, 0.5});
+    ball.shape.radius = 0.1f;
+    scene.objects.push_back(ball);
+    scene.lights.push_back(directionalLight("a", direction_a, e_a));
+    scene.lights.push_back(directionalLight("b", {0, 0, -1}, e_b));
+    return scene;
+}
+
+TEST(Renderer, VirtualShadowDarkensTheRealFloorByThePredictedRatio) {
+    // Light a travels along (1, 0, -2): the shadow of the ball centre lands at (0.25, 0, 0) and
+    // is an ellipse with semi-axes r / cos θ = 0.1118 along x and r = 0.1 along y. Light b comes
+    // straight down, so the ball's shadow from b hides under the ball.
+    const Eigen::Vector3d dir_a(1, 0, -2);
+    const float e_a = 2, e_b = 1, albedo = 0.6f;
+    SceneDescription scene = shadowScene(dir_a, e_a, e_b);
+    const float cos_a = 2 / std::sqrt(5.f);
+    const float lit = albedo / optics::kPi * (e_a * cos_a + e_b);
+    const float shadowed = albedo / optics::kPi * e_b;
+    const uint8_t grey = optics::encodeSrgb8(lit);  // the camera sees what the model predicts
+    RenderOptions options;
+    options.soft_shadows = SoftShadowMethod::kHard;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(grey));
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+
+    const double px_per_m = 200 / 3.0, cx = (kW - 1) / 2.0, cy = (kH - 1) / 2.0;
+    const int y = static_cast<int>(cy);  // row through the shadow centre (world y ≈ 0)
+    const double world_y = -(y - cy) / px_per_m;
+    const double half = 0.1118 * std::sqrt(std::max(0.0, 1 - (world_y / 0.1) * (world_y / 0.1)));
+    int checked = 0;
+    for (int x = static_cast<int>(cx + 0.13 * px_per_m); x < kW; ++x) {
+        const double world_x = (x - cx) / px_per_m;
+        const double inside = half - std::abs(world_x - 0.25);
+        if (std::abs(inside) < 1.5 / px_per_m)
+            continue;  // the edge pixel itself
+        const float ratio =
+            pixelLinear(out.composite, x, y).x() / pixelLinear(frame.image, x, y).x();
+        if (inside > 0) {
+            EXPECT_NEAR(ratio, shadowed / lit, 0.02) << "x " << x;
+            ++checked;
+        } else {
+            EXPECT_TRUE(pixelBytes(out.composite, x, y)[0] == grey) << "x " << x;
+        }
+        EXPECT_EQ(out.mask.at(x, y)[0], 0.f);
+    }
+    EXPECT_GT(checked, 10);
+    // The ball itself: masked, and its top lit by both lights.
+    EXPECT_EQ(out.mask.at(static_cast<int>(cx), y)[0], 1.f);
+}
+
+// Similar triangles: a spherical light of radius R at distance a from an occluder of radius r,
+// and the floor at distance b behind it along the same line: the umbra's half-width is
+// r − (R − r)·b/a and the penumbra reaches r + (R + r)·b/a.
+SceneDescription softShadowScene() {
+    SceneDescription scene;
+    addGhostFloor(scene, 0.6f);
+    scene.materials["grey"] = material(MaterialType::kDiffuse, "grey");
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "grey", {0, 0, 1});
+    ball.shape.radius = 0.12f;
+    scene.objects.push_back(ball);
+    Light light = pointLight({-1, 0, 2}, 4);
+    light.type = LightType::kSphere;
+    light.radius = 0.08f;
+    scene.lights.push_back(light);
+    return scene;
+}
+
+TEST(Renderer, SphericalLightGivesUmbraAndPenumbraOfTheSimilarTriangles) {
+    const double a = std::sqrt(2.0), b = std::sqrt(2.0), R = 0.08, r = 0.12;
+    const double umbra = r - (R - r) * b / a;     // 0.16
+    const double penumbra = r + (R + r) * b / a;  // 0.32
+    for (SoftShadowMethod method : {SoftShadowMethod::kUniform, SoftShadowMethod::kAdaptive}) {
+        RenderOptions options;
+        options.soft_shadows = method;
+        options.shadow_samples = 64;
+        options.shadow_mean_filter = false;
+        options.keep_layers = true;
+        auto renderer = makeRenderer(softShadowScene(), options);
+        ASSERT_TRUE(renderer);
+        // Looking down on the shadow centre (1, 0, 0); measure along world y, which is
+        // perpendicular to the light-occluder line, so the widths need no projection. A strip
+        // of 4 columns is all the test reads.
+        const int strip = 4;
+        const Image grey = filledImage(strip, kH, [](int, int) {
+            return std::array<uint8_t, 3>{128, 128, 128};
+        });
+        Frame frame = makeFrame(lookDown({1, 0, 3}), grey);
+        frame.inputs.camera =
+            CameraModel::pinhole(strip, kH, 200, 200, (strip - 1) / 2.0, (kH - 1) / 2.0);
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(frame.inputs, out));
+        const double px_per_m = 200 / 3.0, cy = (kH - 1) / 2.0;
+        const int x = strip / 2;
+        for (int y = 0; y < kH; ++y) {
+            const double d = std::abs((y - cy) / px_per_m);
+            const float visible = out.mixed.at(x, y)[0] / out.real_only.at(x, y)[0];
+            if (d < umbra - 0.03) {
+                EXPECT_LT(visible, 0.03f) << "y " << y;
+            } else if (d > penumbra + 0.03) {
+                EXPECT_GT(visible, 0.999f) << "y " << y;
+            } else if (d > umbra + 0.03 && d < penumbra - 0.03) {
+                EXPECT_GT(visible, 0.02f) << "y " << y;
+                EXPECT_LT(visible, 0.98f) << "y " << y;
+            }
+        }
+    }
+}
+
+double meanAbsDifference(const Image& a, const Image& b) {
+    double sum = 0;
+    for (size_t i = 0; i < a.bytes().size(); ++i)
+        sum += std::abs(a.bytes()[i] - b.bytes()[i]);
+    return sum / static_cast<double>(a.bytes().size());
+}
+
+TEST(Renderer, AdaptiveSoftShadowsConvergeToUniformSampling) {
+    Image images[2];
+    RenderStats stats[2];
+    int i = 0;
+    for (SoftShadowMethod method : {SoftShadowMethod::kUniform, SoftShadowMethod::kAdaptive}) {
+        RenderOptions options;
+        options.soft_shadows = method;
+        options.shadow_samples = 16;
+        options.only_virtual_footprint = false;
+        auto renderer = makeRenderer(softShadowScene(), options);
+        ASSERT_TRUE(renderer);
+        Frame frame = makeFrame(lookDown({0.7, 0, 3}), greyImage(150), 120);
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(frame.inputs, out, &stats[i]));
+        images[i++] = out.composite;
+    }
+    EXPECT_LT(meanAbsDifference(images[0], images[1]), 0.5);
+    EXPECT_LT(stats[1].shadow_rays, stats[0].shadow_rays / 2);  // adaptive saves rays
+}
+
+TEST(Renderer, FootprintTracingGivesTheSameImageAsTracingEverything) {
+    SceneDescription scene = softShadowScene();
+    scene.materials["mirror"] = material(MaterialType::kMirror, "mirror");
+    SceneObject mirror =
+        object("mirror", ObjectRole::kVirtual, ShapeType::kBox, "mirror", {1.3, 0.3, 0.1});
+    scene.objects.push_back(mirror);
+    scene.lights.push_back(directionalLight("sun", {0.3, 0.2, -1}, 1));
+    Image images[2];
+    RenderStats stats[2];
+    for (int i = 0; i < 2; ++i) {
+        RenderOptions options;
+        options.only_virtual_footprint = i == 0;
+        options.samples_per_pixel = 4;
+        options.shadow_samples = 8;
+        auto renderer = makeRenderer(scene, options);
+        ASSERT_TRUE(renderer);
+        Frame frame = makeFrame(lookDown({1, 0, 3}), noiseImage(), 120);
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(frame.inputs, out, &stats[i]));
+        images[i] = out.composite;
+    }
+    EXPECT_TRUE(sameImage(images[0].view(), images[1].view()));
+    EXPECT_LT(stats[0].pixels_traced, stats[1].pixels_traced);
+    EXPECT_EQ(stats[1].pixels_traced, static_cast<uint64_t>(kW * kH));
+}
+
+TEST(Renderer, VirtualMirrorShowsTheRealWallAsTheCameraSawIt) {
+    // Camera 1 m high looking along +y at a real wall at y = 2, over a virtual mirror lying on
+    // the ground: mirror pixels show the camera's own pixel of the wall point the reflected ray
+    // meets (Kán & Kaufmann's reprojection).
+    SceneDescription scene;
+    scene.materials["wall"] = material(MaterialType::kDiffuse, "wall");
+    SceneObject wall = object("wall", ObjectRole::kGhost, ShapeType::kPlane, "wall", {0, 2, 1});
+    wall.T_anchor_object.rotate(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
+    wall.shape.size = {10, 4, 0};
+    scene.objects.push_back(wall);
+    scene.materials["mirror"] = material(MaterialType::kMirror, "mirror");
+    SceneObject mirror =
+        object("mirror", ObjectRole::kVirtual, ShapeType::kPlane, "mirror", {0, 0, 0});
+    mirror.shape.size = {4, 2, 0};
+    scene.objects.push_back(mirror);
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    const Image gradient = filledImage(kW, kH, [](int x, int y) {
+        return std::array<uint8_t, 3>{static_cast<uint8_t>(40 + x), static_cast<uint8_t>(60 + y),
+                                      100};
+    });
+    const Eigen::Vector3d camera(0, -3, 1);
+    Frame frame = makeFrame(lookAlongY(camera), gradient, 100);
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    const CameraModel& model = frame.inputs.camera;
+    const Eigen::Isometry3d T_cam_world = frame.inputs.T_world_cam.inverse();
+    int checked = 0;
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+            const Eigen::Vector3d d = frame.inputs.T_world_cam.linear() * *model.unproject({x, y});
+            if (d.z() >= 0)
+                continue;
+            const Eigen::Vector3d p = camera + (-camera.z() / d.z()) * d;  // on the mirror
+            if (std::abs(p.x()) > 1.9 || std::abs(p.y()) > 0.95)
+                continue;
+            EXPECT_EQ(out.mask.at(x, y)[0], 1.f);
+            const Eigen::Vector3d r(d.x(), d.y(), -d.z());
+            const Eigen::Vector3d q = p + ((2 - p.y()) / r.y()) * r;  // meets the wall
+            const auto pixel = model.project(T_cam_world * q);
+            ASSERT_TRUE(pixel);
+            ASSERT_TRUE(pixel->y() > 0 && pixel->y() < kH - 1) << x << "," << y;
+            if (x == 0 || x == kW - 1)
+                continue;  // no neighbour to interpolate with
+            // The gradient is linear in bytes, so interpolate there for the expectation.
+            const double expected_r = 40 + pixel->x(), expected_g = 60 + pixel->y();
+            const uint8_t* got = pixelBytes(out.composite, x, y);
+            EXPECT_NEAR(got[0], expected_r, 1.5) << x << "," << y;
+            EXPECT_NEAR(got[1], expected_g, 1.5) << x << "," << y;
+            ++checked;
+        }
+    EXPECT_GT(checked, 500);
+}
+
+TEST(Renderer, GlassSphereInAWhiteFurnaceSplitsEnergyWithoutLoss) {
+    SceneDescription scene;
+    scene.lights.push_back(environmentLight(
+        writeEnvironment("furnace", 32, 16, [](int, int) { return Eigen::Vector3f::Ones(); })));
+    Material glass = material(MaterialType::kGlass, "glass");
+    scene.materials["glass"] = glass;
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "glass", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.max_depth = 30;  // paths grazing inside the sphere bounce often before leaving
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(0));
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    int inside = 0;
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+            if (out.mask.at(x, y)[0] != 1.f)
+                continue;
+            ++inside;
+            EXPECT_NEAR(out.mixed.at(x, y)[0], 1.f, 2e-3f) << x << "," << y;
+        }
+    EXPECT_GT(inside, 1000);
+}
+
+TEST(Renderer, DispersiveGlassIsTracedPerChannel) {
+    // A uniform environment hides dispersion; a split one (red on one side, blue on the other)
+    // shows the channels bending differently, while a clear non-dispersive sphere keeps grey.
+    SceneDescription scene;
+    scene.lights.push_back(environmentLight(writeEnvironment("split", 64, 32, [](int x, int) {
+        return Eigen::Vector3f::Constant(x < 32 ? 1.f : 0.2f);
+    })));
+    Material glass = material(MaterialType::kGlass, "glass");
+    glass.ior = {1.45f, 1.5f, 1.6f};
+    scene.materials["glass"] = glass;
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "glass", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(0));
+    RenderLayers out;
+    RenderStats stats;
+    ASSERT_TRUE(renderer->render(frame.inputs, out, &stats));
+    float max_spread = 0;
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x)
+            if (out.mask.at(x, y)[0] == 1.f)
+                max_spread =
+                    std::max(max_spread, std::abs(out.mixed.at(x, y)[0] - out.mixed.at(x, y)[2]));
+    EXPECT_GT(max_spread, 0.05f);
+}
+
+TEST(Renderer, MetalReflectsWithColouredSchlickFresnel) {
+    SceneDescription scene;
+    scene.lights.push_back(environmentLight(
+        writeEnvironment("white", 32, 16, [](int, int) { return Eigen::Vector3f::Ones(); })));
+    Material gold = material(MaterialType::kMetal, "gold");
+    gold.f0 = {1.0f, 0.71f, 0.29f};
+    scene.materials["gold"] = gold;
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "gold", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(0));
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    // At the centre the view is along the normal: reflectance F0.
+    const float* centre = out.mixed.at((kW - 1) / 2, (kH - 1) / 2);
+    EXPECT_NEAR(centre[0], 1.0f, 1e-3f);
+    EXPECT_NEAR(centre[1], 0.71f, 2e-3f);
+    EXPECT_NEAR(centre[2], 0.29f, 2e-3f);
+}
+
+TEST(Renderer, MarkerBoundObjectsFollowTheirAnchorAndVanishWithoutIt) {
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0, 0, 0});
+    ball.anchor = "marker:7";
+    scene.objects.push_back(ball);
+    scene.lights.push_back(pointLight({0, 0, 2}, 5));
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(30));
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    EXPECT_TRUE(sameImage(out.composite.view(), frame.image.view()));
+    frame.inputs.T_world_anchor["marker:7"] =
+        Eigen::Translation3d(0.3, 0, 0) * Eigen::Isometry3d::Identity();
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    const auto pixel = frame.inputs.camera.project({0.3, 0, 2});
+    ASSERT_TRUE(pixel);
+    EXPECT_EQ(out.mask.at(static_cast<int>(std::lround(pixel->x())),
+                          static_cast<int>(std::lround(pixel->y())))[0],
+              1.f);
+    EXPECT_EQ(out.mask.at((kW - 1) / 2, (kH - 1) / 2)[0], 0.f);
+}
+
+TEST(Renderer, DistortedLensRaysLineUpWithProjection) {
+    // The virtual sphere's mask is centred where the lens model projects its centre, even near
+    // the border of a strongly distorted image.
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject ball =
+        object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0.55, 0.35, 0});
+    ball.shape.radius = 0.06f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.keep_layers = true;
+    options.samples_per_pixel = 4;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 1}), greyImage(30), 90);
+    frame.inputs.camera.distortion = {-0.3, 0.08, 0.001, -0.001};
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    double sx = 0, sy = 0, s = 0;
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+            const float m = out.mask.at(x, y)[0];
+            sx += m * x, sy += m * y, s += m;
+        }
+    ASSERT_GT(s, 20);
+    const Eigen::Isometry3d T_cam_world = frame.inputs.T_world_cam.inverse();
+    const auto centre = frame.inputs.camera.project(T_cam_world * Eigen::Vector3d(0.55, 0.35, 0));
+    ASSERT_TRUE(centre);
+    // A small sphere's image is nearly symmetric: the mask centroid sits on the projection.
+    EXPECT_NEAR(sx / s, centre->x(), 0.6);
+    EXPECT_NEAR(sy / s, centre->y(), 0.6);
+}
+
+TEST(Renderer, RejectsBadOptionsScenesAndInputs) {
+    SceneDescription scene = shadowScene({1, 0, -2}, 1, 1);
+    RenderOptions options;
+    options.samples_per_pixel = 2;
+    EXPECT_EQ(Renderer::create(scene, options).status().code(), ErrorCode::kInvalidArgument);
+    options = {};
+    options.tile_size = 0;
+    EXPECT_FALSE(options.validate());
+    options = {};
+    options.max_depth = -1;
+    EXPECT_FALSE(options.validate());
+    EXPECT_TRUE(RenderOptions{}.validate());
+
+    SceneDescription bad = scene;
+    bad.objects[1].material = "no such material";
+    EXPECT_FALSE(Renderer::create(bad, RenderOptions{}).isOk());
+
+    auto renderer = makeRenderer(scene, RenderOptions{});
+    ASSERT_TRUE(renderer);
+    RenderLayers out;
+    Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+
+    Frame nan_pose = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    nan_pose.inputs.T_world_cam.translation().x() = NAN;
+    EXPECT_EQ(renderer->render(nan_pose.inputs, out).code(), ErrorCode::kInvalidArgument);
+
+    Frame scaled_pose = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    scaled_pose.inputs.T_world_cam.linear() *= 2;
+    EXPECT_EQ(renderer->render(scaled_pose.inputs, out).code(), ErrorCode::kInvalidArgument);
+
+    Frame bad_anchor = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    bad_anchor.inputs.T_world_anchor["marker:1"].matrix().setConstant(INFINITY);
+    EXPECT_EQ(renderer->render(bad_anchor.inputs, out).code(), ErrorCode::kInvalidArgument);
+
+    Frame small = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    Image tiny(ImageDesc::packed(PixelFormat::kRGB8, kW / 2, kH));
+    small.inputs.camera_image = tiny.view();
+    const Status wrong_size = renderer->render(small.inputs, out);
+    EXPECT_EQ(wrong_size.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(wrong_size.message().find("80x120"), std::string::npos) << wrong_size.message();
+
+    Frame mono = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    Image grey(ImageDesc::packed(PixelFormat::kMono8, kW, kH));
+    mono.inputs.camera_image = grey.view();
+    EXPECT_EQ(renderer->render(mono.inputs, out).code(), ErrorCode::kInvalidArgument);
+
+    Frame depth_format = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    Image depth(ImageDesc::packed(PixelFormat::kMono16, kW, kH));
+    depth_format.inputs.depth_mm = depth.view();
+    EXPECT_EQ(renderer->render(depth_format.inputs, out).code(), ErrorCode::kInvalidArgument);
+
+    Frame bad_camera = makeFrame(lookDown({0, 0, 3}), greyImage(100));
+    bad_camera.inputs.camera.fx = -1;
+    EXPECT_EQ(renderer->render(bad_camera.inputs, out).code(), ErrorCode::kInvalidArgument);
+}
+
+TEST(Renderer, DepthHidesVirtualObjectsBehindTheMeasuredSurface) {
+    // A real wall 1.5 m in front of the camera on the left half of the image only: the virtual
+    // sphere 2 m away is hidden where the depth says the wall is, and drawn elsewhere.
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(30));
+    Image depth(ImageDesc::packed(PixelFormat::kDepth16, kW, kH));
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x)
+            reinterpret_cast<uint16_t*>(depth.bytes().data())[y * kW + x] = x < kW / 2 ? 1500 : 0;
+    frame.inputs.depth_mm = depth.view();
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    EXPECT_EQ(out.mask.at(kW / 2 - 5, kH / 2)[0], 0.f);
+    EXPECT_EQ(out.mask.at(kW / 2 + 5, kH / 2)[0], 1.f);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW / 2; ++x)
+            ASSERT_EQ(pixelBytes(out.composite, x, y)[0], 30) << x << "," << y;
+}
+
+TEST(Renderer, ScreenSpaceDepthRaysSeeTheMeasuredSurfaceThroughGlass) {
+    // Index-1 glass bends nothing: with RT²AR's depth-map traversal the rays through it find the
+    // real wall the depth camera measured and show the camera's pixels; without, the black sky.
+    SceneDescription scene;
+    Material clear = material(MaterialType::kGlass, "clear");
+    clear.ior = {1, 1, 1};
+    scene.materials["clear"] = clear;
+    SceneObject slab = object("slab", ObjectRole::kVirtual, ShapeType::kBox, "clear", {0, 0, 1});
+    slab.shape.size = {0.1f, 0.1f, 0.05f};
+    scene.objects.push_back(slab);
+    const Image gradient = filledImage(kW, kH, [](int x, int y) {
+        return std::array<uint8_t, 3>{static_cast<uint8_t>(40 + x), static_cast<uint8_t>(60 + y),
+                                      100};
+    });
+    Image depth(ImageDesc::packed(PixelFormat::kDepth16, kW, kH));
+    for (size_t i = 0; i < static_cast<size_t>(kW) * kH; ++i)
+        reinterpret_cast<uint16_t*>(depth.bytes().data())[i] = 2000;
+    for (DepthSecondaryRays mode : {DepthSecondaryRays::kScreenSpace, DepthSecondaryRays::kNone}) {
+        RenderOptions options;
+        options.depth_secondary = mode;
+        auto renderer = makeRenderer(scene, options);
+        ASSERT_TRUE(renderer);
+        Frame frame = makeFrame(Eigen::Isometry3d::Identity(), gradient);
+        frame.inputs.depth_mm = depth.view();
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(frame.inputs, out));
+        const int x = kW / 2, y = kH / 2;
+        const uint8_t* got = pixelBytes(out.composite, x, y);
+        if (mode == DepthSecondaryRays::kScreenSpace) {
+            EXPECT_NEAR(got[0], 40 + x, 1);
+            EXPECT_NEAR(got[1], 60 + y, 1);
+        } else {
+            EXPECT_EQ(got[0], 0);
+        }
+    }
+    RenderOptions mesh;
+    mesh.depth_secondary = DepthSecondaryRays::kMesh;
+    EXPECT_EQ(Renderer::create(scene, mesh).status().code(), ErrorCode::kUnsupported);
+}
+
+TEST(Renderer, GhostsShadowVirtualObjectsAndRealMirrorsReflectThem) {
+    // A real box between the sun and a virtual ball darkens the ball's top.
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject ball =
+        object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0, 0, 0.5});
+    ball.shape.radius = 0.1f;
+    scene.objects.push_back(ball);
+    scene.lights.push_back(directionalLight("sun", {1, 0, -1}, 2));
+    SceneDescription boxed = scene;
+    scene.materials["box"] = material(MaterialType::kDiffuse, "box");
+    boxed.materials["box"] = scene.materials["box"];
+    SceneObject box = object("box", ObjectRole::kGhost, ShapeType::kBox, "box", {-0.5, 0, 1});
+    box.shape.size = {0.3f, 0.3f, 0.3f};
+    boxed.objects.push_back(box);
+    const int cx = (kW - 1) / 2, cy = (kH - 1) / 2;
+    uint8_t top[2];
+    for (int i = 0; i < 2; ++i) {
+        auto renderer = makeRenderer(i == 0 ? scene : boxed, RenderOptions{});
+        ASSERT_TRUE(renderer);
+        Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(90));
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(frame.inputs, out));
+        top[i] = pixelBytes(out.composite, cx, cy)[0];
+    }
+    EXPECT_GT(top[0], 100);
+    EXPECT_EQ(top[1], 0);
+
+    // A real mirror floor shows the virtual ball lit from below: the composite adds the
+    // reflection to the camera image where the mirror is.
+    SceneDescription mirrored;
+    mirrored.materials["white"] = scene.materials["white"];
+    mirrored.objects.push_back(ball);
+    mirrored.materials["floor"] = material(MaterialType::kMirror, "floor");
+    mirrored.materials["floor"].reflectance = 0.5f;
+    SceneObject floor = object("floor", ObjectRole::kGhost, ShapeType::kPlane, "floor", {0, 0, 0});
+    floor.shape.size = {20, 20, 0};
+    mirrored.objects.push_back(floor);
+    mirrored.lights.push_back(pointLight({0, 0, 0.2}, 1));
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(mirrored, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({1, 0, 3}), greyImage(90));
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    // The mirror image of the ball centre is (0, 0, -0.5).
+    const auto image = frame.inputs.camera.project(frame.inputs.T_world_cam.inverse() *
+                                                   Eigen::Vector3d(0, 0, -0.5));
+    ASSERT_TRUE(image);
+    const int x = static_cast<int>(std::lround(image->x())),
+              y = static_cast<int>(std::lround(image->y()));
+    EXPECT_EQ(out.mask.at(x, y)[0], 0.f);
+    EXPECT_GT(pixelBytes(out.composite, x, y)[0], 95);
+    EXPECT_EQ(pixelBytes(out.composite, kW - 5, y)[0], 90);  // the bare mirror: the camera pixel
+}
+
+}  // namespace
+}  // namespace mixray::render::test
