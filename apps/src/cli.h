@@ -39,5 +39,6 @@ void registerDevicesCommand(CLI::App& app, Commands& commands);
 void registerInfoCommand(CLI::App& app, Commands& commands);
 void registerPlayCommand(CLI::App& app, Commands& commands);
 void registerRecordCommand(CLI::App& app, Commands& commands);
+void registerRenderCommand(CLI::App& app, Commands& commands);
 
 }  // namespace mixray::cli

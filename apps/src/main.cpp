@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
     registerRecordCommand(app, commands);
     registerPlayCommand(app, commands);
     registerConvertCommand(app, commands);
+    registerRenderCommand(app, commands);
     registerBenchCommand(app, commands);
 
     try {

@@ -1,0 +1,262 @@
+// mixray render: composites a scene's virtual objects into every colour frame of a recording.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <thread>
+
+#include "cli.h"
+#include "console.h"
+#include "mixray/graph/mkv.h"
+#include "mixray/render/output.h"
+#include "mixray/render/renderer.h"
+#include "mixray/render/scene_file.h"
+#include "mixray/replay/open_recording.h"
+
+namespace mixray::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RenderCommandOptions {
+    std::string session;
+    std::string scene;
+    std::string output;
+    std::string png_dir;  // every `png_every`-th composite as PNG
+    int png_every = 30;
+    bool layers = false;  // also I_m, I_r, M as EXR next to the PNGs
+    int max_depth = 3;
+    int samples = 1;
+    std::string shadows = "adaptive";
+    int shadow_samples = 20;
+    int threads = 0;
+    uint64_t max_frames = 0;  // 0: all
+};
+
+Result<render::SoftShadowMethod> shadowMethod(const std::string& name) {
+    if (name == "hard")
+        return render::SoftShadowMethod::kHard;
+    if (name == "uniform")
+        return render::SoftShadowMethod::kUniform;
+    if (name == "adaptive")
+        return render::SoftShadowMethod::kAdaptive;
+    return {ErrorCode::kInvalidArgument,
+            "--shadows " + name + ": expected hard, uniform or adaptive"};
+}
+
+// The recording's stream to composite into (the first rgb8/bgr8 colour stream) and the depth
+// stream that occludes (the first depth16 stream of the same size), if any.
+struct Streams {
+    StreamId color = kInvalidStream;
+    StreamId depth = kInvalidStream;
+};
+Result<Streams> pickStreams(const RecordingReader& reader) {
+    Streams s;
+    const auto& streams = reader.streams();
+    for (StreamId i = 0; i < streams.size(); ++i) {
+        const auto format = streams[i].format.format;
+        if (s.color == kInvalidStream && streams[i].kind == StreamKind::kColor &&
+            (format == PixelFormat::kRGB8 || format == PixelFormat::kBGR8)) {
+            s.color = i;
+        }
+    }
+    if (s.color == kInvalidStream) {
+        return {ErrorCode::kUnsupported,
+                "the recording has no rgb8/bgr8 colour stream to composite into"};
+    }
+    const ImageDesc& c = streams[s.color].format;
+    for (StreamId i = 0; i < streams.size(); ++i) {
+        if (streams[i].kind == StreamKind::kDepth &&
+            streams[i].format.format == PixelFormat::kDepth16 &&
+            streams[i].format.width == c.width && streams[i].format.height == c.height &&
+            !streams[i].tags.count("depth_scale_per_m")) {
+            s.depth = i;
+            break;
+        }
+    }
+    return s;
+}
+
+int runRender(const RenderCommandOptions& options) {
+    setFfmpegLogging(false);
+    auto scene = render::loadScene(options.scene);
+    if (!scene)
+        return fail("render", scene.status());
+    if (!scene->camera || !scene->camera->model) {
+        return fail("render", {ErrorCode::kInvalidArgument,
+                               options.scene + ": the scene needs a camera with a pose and a model "
+                                               "(recordings carry no camera pose or calibration "
+                                               "yet)"});
+    }
+    auto reader = replay::openRecording(options.session);
+    if (!reader)
+        return fail("render", reader.status());
+    auto streams = pickStreams(**reader);
+    if (!streams)
+        return fail("render", streams.status().withContext(options.session));
+    const StreamInfo color_info = (*reader)->streams()[streams->color];
+    const calibration::CameraModel& camera = *scene->camera->model;
+    if (camera.width != color_info.format.width || camera.height != color_info.format.height) {
+        return fail("render", {ErrorCode::kInvalidArgument,
+                               "the scene's camera is " + std::to_string(camera.width) + "x" +
+                                   std::to_string(camera.height) + " but " + color_info.name +
+                                   " is " + std::to_string(color_info.format.width) + "x" +
+                                   std::to_string(color_info.format.height)});
+    }
+
+    render::RenderOptions render_options;
+    render_options.max_depth = options.max_depth;
+    render_options.samples_per_pixel = options.samples;
+    auto method = shadowMethod(options.shadows);
+    if (!method)
+        return fail("render", method.status());
+    render_options.soft_shadows = *method;
+    render_options.shadow_samples = options.shadow_samples;
+    render_options.threads = options.threads;
+    render_options.keep_layers = options.layers;
+    auto renderer = render::Renderer::create(*scene, render_options);
+    if (!renderer)
+        return fail("render", renderer.status());
+
+    const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30.0;
+    auto video = render::VideoWriter::create(options.output, color_info.format.width,
+                                             color_info.format.height, fps);
+    if (!video)
+        return fail("render", video.status());
+    if (!options.png_dir.empty())
+        fs::create_directories(options.png_dir);
+
+    // Marker poses come from tracking, which recordings do not carry yet: marker-bound objects
+    // are placed at the world origin (the main marker's frame), and the user is told so.
+    std::map<std::string, Eigen::Isometry3d> anchors;
+    for (const auto& object : scene->objects) {
+        if (object.anchor != "world" && !anchors.count(object.anchor)) {
+            anchors[object.anchor] = Eigen::Isometry3d::Identity();
+            std::fprintf(stderr,
+                         "mixray render: no pose for %s in %s; placed at the world origin\n",
+                         object.anchor.c_str(), options.session.c_str());
+        }
+    }
+    for (const auto& light : scene->lights) {
+        if (light.anchor != "world" && !anchors.count(light.anchor)) {
+            anchors[light.anchor] = Eigen::Isometry3d::Identity();
+        }
+    }
+
+    InterruptFlag interrupt;
+    StatusLine status;
+    FrameRef depth;
+    uint64_t frames = 0;
+    double render_seconds = 0;
+    double worst_seconds = 0;
+    render::RenderLayers layers;
+    Status result;
+    while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kUnavailable) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                continue;
+            }
+            if (frame.status().code() != ErrorCode::kEndOfStream)
+                result = frame.status();
+            break;
+        }
+        if (frame->meta().stream == streams->depth) {
+            depth = *frame;  // the newest depth map occludes the next colour frames
+            continue;
+        }
+        if (frame->meta().stream != streams->color)
+            continue;
+
+        render::RenderInputs inputs;
+        inputs.camera_image = frame->image();
+        if (depth)
+            inputs.depth_mm = depth.image();
+        inputs.camera = camera;
+        inputs.T_world_cam = scene->camera->T_world_cam;
+        inputs.T_world_anchor = anchors;
+        render::RenderStats stats;
+        result = (*renderer)->render(inputs, layers, &stats);
+        if (!result)
+            break;
+        result = (*video)->write(layers.composite.view(), frame->meta().host_stamp_ns);
+        if (!result)
+            break;
+        if (!options.png_dir.empty() && frames % static_cast<uint64_t>(options.png_every) == 0) {
+            char name[64];
+            std::snprintf(name, sizeof name, "frame_%06llu",
+                          static_cast<unsigned long long>(frames));
+            const fs::path base = fs::path(options.png_dir) / name;
+            result = render::writePng(layers.composite.view(), base.string() + ".png");
+            if (result && options.layers) {
+                result = render::writeExr(layers.mixed, base.string() + "_mixed.exr");
+                if (result)
+                    result = render::writeExr(layers.real_only, base.string() + "_real.exr");
+                if (result)
+                    result = render::writeExr(layers.mask, base.string() + "_mask.exr");
+            }
+            if (!result)
+                break;
+        }
+        ++frames;
+        render_seconds += stats.seconds;
+        worst_seconds = std::max(worst_seconds, stats.seconds);
+        char line[160];
+        std::snprintf(
+            line, sizeof line, "frame %llu: %.1f ms, %.2f Mrays/s, %llu px traced",
+            static_cast<unsigned long long>(frames), stats.seconds * 1e3,
+            stats.seconds > 0 ? static_cast<double>(stats.rays()) / stats.seconds / 1e6 : 0,
+            static_cast<unsigned long long>(stats.pixels_traced));
+        status.update(line);
+    }
+    status.finish();
+    Status closed = (*video)->close();
+    if (!result)
+        return fail("render", result);
+    if (!closed)
+        return fail("render", closed);
+    std::printf("%s: %llu frames composited (%s), mean %.1f ms, worst %.1f ms per frame\n",
+                options.output.c_str(), static_cast<unsigned long long>(frames),
+                std::string(render::toString((*video)->codec())).c_str(),
+                frames ? render_seconds / static_cast<double>(frames) * 1e3 : 0.0,
+                worst_seconds * 1e3);
+    return interrupt.raised() ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace
+
+void registerRenderCommand(CLI::App& app, Commands& commands) {
+    auto* sub = app.add_subcommand(
+        "render",
+        "Composite a scene's virtual objects into every colour frame of a recording by "
+        "ray-traced differential rendering, writing a video (and PNG/EXR frames on request)");
+    auto o = std::make_shared<RenderCommandOptions>();
+    sub->add_option("SESSION", o->session, "Recording (.mkv, TUM or PCL TIFF folder)")->required();
+    sub->add_option("--scene", o->scene, "Scene file (YAML, docs/scene-format.md)")->required();
+    sub->add_option("-o,--output", o->output, "Video to write (.mp4: H.264; .mkv: FFV1 lossless)")
+        ->required();
+    sub->add_option("--png-dir", o->png_dir, "Also write every --png-every-th composite as PNG");
+    sub->add_option("--png-every", o->png_every, "Frames between PNGs")
+        ->check(CLI::Range(1, 1000000))
+        ->capture_default_str();
+    sub->add_flag("--layers", o->layers, "With --png-dir: also I_m, I_r and M as EXR");
+    sub->add_option("--max-depth", o->max_depth, "Secondary bounces")
+        ->check(CLI::Range(0, 16))
+        ->capture_default_str();
+    sub->add_option("--samples", o->samples, "Samples per pixel (a square number)")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    sub->add_option("--shadows", o->shadows, "hard, uniform or adaptive (RT²AR)")
+        ->check(CLI::IsMember({"hard", "uniform", "adaptive"}))
+        ->capture_default_str();
+    sub->add_option("--shadow-samples", o->shadow_samples, "Rays per spherical light")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
+        ->check(CLI::Range(0, 1024));
+    sub->add_option("--max-frames", o->max_frames, "Stop after this many frames (0: all)");
+    commands.push_back({sub, [o] { return runRender(*o); }});
+}
+
+}  // namespace mixray::cli
