@@ -174,6 +174,26 @@ TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
     EXPECT_EQ(a["streams"], b["streams"]);
 }
 
+TEST(Cli, RenderCompositesTheSceneIntoEveryFrame) {
+    const fs::path dir = test::tempDir();
+    CliRun run = mixray("render " + q(kSession) + " --scene " +
+                        q(test::fixturesDir() / "scenes" / "pattern_session.yaml") + " -o " +
+                        q(dir / "out.mkv") + " --png-dir " + q(dir / "png") +
+                        " --png-every 2 --max-frames 3 --shadow-samples 8");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("3 frames composited (ffv1)"), std::string::npos) << run.output;
+    EXPECT_TRUE(fs::exists(dir / "png" / "frame_000000.png"));
+    EXPECT_TRUE(fs::exists(dir / "png" / "frame_000002.png"));
+
+    CliRun wrong_size =
+        mixray("render " + q(kSession) + " --scene " +
+               q(test::fixturesDir() / "scenes" / "demo.yaml") + " -o " + q(dir / "x.mkv"));
+    EXPECT_NE(wrong_size.exit_code, 0) << wrong_size.output;
+    CliRun no_scene = mixray("render " + q(kSession) + " --scene " + q(dir / "none.yaml") + " -o " +
+                             q(dir / "y.mkv"));
+    EXPECT_EQ(no_scene.exit_code, 3) << no_scene.output;
+}
+
 TEST(Cli, BenchGraphPrintsItsFigures) {
     CliRun run = mixray("bench graph --frames 300 --record-frames 10 --disk-mb 16 --dir " +
                         q(test::tempDir()));
