@@ -128,19 +128,22 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
     EXPECT_NE(play.output.find("replay/color"), std::string::npos) << play.output;
     EXPECT_NE(play.output.find("60 frames"), std::string::npos) << play.output;
 
-    // mkv -> PCL TIFF folder -> mkv keeps colour and depth frames and their stamps. (Not TUM:
-    // pattern depth images carry their sequence stamp in row 0, values TUM's 16-bit 0.2 mm
-    // units cannot hold, and the TUM writer refuses to lose them.)
+    // mkv -> TUM folder -> mkv keeps colour and depth frames and their stamps (to the
+    // microsecond TUM names keep); mkv -> PCL TIFF folder works too.
+    CliRun to_tum = mixray("convert " + q(out) + " " + q(dir / "tum"));
+    ASSERT_EQ(to_tum.exit_code, 0) << to_tum.output;
+    EXPECT_TRUE(fs::exists(dir / "tum" / "rgb.txt"));
     CliRun to_pcl = mixray("convert --to pcl-tiff " + q(out) + " " + q(dir / "pcl"));
     ASSERT_EQ(to_pcl.exit_code, 0) << to_pcl.output;
-    CliRun back = mixray("convert " + q(dir / "pcl") + " " + q(dir / "back.mkv"));
+    EXPECT_TRUE(fs::exists(dir / "pcl"));
+    CliRun back = mixray("convert " + q(dir / "tum") + " " + q(dir / "back.mkv"));
     ASSERT_EQ(back.exit_code, 0) << back.output;
     auto a = nlohmann::json::parse(mixray("info --json " + q(out)).output);
     auto b = nlohmann::json::parse(mixray("info --json " + q(dir / "back.mkv")).output);
     ASSERT_EQ(b["streams"].size(), 2u);
     EXPECT_EQ(b["streams"][0]["frames"], a["streams"][0]["frames"]);
     EXPECT_EQ(b["streams"][1]["frames"], a["streams"][1]["frames"]);
-    // PCL names keep microseconds: the first colour stamp survives to the microsecond.
+    // The first colour stamp survives to the microsecond.
     EXPECT_EQ(b["streams"][0]["first_stamp_ns"].get<int64_t>() / 1000,
               a["streams"][0]["first_stamp_ns"].get<int64_t>() / 1000);
 }

@@ -178,27 +178,52 @@ StreamKind kindOf(PatternStream stream) {
     return StreamKind::kData;
 }
 
+// Depth images carry each stamp byte as one pixel of kDepthStampBaseMm + byte millimetres:
+// plausible depths (1.000 to 1.255 m) that every depth format and tool can hold, where raw
+// bytes would read as depths up to 65.5 m (beyond TUM's 16-bit 0.2 mm units, for one).
+constexpr uint16_t kDepthStampBaseMm = 1000;
+
 void stampSequence(uint64_t sequence, const MutableImageView& out) {
-    assert(out.data && out.capacity_bytes >= kSequenceBytes);
     std::array<uint8_t, kSequenceBytes> bytes{};
     for (size_t i = 0; i < 8; ++i) {
         bytes[i] = static_cast<uint8_t>(sequence >> (8 * i));
         bytes[8 + i] = static_cast<uint8_t>(~bytes[i]);
     }
+    if (out.desc.format == PixelFormat::kDepth16) {
+        assert(out.data && out.capacity_bytes >= kSequenceBytes * sizeof(uint16_t));
+        uint16_t* row = out.row<uint16_t>(0);
+        for (size_t i = 0; i < bytes.size(); ++i) {
+            row[i] = static_cast<uint16_t>(kDepthStampBaseMm + bytes[i]);
+        }
+        return;
+    }
+    assert(out.data && out.capacity_bytes >= kSequenceBytes);
     std::memcpy(out.data, bytes.data(), bytes.size());
 }
 
 std::optional<uint64_t> readSequence(const ImageView& image) {
-    if (!image.data || image.size_bytes < kSequenceBytes ||
-        static_cast<size_t>(image.desc.stride_bytes) < kSequenceBytes) {
+    const bool depth = image.desc.format == PixelFormat::kDepth16;
+    const size_t bytes_needed = depth ? kSequenceBytes * sizeof(uint16_t) : kSequenceBytes;
+    if (!image.data || image.size_bytes < bytes_needed ||
+        static_cast<size_t>(image.desc.stride_bytes) < bytes_needed) {
         return std::nullopt;
+    }
+    std::array<uint8_t, kSequenceBytes> bytes{};
+    for (size_t i = 0; i < bytes.size(); ++i) {
+        if (depth) {
+            const uint16_t v = image.row<uint16_t>(0)[i];
+            if (v < kDepthStampBaseMm || v > kDepthStampBaseMm + 255)
+                return std::nullopt;
+            bytes[i] = static_cast<uint8_t>(v - kDepthStampBaseMm);
+        } else {
+            bytes[i] = image.data[i];
+        }
     }
     uint64_t sequence = 0;
     for (size_t i = 0; i < 8; ++i) {
-        const uint8_t b = image.data[i];
-        if (static_cast<uint8_t>(~b) != image.data[8 + i])
+        if (static_cast<uint8_t>(~bytes[i]) != bytes[8 + i])
             return std::nullopt;
-        sequence |= static_cast<uint64_t>(b) << (8 * i);
+        sequence |= static_cast<uint64_t>(bytes[i]) << (8 * i);
     }
     return sequence;
 }

@@ -31,7 +31,8 @@ inline constexpr int kMinPatternWidth = 16;
 inline constexpr int kMinPatternHeight = 8;
 inline constexpr int kMaxPatternSide = 16384;
 // Row 0 starts with the sequence (8 bytes, little-endian) and its bitwise complement (8 more),
-// so readSequence() can tell a pattern image from any other.
+// so readSequence() can tell a pattern image from any other. Depth images hold each of those
+// 16 bytes as one pixel of 1000 + byte millimetres, so the stamp is a plausible depth.
 inline constexpr size_t kSequenceBytes = 16;
 
 // Fills `out` with frame `sequence` of `stream`. out.desc must be the stream's format with a
