@@ -216,7 +216,8 @@ std::string formatPclStamp(int64_t stamp_ns, int digits) {
                   static_cast<int>(second_of_day % 60));
     std::string out = text;
     if (digits > 0) {
-        std::snprintf(text, sizeof(text), ".%0*lld", digits,
+        // digits is 1..9 (clamped above); clamping again tells the compiler the field is short.
+        std::snprintf(text, sizeof(text), ".%0*lld", std::clamp(digits, 1, 9),
                       static_cast<long long>(fraction / pow10(9 - digits)));
         out += text;
     }
