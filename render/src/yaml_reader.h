@@ -12,19 +12,18 @@
 #include <string_view>
 #include <vector>
 
+#include "mixray/graph/field_errors.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/rig.h"
 
 namespace mixray::render::yaml {
 
-// kCorruptData with "where: path: what" (parts left out when empty).
-Status corrupt(const SourceLocation& where, std::string_view path, std::string_view what);
-
-// A value for a message: quoted, escaped, cut short when long.
-std::string quote(std::string_view text);
-std::string joinNames(std::span<const std::string_view> names);
-// The allowed name `key` is probably a typo of; empty when none is close.
-std::string_view closestName(std::string_view key, std::span<const std::string_view> names);
+// The shared message helpers (mixray/graph/field_errors.h), under this namespace's names.
+using ::mixray::closestName;
+using ::mixray::corrupt;
+using ::mixray::indexPath;
+using ::mixray::joinNames;
+using ::mixray::quote;
 
 // A YAML value with where it was written and its field path ("objects[1].pose.translation").
 struct Item {
@@ -42,7 +41,6 @@ struct Field {
 using Fields = std::vector<Field>;
 
 const Item* find(const Fields& fields, std::string_view key);
-std::string indexPath(const std::string& path, size_t index);
 std::string keyPath(const std::string& path, std::string_view key);
 
 // Typed, located access to one file's YAML. Thread-bound: one reader per parse. Methods may

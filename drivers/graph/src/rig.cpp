@@ -18,6 +18,8 @@
 #include <type_traits>
 #include <variant>
 
+#include "mixray/graph/field_errors.h"
+
 namespace mixray {
 namespace {
 
@@ -30,86 +32,6 @@ constexpr std::string_view kModeSyntax = "WIDTHxHEIGHT@FPS like 640x480@30";
 
 // ---------------------------------------------------------------------------------------------
 // Messages
-
-Status corrupt(const SourceLocation& where, std::string_view path, std::string_view what) {
-    std::string message = where.toString();
-    if (!path.empty()) {
-        if (!message.empty())
-            message += ": ";
-        message += path;
-    }
-    if (!message.empty())
-        message += ": ";
-    message += what;
-    return Status(ErrorCode::kCorruptData, std::move(message));
-}
-
-// A value for a message: quoted, escaped, and cut short when long.
-std::string quote(std::string_view text) {
-    constexpr size_t kMaxShown = 40;
-    std::string out = "\"";
-    size_t shown = 0;
-    for (char c : text) {
-        if (shown++ == kMaxShown) {
-            out += "...";
-            break;
-        }
-        const auto byte = static_cast<unsigned char>(c);
-        if (c == '"' || c == '\\') {
-            out += '\\';
-            out += c;
-        } else if (byte < 0x20 || byte == 0x7f) {
-            constexpr std::string_view kHex = "0123456789abcdef";
-            out += "\\x";
-            out += kHex[byte >> 4];
-            out += kHex[byte & 0xf];
-        } else {
-            out += c;
-        }
-    }
-    out += '"';
-    return out;
-}
-
-std::string joinNames(std::span<const std::string_view> names) {
-    std::string out;
-    for (auto name : names) {
-        if (!out.empty())
-            out += ", ";
-        out += name;
-    }
-    return out;
-}
-
-size_t editDistance(std::string_view a, std::string_view b) {
-    std::vector<size_t> row(b.size() + 1);
-    for (size_t j = 0; j <= b.size(); ++j)
-        row[j] = j;
-    for (size_t i = 1; i <= a.size(); ++i) {
-        size_t diagonal = row[0];
-        row[0] = i;
-        for (size_t j = 1; j <= b.size(); ++j) {
-            const size_t above = row[j];
-            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] != b[j - 1])});
-            diagonal = above;
-        }
-    }
-    return row[b.size()];
-}
-
-// The closest allowed key when `key` looks like a typo of it.
-std::string_view closestName(std::string_view key, std::span<const std::string_view> names) {
-    std::string_view best;
-    size_t best_distance = std::max<size_t>(2, key.size() / 3) + 1;
-    for (auto name : names) {
-        const size_t d = editDistance(key, name);
-        if (d < best_distance) {
-            best = name;
-            best_distance = d;
-        }
-    }
-    return best;
-}
 
 bool isNameChar(char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
@@ -370,10 +292,6 @@ std::string firstAt(const SourceLocation& where) {
     return text.empty() ? "" : " (first at " + text + ")";
 }
 
-std::string indexPath(const std::string& path, size_t index) {
-    return path + "[" + std::to_string(index) + "]";
-}
-
 // A key as it appears in a field path; odd keys (spaces, very long) are quoted and cut short.
 std::string keyPath(const std::string& path, std::string_view key) {
     const std::string shown = isValidOptionKey(key) ? std::string(key) : quote(key);
@@ -382,7 +300,7 @@ std::string keyPath(const std::string& path, std::string_view key) {
 
 // Notes where documents start and ignores everything else.
 class DocumentFinder final : public YAML::EventHandler {
-  public:
+public:
     YAML::Mark last_start;
 
     void OnDocumentStart(const YAML::Mark& mark) override { last_start = mark; }
@@ -400,13 +318,13 @@ class DocumentFinder final : public YAML::EventHandler {
 };
 
 class RigParser {
-  public:
+public:
     RigParser(std::string file, std::filesystem::path base)
         : file_(std::move(file)), base_(std::move(base)) {}
 
     Status parse(std::string_view text, RigDescription& rig);
 
-  private:
+private:
     SourceLocation locate(const YAML::Node& node, const SourceLocation& fallback) const {
         const YAML::Mark mark = node.Mark();
         if (node.IsNull() || mark.is_null() || mark.line < 0)
