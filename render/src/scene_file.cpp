@@ -1,5 +1,5 @@
-// Scene file parsing: strict YAML (yaml_reader.h; yaml-cpp exceptions caught here) walked into a
-// SceneDescription, then SceneDescription::validate().
+// Scene file parsing: strict YAML (mixray/graph/yaml_reader.h; yaml-cpp exceptions caught here)
+// walked into a SceneDescription, then SceneDescription::validate().
 #include "mixray/render/scene_file.h"
 
 #include <algorithm>
@@ -13,7 +13,7 @@
 #include <system_error>
 #include <vector>
 
-#include "yaml_reader.h"
+#include "mixray/graph/yaml_reader.h"
 
 namespace mixray::render {
 namespace {

@@ -373,7 +373,7 @@ std::vector<BadRig> badRigs() {
         {"site missing longitude", "rig: a\n" + ok_devices + "site: { latitude_deg: 10 }\n",
          "rig.yaml:5:7", "site.longitude_deg: missing required field"},
         {"nan", "rig: a\n" + ok_devices + "site: { latitude_deg: .nan, longitude_deg: 0 }\n",
-         "rig.yaml:5:23", "expected a number"},
+         "rig.yaml:5:23", "expected a finite number, got \".nan\""},
         {"tab indentation", "rig: a\ndevices:\n\t- name: a\n", "rig.yaml:3:1",
          "tab in indentation"},
         {"control character", std::string("rig: a\ndevices: \x01\n"), "rig.yaml:2:10",

@@ -2,23 +2,19 @@
 // the schema into plain structs, then cross-entry validation.
 #include "mixray/graph/rig.h"
 
-#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <set>
 #include <span>
-#include <sstream>
-#include <system_error>
-#include <type_traits>
 #include <variant>
 
 #include "mixray/graph/field_errors.h"
+#include "mixray/graph/yaml_reader.h"
 
 namespace mixray {
 namespace {
@@ -68,27 +64,6 @@ std::string unknownFormatMessage(std::string_view name) {
 // ---------------------------------------------------------------------------------------------
 // Scalar syntax
 
-template <typename T>
-bool parseWhole(std::string_view text, T& value) {
-    if (text.empty())
-        return false;
-    if constexpr (std::is_floating_point_v<T>) {
-        // from_chars accepts "inf" and "nan"; rig numbers are plain decimals.
-        if (!std::all_of(text.begin(), text.end(), [](char c) {
-                return (c >= '0' && c <= '9') || c == '.' || c == '-' || c == '+' || c == 'e' ||
-                       c == 'E';
-            })) {
-            return false;
-        }
-    }
-    const char* first = text.data();
-    const char* last = text.data() + text.size();
-    if (*first == '+' && ++first != last && *first == '-')
-        return false;
-    auto [end, ec] = std::from_chars(first, last, value);
-    return ec == std::errc() && end == last;
-}
-
 std::string_view trim(std::string_view s) {
     while (!s.empty() && (s.front() == ' ' || s.front() == '\t'))
         s.remove_prefix(1);
@@ -125,7 +100,7 @@ std::variant<StreamMode, std::string> parseStreamMode(std::string_view text) {
     const std::string_view width = rest.substr(0, x);
     const std::string_view height =
         rest.substr(x + 1, at == std::string_view::npos ? std::string_view::npos : at - x - 1);
-    if (!parseWhole(width, mode.width) || !parseWhole(height, mode.height))
+    if (!yaml::parseWhole(width, mode.width) || !yaml::parseWhole(height, mode.height))
         return syntax_error;
     if (mode.width < 1 || mode.width > kMaxImageSide || mode.height < 1 ||
         mode.height > kMaxImageSide) {
@@ -134,7 +109,7 @@ std::variant<StreamMode, std::string> parseStreamMode(std::string_view text) {
     }
     if (at != std::string_view::npos) {
         double fps = 0;
-        if (!parseWhole(rest.substr(at + 1), fps))
+        if (!yaml::parseWhole(rest.substr(at + 1), fps))
             return syntax_error;
         if (!(fps > 0 && fps <= kMaxFps)) {
             return "frame rate out of range (more than 0, at most " +
@@ -151,140 +126,11 @@ std::variant<StreamMode, std::string> parseStreamMode(std::string_view text) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Pre-scan: reject what yaml-cpp would take badly or slowly before it sees the text.
-
-Status prescan(std::string_view text, const std::string& file) {
-    if (text.size() > kMaxRigFileBytes) {
-        return corrupt({file, 0, 0}, "",
-                       "file is " + std::to_string(text.size()) + " bytes; a rig file is at most " +
-                           std::to_string(kMaxRigFileBytes));
-    }
-    // Nesting estimate: block levels from the indentation stack and "- - " runs, plus flow
-    // levels from brackets that open a node. Quoted scalars and comments are skipped. Rough,
-    // but it only has to be right for text nested deeper than any real rig file.
-    std::vector<int> indents;
-    int block = 0;  // block nesting of the current line
-    int flow = 0;   // open [ and { around the current character
-    char quote_char = 0;
-    int line = 1;
-    size_t pos = 0;
-    while (pos < text.size()) {
-        const size_t eol = std::min(text.find('\n', pos), text.size());
-        const std::string_view content = text.substr(pos, eol - pos);
-        auto where = [&](size_t column0) {
-            return SourceLocation{file, line, static_cast<int>(column0) + 1};
-        };
-        for (size_t i = 0; i < content.size(); ++i) {
-            const auto byte = static_cast<unsigned char>(content[i]);
-            if ((byte < 0x20 && byte != '\t' && byte != '\r') || byte == 0x7f) {
-                return corrupt(where(i), "",
-                               "control character " + quote(content.substr(i, 1)) +
-                                   " in the file; a rig file is text");
-            }
-        }
-        size_t indent = 0;
-        while (indent < content.size() && (content[indent] == ' ' || content[indent] == '\t')) {
-            if (content[indent] == '\t' && quote_char == 0 && flow == 0) {
-                return corrupt(where(indent), "", "tab in indentation; YAML indents with spaces");
-            }
-            ++indent;
-        }
-        const bool blank =
-            indent == content.size() || content[indent] == '#' || content[indent] == '\r';
-        if (!blank && quote_char == 0 && flow == 0) {
-            const int column = static_cast<int>(indent);
-            while (!indents.empty() && indents.back() > column)
-                indents.pop_back();
-            if (indents.empty() || indents.back() < column)
-                indents.push_back(column);
-            block = static_cast<int>(indents.size());
-        }
-        if (!blank && quote_char == 0 && flow == 0 && content[indent] == ',') {
-            return corrupt(where(indent), "", "unexpected ',' outside a [list] or {mapping}");
-        }
-        char previous = 0;  // last non-space character outside quotes on this line
-        for (size_t i = indent; i < content.size(); ++i) {
-            const char c = content[i];
-            if (quote_char != 0) {
-                if (c == '\\' && quote_char == '"') {
-                    ++i;
-                } else if (c == quote_char) {
-                    if (quote_char == '\'' && i + 1 < content.size() && content[i + 1] == '\'') {
-                        ++i;
-                    } else {
-                        quote_char = 0;
-                        previous = c;
-                    }
-                }
-                continue;
-            }
-            const bool starts_node = previous == 0 || previous == ':' || previous == '-' ||
-                                     previous == ',' || previous == '[' || previous == '{' ||
-                                     previous == '?';
-            if (c == '#' && (i == 0 || content[i - 1] == ' ' || content[i - 1] == '\t'))
-                break;
-            if ((c == '"' || c == '\'') && starts_node) {
-                quote_char = c;
-            } else if ((c == '[' || c == '{') && (starts_node || flow > 0)) {
-                ++flow;
-            } else if ((c == ']' || c == '}') && flow > 0) {
-                --flow;
-            } else if (c == '-' && flow == 0 && (previous == 0 || previous == '-') &&
-                       i + 1 < content.size() && content[i + 1] == ' ') {
-                ++block;  // "- - x": each dash opens a nested sequence
-            }
-            if (block + flow > kMaxRigNesting) {
-                return corrupt(where(i), "",
-                               "nesting deeper than " + std::to_string(kMaxRigNesting) +
-                                   " levels; a rig file is much flatter");
-            }
-            if (c != ' ' && c != '\t')
-                previous = c;
-        }
-        pos = eol + 1;
-        ++line;
-    }
-    return Status::ok();
-}
-
-// ---------------------------------------------------------------------------------------------
 // Schema walk
 
-// A YAML value with where it was written and its field path ("devices[1].mode.depth").
-struct Item {
-    YAML::Node node;
-    SourceLocation where;
-    std::string path;
-};
-
-struct Field {
-    std::string key;
-    SourceLocation key_where;
-    Item item;
-};
-
-using Fields = std::vector<Field>;
-
-const Item* find(const Fields& fields, std::string_view key) {
-    for (const auto& f : fields) {
-        if (f.key == key)
-            return &f.item;
-    }
-    return nullptr;
-}
-
-std::string describe(const YAML::Node& node) {
-    switch (node.Type()) {
-        case YAML::NodeType::Scalar:
-            return quote(node.Scalar());
-        case YAML::NodeType::Sequence:
-            return node.size() == 0 ? "an empty list" : "a list";
-        case YAML::NodeType::Map:
-            return node.size() == 0 ? "an empty mapping" : "a mapping";
-        default:
-            return "nothing";
-    }
-}
+using yaml::Fields;
+using yaml::find;
+using yaml::Item;
 
 // " (first at rig.yaml:3:5)", or nothing for entries built in code.
 std::string firstAt(const SourceLocation& where) {
@@ -292,67 +138,16 @@ std::string firstAt(const SourceLocation& where) {
     return text.empty() ? "" : " (first at " + text + ")";
 }
 
-// A key as it appears in a field path; odd keys (spaces, very long) are quoted and cut short.
-std::string keyPath(const std::string& path, std::string_view key) {
-    const std::string shown = isValidOptionKey(key) ? std::string(key) : quote(key);
-    return path.empty() ? shown : path + "." + shown;
-}
-
-// Notes where documents start and ignores everything else.
-class DocumentFinder final : public YAML::EventHandler {
-public:
-    YAML::Mark last_start;
-
-    void OnDocumentStart(const YAML::Mark& mark) override { last_start = mark; }
-    void OnDocumentEnd() override {}
-    void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
-    void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
-    void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
-                  const std::string&) override {}
-    void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
-                         YAML::EmitterStyle::value) override {}
-    void OnSequenceEnd() override {}
-    void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
-                    YAML::EmitterStyle::value) override {}
-    void OnMapEnd() override {}
-};
-
-class RigParser {
+// The rig schema walked with the strict reader's typed accessors (mixray/graph/yaml_reader.h).
+class RigParser : private yaml::Reader {
 public:
     RigParser(std::string file, std::filesystem::path base)
-        : file_(std::move(file)), base_(std::move(base)) {}
+        : yaml::Reader(std::move(file)), base_(std::move(base)) {}
 
     Status parse(std::string_view text, RigDescription& rig);
 
 private:
-    SourceLocation locate(const YAML::Node& node, const SourceLocation& fallback) const {
-        const YAML::Mark mark = node.Mark();
-        if (node.IsNull() || mark.is_null() || mark.line < 0)
-            return fallback;
-        return {file_, mark.line + 1, mark.column + 1};
-    }
-
-    Status fail(const Item& item, std::string_view what) const {
-        return corrupt(item.where, item.path, what);
-    }
-    Status expected(const Item& item, std::string_view what) const {
-        return fail(item, "expected " + std::string(what) + ", got " + describe(item.node));
-    }
-
-    // Reads a mapping's entries. Keys must be plain scalars and unique; with `allowed` non-empty
-    // they must be among it.
-    Result<Fields> readMap(const Item& item, std::span<const std::string_view> allowed,
-                           std::string_view expectation) const;
-    Status require(const Fields& fields, const Item& parent, std::string_view key) const;
-    Item element(const Item& list, const YAML::Node& node, size_t index) const {
-        return {node, locate(node, list.where), indexPath(list.path, index)};
-    }
-
-    Result<std::string> text(const Item& item) const;
     Result<std::string> name(const Item& item) const;
-    Result<int64_t> integer(const Item& item, int64_t min, int64_t max) const;
-    Result<double> number(const Item& item, double min, double max, bool min_exclusive) const;
-    Result<bool> boolean(const Item& item) const;
 
     Status parseDevice(const Item& item, RigDescription& rig);
     Status parseStreams(const Item& item, RigDevice& device, RigDescription& rig);
@@ -365,53 +160,8 @@ private:
     Result<RigCalibrationFile> calibrationFile(const Item& item, std::string device,
                                                std::string stream) const;
 
-    std::string file_;
     std::filesystem::path base_;
 };
-
-Result<Fields> RigParser::readMap(const Item& item, std::span<const std::string_view> allowed,
-                                  std::string_view expectation) const {
-    if (!item.node.IsMap())
-        return expected(item, expectation);
-    Fields fields;
-    std::map<std::string, SourceLocation> seen;
-    for (const auto& entry : item.node) {
-        const YAML::Node& key = entry.first;
-        const SourceLocation key_where = locate(key, item.where);
-        if (!key.IsScalar()) {
-            return corrupt(key_where, item.path, "expected a plain key, got " + describe(key));
-        }
-        const std::string& name = key.Scalar();
-        const std::string path = keyPath(item.path, name);
-        if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
-            std::string what = "unknown field";
-            if (auto guess = closestName(name, allowed); !guess.empty()) {
-                what += " (did you mean " + std::string(guess) + "?)";
-            }
-            what += "; expected one of: " + joinNames(allowed);
-            return corrupt(key_where, path, what);
-        }
-        if (auto [it, inserted] = seen.emplace(name, key_where); !inserted) {
-            return corrupt(
-                key_where, path,
-                "duplicate key (first given at line " + std::to_string(it->second.line) + ")");
-        }
-        fields.push_back({name, key_where, {entry.second, locate(entry.second, key_where), path}});
-    }
-    return fields;
-}
-
-Status RigParser::require(const Fields& fields, const Item& parent, std::string_view key) const {
-    if (find(fields, key))
-        return Status::ok();
-    return corrupt(parent.where, keyPath(parent.path, key), "missing required field");
-}
-
-Result<std::string> RigParser::text(const Item& item) const {
-    if (!item.node.IsScalar() || item.node.Scalar().empty())
-        return expected(item, "a value");
-    return item.node.Scalar();
-}
 
 Result<std::string> RigParser::name(const Item& item) const {
     if (!item.node.IsScalar() || !isValidName(item.node.Scalar())) {
@@ -419,45 +169,6 @@ Result<std::string> RigParser::name(const Item& item) const {
                                   " letters, digits, '_' or '-'");
     }
     return item.node.Scalar();
-}
-
-Result<int64_t> RigParser::integer(const Item& item, int64_t min, int64_t max) const {
-    int64_t value = 0;
-    if (!item.node.IsScalar() || !parseWhole(item.node.Scalar(), value) || value < min ||
-        value > max) {
-        return expected(item,
-                        "an integer from " + std::to_string(min) + " to " + std::to_string(max));
-    }
-    return value;
-}
-
-Result<double> RigParser::number(const Item& item, double min, double max,
-                                 bool min_exclusive) const {
-    double value = 0;
-    if (item.node.IsScalar() && parseWhole(item.node.Scalar(), value) && std::isfinite(value) &&
-        (min_exclusive ? value > min : value >= min) && value <= max) {
-        return value;
-    }
-    auto show = [](double v) {
-        std::string s = std::to_string(v);
-        s.erase(s.find_last_not_of('0') + 1);
-        if (s.back() == '.')
-            s.pop_back();
-        return s;
-    };
-    return expected(item, "a number " + std::string(min_exclusive ? "above " : "from ") +
-                              show(min) + (min_exclusive ? " up to " : " to ") + show(max));
-}
-
-Result<bool> RigParser::boolean(const Item& item) const {
-    if (item.node.IsScalar()) {
-        const std::string& s = item.node.Scalar();
-        if (s == "true" || s == "True" || s == "TRUE")
-            return true;
-        if (s == "false" || s == "False" || s == "FALSE")
-            return false;
-    }
-    return expected(item, "true or false");
 }
 
 Result<RigCalibrationFile> RigParser::calibrationFile(const Item& item, std::string device,
@@ -473,20 +184,10 @@ Result<RigCalibrationFile> RigParser::calibrationFile(const Item& item, std::str
 }
 
 Status RigParser::parse(std::string_view source, RigDescription& rig) {
-    MIXRAY_RETURN_IF_ERROR(prescan(source, file_));
-    const std::string copy(source);
-    const Item root{YAML::Load(copy), {file_, 1, 1}, ""};
-    // A second document is found with the bare parser, called at most twice: YAML::LoadAll
-    // (yaml-cpp 0.7) loops forever, allocating, on a document that starts with a stray ','.
-    std::istringstream stream(copy);
-    YAML::Parser parser(stream);
-    DocumentFinder finder;
-    parser.HandleNextDocument(finder);
-    if (parser.HandleNextDocument(finder)) {
-        const YAML::Mark mark = finder.last_start;
-        return corrupt({file_, mark.line + 1, mark.column + 1}, "",
-                       "a second YAML document; a rig file holds one");
-    }
+    auto loaded = load(source, kMaxRigFileBytes, kMaxRigNesting, "a rig file");
+    if (!loaded)
+        return loaded.status();
+    const Item& root = *loaded;
     if (root.node.IsNull()) {
         return corrupt(root.where, "",
                        "the file is empty; expected a mapping with rig: and devices:");

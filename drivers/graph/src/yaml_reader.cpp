@@ -1,43 +1,20 @@
-// Strict YAML reading for render's input files (see yaml_reader.h).
-#include "yaml_reader.h"
+// Strict YAML reading for mixray's input files (see mixray/graph/yaml_reader.h).
+#include "mixray/graph/yaml_reader.h"
 
 #include <yaml-cpp/eventhandler.h>
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <map>
 #include <sstream>
-#include <system_error>
 
-namespace mixray::render::yaml {
+namespace mixray::yaml {
 namespace {
 
 bool isKeyChar(char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
            c == '-' || c == '.';
-}
-
-// Whole-string decimal numbers only: from_chars would also take "inf" and "nan".
-template <typename T>
-bool parseWhole(std::string_view text, T& value) {
-    if (text.empty())
-        return false;
-    if constexpr (std::is_floating_point_v<T>) {
-        if (!std::all_of(text.begin(), text.end(), [](char c) {
-                return (c >= '0' && c <= '9') || c == '.' || c == '-' || c == '+' || c == 'e' ||
-                       c == 'E';
-            })) {
-            return false;
-        }
-    }
-    const char* first = text.data();
-    const char* last = text.data() + text.size();
-    if (*first == '+' && ++first != last && *first == '-')
-        return false;
-    auto [end, ec] = std::from_chars(first, last, value);
-    return ec == std::errc() && end == last;
 }
 
 bool looksNonFinite(std::string_view s) {
@@ -315,4 +292,4 @@ Result<bool> Reader::boolean(const Item& item) const {
     return expected(item, "true or false");
 }
 
-}  // namespace mixray::render::yaml
+}  // namespace mixray::yaml

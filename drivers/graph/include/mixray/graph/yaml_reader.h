@@ -1,22 +1,27 @@
-// Strict YAML reading for render's input files: a size and nesting pre-scan, one document only,
-// and typed accessors whose errors read "file:line:col: field.path: what is wrong".
-// Internal to mixray::render (the same approach as drivers/graph/src/rig.cpp).
+// Strict YAML reading for mixray's input files (rig files, scene files): a size and nesting
+// pre-scan, one document only, and typed accessors whose errors read
+// "file:line:col: field.path: what is wrong". Include it from parsers' sources only: it brings
+// yaml-cpp's headers.
 #pragma once
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <charconv>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
 #include <string_view>
+#include <system_error>
+#include <type_traits>
 #include <vector>
 
 #include "mixray/graph/field_errors.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/rig.h"
 
-namespace mixray::render::yaml {
+namespace mixray::yaml {
 
 // The shared message helpers (mixray/graph/field_errors.h), under this namespace's names.
 using ::mixray::closestName;
@@ -39,6 +44,27 @@ struct Field {
 };
 
 using Fields = std::vector<Field>;
+
+// Whole-string decimal numbers only (from_chars alone would also take "inf" and "nan").
+template <typename T>
+inline bool parseWhole(std::string_view text, T& value) {
+    if (text.empty())
+        return false;
+    if constexpr (std::is_floating_point_v<T>) {
+        if (!std::all_of(text.begin(), text.end(), [](char c) {
+                return (c >= '0' && c <= '9') || c == '.' || c == '-' || c == '+' || c == 'e' ||
+                       c == 'E';
+            })) {
+            return false;
+        }
+    }
+    const char* first = text.data();
+    const char* last = text.data() + text.size();
+    if (*first == '+' && ++first != last && *first == '-')
+        return false;
+    auto [end, ec] = std::from_chars(first, last, value);
+    return ec == std::errc() && end == last;
+}
 
 const Item* find(const Fields& fields, std::string_view key);
 std::string keyPath(const std::string& path, std::string_view key);
@@ -87,4 +113,4 @@ private:
     std::string file_;
 };
 
-}  // namespace mixray::render::yaml
+}  // namespace mixray::yaml
