@@ -181,6 +181,21 @@ Result<std::string> readTextFile(const std::filesystem::path& file) {
     return text;
 }
 
+Result<uint64_t> writeSideFile(const std::filesystem::path& dir, const Attachment& attachment) {
+    if (attachment.name.empty() || attachment.name.find('/') != std::string::npos ||
+        attachment.name == "." || attachment.name == "..") {
+        return Status(ErrorCode::kInvalidArgument,
+                      "attachment name " + attachment.name + " is not a plain file name");
+    }
+    const std::filesystem::path path = dir / attachment.name;
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(attachment.data.data()),
+              static_cast<std::streamsize>(attachment.data.size()));
+    if (!out)
+        return Status(ErrorCode::kIoError, path.string() + ": write failed");
+    return static_cast<uint64_t>(attachment.data.size());
+}
+
 Status prepareOutputDir(const std::filesystem::path& dir) {
     std::error_code ec;
     if (std::filesystem::exists(dir, ec)) {

@@ -49,6 +49,10 @@ Result<std::string> readTextFile(const std::filesystem::path& file);
 // recordings in one folder would corrupt both).
 Status prepareOutputDir(const std::filesystem::path& dir);
 
+// Writes an attachment as a side file of a folder recording (dir / attachment.name, which must
+// be a plain file name). Returns the bytes written.
+Result<uint64_t> writeSideFile(const std::filesystem::path& dir, const Attachment& attachment);
+
 // The stream a folder writer stores as its colour (kind kColor) or depth (kind kDepth)
 // images: `wanted` by full or short name, else the first stream of `kind` whose format the
 // writer can encode. kInvalidStream when none and nothing was asked for.

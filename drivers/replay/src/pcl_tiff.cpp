@@ -85,12 +85,10 @@ public:
             // Sidecars only; a name with directories would write outside the folder.
             if (!endsWith(a.name, ".xml") || a.name.find('/') != std::string::npos)
                 continue;
-            std::ofstream out(dir / a.name, std::ios::binary | std::ios::trunc);
-            out.write(reinterpret_cast<const char*>(a.data.data()),
-                      static_cast<std::streamsize>(a.data.size()));
-            if (!out)
-                return {ErrorCode::kIoError, (dir / a.name).string() + ": write failed"};
-            writer->bytes_ += a.data.size();
+            auto written = detail::writeSideFile(dir, a);
+            if (!written)
+                return written.status();
+            writer->bytes_ += *written;
         }
         return std::unique_ptr<RecordingWriter>(std::move(writer));
     }
