@@ -180,6 +180,7 @@ public:
     Pair cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
                             SampleState& st) const;
     bool depthMapShadows(const Frame& f, const Vec3& origin, const Vec3& wi, float dist) const;
+    bool depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     Vec3 environment(const Frame& f, const Vec3& d) const;
     std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s) const;
@@ -534,7 +535,44 @@ Hit EmbreeRenderer::primaryHit(const Frame& f, const Vec3& d,
     const bool hidden = hit.valid && depth_limit && *depth_limit < hit.t;
     if (hit.valid && !hidden && objects_[hit.object].role == ObjectRole::kVirtual)
         return hit;
+    // Most of the depth surface is out of reach of every virtual object: there it stays the
+    // camera pixel, as without the mesh, and its triangles need not be traced. The mesh point
+    // lies near the measured one; 5 % of the distance (the relative step the mesher still joins)
+    // covers the difference.
+    if (depth_limit &&
+        !depthSurfaceInfluenced(f, f.t_world_cam + *depth_limit * d, 0.05f * *depth_limit)) {
+        return hidden ? Hit{} : hit;
+    }
     return EmbreeScene::intersect(scene_->ghosts(), f.t_world_cam, d, kInf);
+}
+
+// ghostInfluenced() for the depth surface at a point known to within `margin`: moving the point
+// by up to `margin` moves its segments towards the lights by no more.
+bool EmbreeRenderer::depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const {
+    if (f.virtual_bounds.empty())
+        return false;
+    const MaterialData& surface =
+        materials_[static_cast<size_t>(objects_[*depth_object_].material)];
+    if (surface.material.reflectance > 0)
+        return true;
+    for (const LightData* light : f.lights) {
+        Vec3 dir;
+        float length = kInf;
+        float extra = margin;
+        if (light->light.type == LightType::kDirectional) {
+            dir = -light->direction_world;
+        } else {
+            const Vec3 delta = light->position_world - p;
+            length = delta.norm();
+            dir = length > 0 ? Vec3(delta / length) : Vec3::UnitZ();
+            if (light->light.type == LightType::kSphere)
+                extra += light->light.radius;
+        }
+        for (const SphereBound& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, p, dir, length) <= b.radius + extra)
+                return true;
+    }
+    return false;
 }
 
 // The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it

@@ -271,6 +271,59 @@ TEST(DepthMesh, ReflectiveDepthSurfaceShowsTheVirtualObject) {
     EXPECT_EQ(pixelBytes(matte.out.composite, x, y)[0], 90);
 }
 
+// Tracing only the pixels virtual content can touch gives the same composite as tracing all of
+// them, also when that content is a shadow on the depth mesh (soft, from a spherical light) and
+// a mirror's view of it; and it traces fewer pixels.
+TEST(DepthMesh, FootprintTracingGivesTheSameImageAsTracingEverything) {
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    scene.materials["mirror"] = material(MaterialType::kMirror, "mirror");
+    scene.objects.push_back(ball({0, 0, 1}, 0.12f));
+    scene.objects.push_back(
+        object("mirror", ObjectRole::kVirtual, ShapeType::kBox, "mirror", {1.3, 0.3, 0.1}));
+    Light lamp;
+    lamp.type = LightType::kSphere;
+    lamp.position = {-1, 0, 2};
+    lamp.radius = 0.08f;
+    lamp.intensity = Rgb::Constant(4);
+    scene.lights.push_back(lamp);
+    scene.lights.push_back(sun("sun", {0.3, 0.2, -1}, 1));
+    const Eigen::Isometry3d T = lookDown({1, 0, 3});
+    const CameraModel model =
+        CameraModel::pinhole(kW, kH, 120, 120, (kW - 1) / 2.0, (kH - 1) / 2.0);
+    // The floor 3 m below, with a real 20 cm step on the right.
+    const Image depth =
+        depthImage(kW, kH, [](int x, int) { return static_cast<uint16_t>(x < 110 ? 3000 : 2800); });
+    const Image color = noiseImage(60);
+    Image images[2];
+    RenderStats stats[2];
+    for (int i = 0; i < 2; ++i) {
+        RenderOptions options;
+        options.depth_secondary = DepthSecondaryRays::kMesh;
+        options.only_virtual_footprint = i == 0;
+        options.samples_per_pixel = 4;
+        options.shadow_samples = 8;
+        auto renderer = makeRenderer(scene, options);
+        ASSERT_TRUE(renderer);
+        RenderInputs in;
+        in.camera_image = color.view();
+        in.depth_mm = depth.view();
+        in.camera = model;
+        in.T_world_cam = T;
+        RenderLayers out;
+        ASSERT_TRUE(renderer->render(in, out, &stats[i]));
+        images[i] = out.composite;
+    }
+    EXPECT_TRUE(sameImage(images[0].view(), images[1].view()));
+    EXPECT_LT(stats[0].pixels_traced, stats[1].pixels_traced);
+    EXPECT_EQ(stats[1].pixels_traced, static_cast<uint64_t>(kW * kH));
+    // The shadow on the mesh is there: some floor pixels changed.
+    size_t changed = 0;
+    for (size_t i = 0; i < color.bytes().size(); ++i)
+        changed += images[0].bytes()[i] != color.bytes()[i];
+    EXPECT_GT(changed, 3000u);
+}
+
 // ---- the depth surface seen in a virtual mirror ----
 
 // Camera 1 m high looking along +y at a real wall 5 m away that only the depth map knows, over
