@@ -13,9 +13,9 @@ namespace mixray::render::detail {
 
 // One triangle geometry (camera frame) in its own scene, built with RTC_BUILD_QUALITY_LOW and
 // RTC_SCENE_FLAG_DYNAMIC (a Kinect mesh changes completely every frame, so a fast build beats a
-// good BVH) and RTC_SCENE_FLAG_ROBUST (watertight). The vertex and index buffers are shared with Embree and owned here; they grow only
-// when a frame needs more room than any before. Thread-bound: update() must not run while rays
-// are traced through scene().
+// good BVH) and RTC_SCENE_FLAG_ROBUST (watertight). The vertex and index buffers are shared with
+// Embree and owned here; they grow only when a frame needs more room than any before. Thread-bound:
+// update() must not run while rays are traced through scene().
 class DepthMeshGeometry {
 public:
     explicit DepthMeshGeometry(RTCDevice device);
