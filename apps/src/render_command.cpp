@@ -28,6 +28,7 @@ struct RenderCommandOptions {
     int max_depth = 3;
     int samples = 1;
     std::string shadows = "adaptive";
+    std::string depth_rays = "screen";
     int shadow_samples = 20;
     int threads = 0;
     uint64_t max_frames = 0;  // 0: all
@@ -42,6 +43,17 @@ Result<render::SoftShadowMethod> shadowMethod(const std::string& name) {
         return render::SoftShadowMethod::kAdaptive;
     return {ErrorCode::kInvalidArgument,
             "--shadows " + name + ": expected hard, uniform or adaptive"};
+}
+
+Result<render::DepthSecondaryRays> depthRays(const std::string& name) {
+    if (name == "none")
+        return render::DepthSecondaryRays::kNone;
+    if (name == "screen")
+        return render::DepthSecondaryRays::kScreenSpace;
+    if (name == "mesh")
+        return render::DepthSecondaryRays::kMesh;
+    return {ErrorCode::kInvalidArgument,
+            "--depth-rays " + name + ": expected none, screen or mesh"};
 }
 
 // The recording's stream to composite into (the first rgb8/bgr8 colour stream) and the depth
@@ -111,6 +123,10 @@ int runRender(const RenderCommandOptions& options) {
     if (!method)
         return fail("render", method.status());
     render_options.soft_shadows = *method;
+    auto depth_rays = depthRays(options.depth_rays);
+    if (!depth_rays)
+        return fail("render", depth_rays.status());
+    render_options.depth_secondary = *depth_rays;
     render_options.shadow_samples = options.shadow_samples;
     render_options.threads = options.threads;
     render_options.keep_layers = options.layers;
@@ -249,6 +265,12 @@ void registerRenderCommand(CLI::App& app, Commands& commands) {
         ->capture_default_str();
     sub->add_option("--shadows", o->shadows, "hard, uniform or adaptive (RT²AR)")
         ->check(CLI::IsMember({"hard", "uniform", "adaptive"}))
+        ->capture_default_str();
+    sub->add_option("--depth-rays", o->depth_rays,
+                    "What the recording's depth map does beyond hiding virtual objects: none, "
+                    "screen (RT²AR's screen-space traversal of secondary and shadow rays) or mesh "
+                    "(a mesh per frame that also takes virtual shadows and reflections)")
+        ->check(CLI::IsMember({"none", "screen", "mesh"}))
         ->capture_default_str();
     sub->add_option("--shadow-samples", o->shadow_samples, "Rays per spherical light")
         ->check(CLI::Range(1, 1024))

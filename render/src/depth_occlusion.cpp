@@ -419,18 +419,36 @@ std::optional<float> traceDepthMap(const DepthView& depth, const Eigen::Vector3f
 
 TriangleMesh depthToMesh(const DepthView& depth, const DepthMeshOptions& options) {
     TriangleMesh mesh;
+    DepthMesher().build(depth, options, mesh);
+    return mesh;
+}
+
+void DepthMesher::build(const DepthView& depth, const DepthMeshOptions& options,
+                        TriangleMesh& mesh) {
+    mesh.positions.clear();
+    mesh.normals.clear();
+    mesh.uvs.clear();
+    mesh.triangles.clear();
     if (!usable(depth))
-        return mesh;
+        return;
     const int w = depth.depth_mm.desc.width;
     const int h = depth.depth_mm.desc.height;
     const int step = std::max(1, options.step);
     const int gw = (w - 1) / step + 1;
     const int gh = (h - 1) / step + 1;
     const auto grid = [gw](int i, int j) { return static_cast<size_t>(j) * gw + i; };
+    const size_t vertices = static_cast<size_t>(gw) * gh;
+    // The largest mesh this grid can give, so that later frames of this size fit.
+    mesh.positions.reserve(vertices);
+    mesh.normals.reserve(vertices);
+    mesh.uvs.reserve(vertices);
+    mesh.triangles.reserve(2 * static_cast<size_t>(gw - 1) * static_cast<size_t>(gh - 1));
 
     // Grid vertices on their pixel rays; z = 0 marks a vertex without a point.
-    std::vector<Vector3d> points(static_cast<size_t>(gw) * gh, Vector3d::Zero());
-    std::vector<double> zs(points.size(), 0.0);
+    std::vector<Vector3d>& points = points_;
+    std::vector<double>& zs = zs_;
+    points.assign(vertices, Vector3d::Zero());
+    zs.assign(vertices, 0.0);
     for (int j = 0; j < gh; ++j) {
         for (int i = 0; i < gw; ++i) {
             const std::optional<float> z = depth.zAt(i * step, j * step);
@@ -454,7 +472,8 @@ TriangleMesh depthToMesh(const DepthView& depth, const DepthMeshOptions& options
                connected(t[1], t[2]) && connected(t[2], t[0]);
     };
 
-    std::vector<int64_t> index(points.size(), -1);
+    std::vector<int64_t>& index = index_;
+    index.assign(vertices, -1);
     const auto vertex = [&](size_t g) {
         if (index[g] < 0) {
             index[g] = static_cast<int64_t>(mesh.positions.size());
@@ -494,7 +513,9 @@ TriangleMesh depthToMesh(const DepthView& depth, const DepthMeshOptions& options
     }
 
     // Smooth normals: area-weighted sums of the faces around each vertex.
-    std::vector<Vector3d> sums(mesh.positions.size(), Vector3d::Zero());
+    std::vector<Vector3d>& sums = sums_;
+    sums.reserve(vertices);
+    sums.assign(mesh.positions.size(), Vector3d::Zero());
     for (const auto& t : mesh.triangles) {
         const Vector3d p0 = mesh.positions[t[0]].cast<double>();
         const Vector3d n = (mesh.positions[t[1]].cast<double>() - p0)
@@ -502,14 +523,12 @@ TriangleMesh depthToMesh(const DepthView& depth, const DepthMeshOptions& options
         for (const uint32_t v : t)
             sums[v] += n;
     }
-    mesh.normals.reserve(sums.size());
     for (size_t v = 0; v < sums.size(); ++v) {
         const double norm = sums[v].norm();
         // A vertex whose faces cancel (degenerate slivers) faces the camera.
         mesh.normals.push_back(norm > 0 ? Vector3f((sums[v] / norm).cast<float>())
                                         : Vector3f(-mesh.positions[v].normalized()));
     }
-    return mesh;
 }
 
 }  // namespace mixray::render

@@ -54,6 +54,7 @@ EmbreeScene::~EmbreeScene() {
         rtcReleaseScene(ghosts_);
     for (RTCScene s : prototypes_)
         rtcReleaseScene(s);
+    depth_mesh_.reset();
     if (device_ != nullptr)
         rtcReleaseDevice(device_);
 }
@@ -75,28 +76,40 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>&
 
     for (size_t i = 0; i < objects.size(); ++i) {
         ObjectData& object = objects[i];
-        RTCScene prototype = rtcNewScene(scene->device_);
-        scene->prototypes_.push_back(prototype);
-        if (object.shape == ShapeType::kSphere) {
-            RTCGeometry g = sphereGeometry(scene->device_, object.sphere_radius);
-            rtcCommitGeometry(g);
-            rtcAttachGeometryByID(prototype, g, 0);
-            rtcReleaseGeometry(g);
-        } else {
-            for (size_t m = 0; m < object.meshes.size(); ++m) {
-                RTCGeometry g = triangleGeometry(scene->device_, object.meshes[m]);
-                rtcCommitGeometry(g);
-                rtcAttachGeometryByID(prototype, g, static_cast<unsigned>(m));
-                rtcReleaseGeometry(g);
+        RTCScene prototype = nullptr;
+        if (object.depth_surface) {
+            // Its triangles arrive every frame through setDepthMesh().
+            if (scene->depth_mesh_) {
+                return Status(ErrorCode::kInternal,
+                              "building object '" + object.name + "': a second depth surface");
             }
+            scene->depth_mesh_ = std::make_unique<DepthMeshGeometry>(scene->device_);
+            prototype = scene->depth_mesh_->scene();
+        } else {
+            prototype = rtcNewScene(scene->device_);
+            scene->prototypes_.push_back(prototype);
+            if (object.shape == ShapeType::kSphere) {
+                RTCGeometry g = sphereGeometry(scene->device_, object.sphere_radius);
+                rtcCommitGeometry(g);
+                rtcAttachGeometryByID(prototype, g, 0);
+                rtcReleaseGeometry(g);
+            } else {
+                for (size_t m = 0; m < object.meshes.size(); ++m) {
+                    RTCGeometry g = triangleGeometry(scene->device_, object.meshes[m]);
+                    rtcCommitGeometry(g);
+                    rtcAttachGeometryByID(prototype, g, static_cast<unsigned>(m));
+                    rtcReleaseGeometry(g);
+                }
+            }
+            rtcCommitScene(prototype);
         }
-        rtcCommitScene(prototype);
         MIXRAY_RETURN_IF_ERROR(scene->deviceStatus("building object '" + object.name + "'"));
 
         const auto addInstance = [&](RTCScene top) {
             RTCGeometry instance = rtcNewGeometry(scene->device_, RTC_GEOMETRY_TYPE_INSTANCE);
             rtcSetGeometryInstancedScene(instance, prototype);
             rtcSetGeometryTimeStepCount(instance, 1);
+            rtcSetGeometryMask(instance, object.depth_surface ? kDepthMeshMask : kObjectMask);
             rtcAttachGeometryByID(top, instance, static_cast<unsigned>(i));
             return instance;
         };
@@ -130,8 +143,12 @@ Status EmbreeScene::setPoses(const std::vector<ObjectData>& objects) {
     return deviceStatus("posing objects");
 }
 
+bool EmbreeScene::setDepthMesh(const TriangleMesh& mesh) {
+    return depth_mesh_ == nullptr || depth_mesh_->update(mesh);
+}
+
 Hit EmbreeScene::intersect(RTCScene scene, const Eigen::Vector3f& origin,
-                           const Eigen::Vector3f& direction, float t_far) {
+                           const Eigen::Vector3f& direction, float t_far, unsigned mask) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh{};
@@ -143,7 +160,7 @@ Hit EmbreeScene::intersect(RTCScene scene, const Eigen::Vector3f& origin,
     rh.ray.dir_z = direction.z();
     rh.ray.tnear = 0;
     rh.ray.tfar = t_far;
-    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.mask = mask;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene, &context, &rh);
@@ -173,7 +190,7 @@ bool EmbreeScene::occluded(RTCScene scene, const Eigen::Vector3f& origin,
     ray.dir_z = direction.z();
     ray.tnear = 0;
     ray.tfar = t_far;
-    ray.mask = 0xFFFFFFFFu;
+    ray.mask = kAnyMask;
     rtcOccluded1(scene, &context, &ray);
     return ray.tfar < 0;
 }

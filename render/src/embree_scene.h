@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "depth_mesh_geometry.h"
 #include "mixray/graph/result.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/scene.h"
@@ -23,6 +24,9 @@ struct MaterialData {
     Material material;
     Texture albedo_texture;   // empty: albedo only
     Texture reflectance_map;  // empty: uniform `material.reflectance`
+    // The depth surface's material: diffuse, its albedo the camera pixel over the modelled
+    // irradiance (DepthSurface in scene.h).
+    bool albedo_from_camera = false;
 };
 
 // One scene object as the integrator needs it. `active` and the pose change per frame.
@@ -34,7 +38,10 @@ struct ObjectData {
     int material = 0;
     std::string anchor;
     Eigen::Isometry3f T_anchor_object = Eigen::Isometry3f::Identity();
-    std::vector<TriangleMesh> meshes;                        // kSphere: none (traced exactly)
+    std::vector<TriangleMesh> meshes;  // kSphere: none (traced exactly)
+    // The depth camera's surface (DepthSecondaryRays::kMesh): meshes[0] is rebuilt every frame
+    // in the camera frame and the object is posed at T_world_cam; a ghost.
+    bool depth_surface = false;
     Eigen::Vector3f bound_centre = Eigen::Vector3f::Zero();  // bounding sphere, object frame
     float bound_radius = 0;
 
@@ -51,6 +58,11 @@ struct LightData {
     Eigen::Vector3f direction_world{0, 0, -1};  // unit, travel direction
     Eigen::Matrix3f R_environment_world = Eigen::Matrix3f::Identity();
 };
+
+// Embree geometry masks: rays with kObjectMask see the scene's objects but not the depth mesh.
+constexpr unsigned kObjectMask = 1u;
+constexpr unsigned kDepthMeshMask = 2u;
+constexpr unsigned kAnyMask = 0xFFFFFFFFu;
 
 // A ray's nearest hit: which object, which of its meshes and triangles, Embree's barycentrics.
 struct Hit {
@@ -74,11 +86,15 @@ public:
     // Moves each object's instances to its pose, disables inactive ones, recommits.
     Status setPoses(const std::vector<ObjectData>& objects);
 
+    // Rebuilds the depth surface's BVH from `mesh` (camera frame); call before setPoses().
+    // Without a depth_surface object, nothing. True when its buffers were reused.
+    bool setDepthMesh(const TriangleMesh& mesh);
+
     RTCScene all() const { return all_; }
     RTCScene ghosts() const { return ghosts_; }
 
     static Hit intersect(RTCScene scene, const Eigen::Vector3f& origin,
-                         const Eigen::Vector3f& direction, float t_far);
+                         const Eigen::Vector3f& direction, float t_far, unsigned mask = kAnyMask);
     static bool occluded(RTCScene scene, const Eigen::Vector3f& origin,
                          const Eigen::Vector3f& direction, float t_far);
 
@@ -92,6 +108,7 @@ private:
     std::vector<RTCScene> prototypes_;
     std::vector<RTCGeometry> instances_all_;
     std::vector<RTCGeometry> instances_ghost_;  // nullptr for virtual objects
+    std::unique_ptr<DepthMeshGeometry> depth_mesh_;
     std::unique_ptr<std::string> last_error_ = std::make_unique<std::string>();
 };
 

@@ -142,6 +142,7 @@ struct Frame {
     std::vector<const LightData*> lights;  // active direct lights
     std::vector<const LightData*> environments;
     std::optional<DepthView> depth;
+    bool depth_mesh = false;  // the depth surface is in the BVH this frame (kMesh)
     std::array<float, 256> srgb_lut{};
 };
 
@@ -163,6 +164,7 @@ public:
     }
 
     const RenderOptions& options() const override { return options_; }
+    void setDepthObject(std::optional<size_t> index) { depth_object_ = index; }
     Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
 
     // The integrator (const: reentrant over tiles).
@@ -174,6 +176,11 @@ public:
                 Mode mode, SampleState& st) const;
     Pair lightVisibility(const LightData& light, const Vec3& origin, const Vec3& to_light,
                          float dist, Mode mode, SampleState& st) const;
+    Hit primaryHit(const Frame& f, const Vec3& d, std::optional<float> depth_limit) const;
+    Pair cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
+                            SampleState& st) const;
+    bool depthMapShadows(const Frame& f, const Vec3& origin, const Vec3& wi, float dist) const;
+    bool depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     Vec3 environment(const Frame& f, const Vec3& d) const;
     std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s) const;
@@ -182,6 +189,7 @@ public:
 private:
     Status checkInputs(const RenderInputs& inputs) const;
     Status prepareFrame(const RenderInputs& inputs, Frame& f);
+    void updateDepthMesh(Frame& f);
     void updateRayCache(const calibration::CameraModel& camera);
 
     RenderOptions options_;
@@ -190,6 +198,8 @@ private:
     std::vector<LightData> lights_;
     std::unique_ptr<EmbreeScene> scene_;
     RayCache rays_;
+    std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
+    DepthMesher mesher_;
 };
 
 Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
@@ -341,7 +351,12 @@ Pair EmbreeRenderer::direct(const Frame& f, const Surface& s, const Vec3& n, con
             brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
         }
         const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
-        const Pair visible = lightVisibility(*light, origin, wi, dist, mode, st);
+        Pair visible = lightVisibility(*light, origin, wi, dist, mode, st);
+        // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
+        if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
+            depthMapShadows(f, origin, wi, dist)) {
+            visible = {};
+        }
         out.m += unshadowed.cwiseProduct(visible.m);
         out.r += unshadowed.cwiseProduct(visible.r);
     }
@@ -379,7 +394,8 @@ Pair EmbreeRenderer::shade(const Frame& f, const Surface& s, const Hit& hit, con
             Vec3 albedo = mat.albedo;
             if (!s.material->albedo_texture.empty())
                 albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
-            Pair local = direct(f, s, n, d, albedo, mode, st);
+            Pair local = s.material->albedo_from_camera ? cameraAlbedoDirect(f, s, n, d, st)
+                                                        : direct(f, s, n, d, albedo, mode, st);
             const float rho = std::clamp(mat.reflectance * map, 0.f, 1.f);
             if (rho <= 0)
                 return local;
@@ -441,14 +457,9 @@ Pair EmbreeRenderer::shade(const Frame& f, const Surface& s, const Hit& hit, con
     return {};
 }
 
-// The camera pixel a world point projects to (bilinear, linear light); nullopt outside.
-std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
+// The camera image at a pixel position (bilinear, linear light); nullopt outside.
+std::optional<Vec3> cameraTexel(const Frame& f, double x, double y) {
     const RenderInputs& in = *f.inputs;
-    const Eigen::Vector3d p_cam = f.R_cam_world * p_world.cast<double>() + f.t_cam_world;
-    const auto pixel = in.camera.project(p_cam);
-    if (!pixel)
-        return std::nullopt;
-    const double x = pixel->x(), y = pixel->y();
     const int w = in.camera.width, h = in.camera.height;
     if (!(x >= 0 && y >= 0 && x <= w - 1 && y <= h - 1))
         return std::nullopt;
@@ -461,6 +472,107 @@ std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
     };
     return (1 - ay) * ((1 - ax) * texel(x0, y0) + ax * texel(x1, y0)) +
            ay * ((1 - ax) * texel(x0, y1) + ax * texel(x1, y1));
+}
+
+// The camera pixel a world point projects to (bilinear, linear light); nullopt outside.
+std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
+    const Eigen::Vector3d p_cam = f.R_cam_world * p_world.cast<double>() + f.t_cam_world;
+    const auto pixel = f.inputs->camera.project(p_cam);
+    if (!pixel)
+        return std::nullopt;
+    return cameraTexel(f, pixel->x(), pixel->y());
+}
+
+// Direct light on the depth surface, whose albedo is the camera pixel over the irradiance the
+// scene's lights give in the real scene: then I_r is the camera pixel itself and I_m is that
+// pixel times E_mixed / E_real, so I_c + I_m − I_r scales the camera pixel by exactly the ratio
+// of the lighting with and without the virtual objects, however the real lights are modelled.
+// Where the model gives no light, nothing virtual can change it: both are the camera pixel.
+Pair EmbreeRenderer::cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n,
+                                        const Vec3& d, SampleState& st) const {
+    const int w = f.inputs->camera.width, h = f.inputs->camera.height;
+    const std::optional<Vec3> camera = cameraTexel(f, s.uv.x() * w - 0.5, s.uv.y() * h - 0.5);
+    if (!camera)
+        return {};
+    const Pair irradiance = direct(f, s, n, d, Vec3::Ones(), Mode::kBoth, st);
+    Pair out{*camera, *camera};
+    for (int c = 0; c < 3; ++c)
+        if (irradiance.r[c] > 0 && irradiance.m[c] != irradiance.r[c])
+            out.m[c] = (*camera)[c] * irradiance.m[c] / irradiance.r[c];
+    return out;
+}
+
+// RT²AR's screen-space traversal for a shadow ray (kScreenSpace): whether the depth map's
+// surface lies between `origin` and the light. The walk starts where trace()'s does, so that a
+// point on a surface the depth camera also measured does not shadow itself.
+bool EmbreeRenderer::depthMapShadows(const Frame& f, const Vec3& origin, const Vec3& wi,
+                                     float dist) const {
+    if (!f.depth || options_.depth_secondary != DepthSecondaryRays::kScreenSpace)
+        return false;
+    const float t_max = std::min(dist, kFarDepth_m) - kDepthStart_m;
+    if (!(t_max > 0))
+        return false;
+    const Vec3 start = origin + kDepthStart_m * wi;
+    const Vec3 o_cam = (f.R_cam_world * start.cast<double>() + f.t_cam_world).cast<float>();
+    const Vec3 d_cam = (f.R_cam_world * wi.cast<double>()).cast<float>();
+    return traceDepthMap(*f.depth, o_cam, d_cam, t_max, options_.depth_thickness_m).has_value();
+}
+
+// The surface a camera ray shows. Virtual objects are hidden exactly where the depth map puts a
+// real surface nearer along the pixel's ray (rayDistanceAt), in every DepthSecondaryRays mode.
+// With the depth mesh, the real surface such a pixel shows is traced too (the nearest of the
+// ghosts and the mesh), so that virtual shadows and reflections on it are shaded.
+Hit EmbreeRenderer::primaryHit(const Frame& f, const Vec3& d,
+                               std::optional<float> depth_limit) const {
+    if (!f.depth_mesh) {
+        Hit hit = EmbreeScene::intersect(scene_->all(), f.t_world_cam, d, kInf);
+        if (hit.valid && depth_limit && *depth_limit < hit.t)
+            hit = Hit{};
+        return hit;
+    }
+    const Hit hit =
+        EmbreeScene::intersect(scene_->all(), f.t_world_cam, d, kInf, detail::kObjectMask);
+    const bool hidden = hit.valid && depth_limit && *depth_limit < hit.t;
+    if (hit.valid && !hidden && objects_[hit.object].role == ObjectRole::kVirtual)
+        return hit;
+    // Most of the depth surface is out of reach of every virtual object: there it stays the
+    // camera pixel, as without the mesh, and its triangles need not be traced. The mesh point
+    // lies near the measured one; 5 % of the distance (the relative step the mesher still joins)
+    // covers the difference.
+    if (depth_limit &&
+        !depthSurfaceInfluenced(f, f.t_world_cam + *depth_limit * d, 0.05f * *depth_limit)) {
+        return hidden ? Hit{} : hit;
+    }
+    return EmbreeScene::intersect(scene_->ghosts(), f.t_world_cam, d, kInf);
+}
+
+// ghostInfluenced() for the depth surface at a point known to within `margin`: moving the point
+// by up to `margin` moves its segments towards the lights by no more.
+bool EmbreeRenderer::depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const {
+    if (f.virtual_bounds.empty())
+        return false;
+    const MaterialData& surface =
+        materials_[static_cast<size_t>(objects_[*depth_object_].material)];
+    if (surface.material.reflectance > 0)
+        return true;
+    for (const LightData* light : f.lights) {
+        Vec3 dir;
+        float length = kInf;
+        float extra = margin;
+        if (light->light.type == LightType::kDirectional) {
+            dir = -light->direction_world;
+        } else {
+            const Vec3 delta = light->position_world - p;
+            length = delta.norm();
+            dir = length > 0 ? Vec3(delta / length) : Vec3::UnitZ();
+            if (light->light.type == LightType::kSphere)
+                extra += light->light.radius;
+        }
+        for (const SphereBound& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, p, dir, length) <= b.radius + extra)
+                return true;
+    }
+    return false;
 }
 
 // The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it
@@ -635,7 +747,12 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
             return std::nullopt;
         return it->second;
     };
+    if (in.depth_mm.data != nullptr)
+        f.depth = DepthView{in.depth_mm, in.camera};
+    updateDepthMesh(f);
     for (ObjectData& object : objects_) {
+        if (object.depth_surface)
+            continue;  // posed by updateDepthMesh
         const auto T_world_anchor = anchorPose(object.anchor);
         object.active = T_world_anchor.has_value();
         if (!object.active)
@@ -665,10 +782,29 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
             f.lights.push_back(&light);
         }
     }
-    if (in.depth_mm.data != nullptr)
-        f.depth = DepthView{in.depth_mm, in.camera};
     updateRayCache(in.camera);
     return Status::ok();
+}
+
+// kMesh: the depth map as a mesh in the camera frame, instanced at T_world_cam.
+void EmbreeRenderer::updateDepthMesh(Frame& f) {
+    if (!depth_object_)
+        return;
+    ObjectData& object = objects_[*depth_object_];
+    TriangleMesh& mesh = object.meshes.front();
+    if (f.depth) {
+        mesher_.build(*f.depth, DepthMeshOptions{}, mesh);
+    } else {
+        mesh.positions.clear();
+        mesh.normals.clear();
+        mesh.uvs.clear();
+        mesh.triangles.clear();
+    }
+    scene_->setDepthMesh(mesh);
+    object.active = !mesh.empty();
+    object.R_world_object = f.R_world_cam;
+    object.t_world_object = f.t_world_cam;
+    f.depth_mesh = object.active;
 }
 
 // Per-pixel accumulators of one frame.
@@ -751,10 +887,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         continue;
                     dirs[k] = f.R_world_cam * dir_cam;
                     ++tile_primary;
-                    hits[k] = EmbreeScene::intersect(scene_->all(), f.t_world_cam, dirs[k], kInf);
-                    // A real surface the depth camera measured in front hides what was hit.
-                    if (hits[k].valid && depth_limit && *depth_limit < hits[k].t)
-                        hits[k] = Hit{};
+                    hits[k] = primaryHit(f, dirs[k], depth_limit);
                     if (!hits[k].valid || influenced)
                         continue;
                     const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
@@ -904,10 +1037,6 @@ void boundMeshes(ObjectData& object) {
 Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene,
                                                    const RenderOptions& options) {
     MIXRAY_RETURN_IF_ERROR(options.validate());
-    if (options.depth_secondary == DepthSecondaryRays::kMesh)
-        return Status(ErrorCode::kUnsupported,
-                      "render options: depth_secondary kMesh is unsupported by this renderer; "
-                      "use kScreenSpace or kNone");
     MIXRAY_RETURN_IF_ERROR(scene.validate());
 
     std::vector<MaterialData> materials;
@@ -1001,8 +1130,27 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         lights.push_back(std::move(data));
     }
 
+    std::optional<size_t> depth_object;
+    if (options.depth_secondary == DepthSecondaryRays::kMesh) {
+        MaterialData surface;
+        surface.material.name = "depth surface";
+        surface.material.reflectance = scene.depth_surface.reflectance;
+        surface.albedo_from_camera = true;
+        ObjectData data;
+        data.name = "depth surface";
+        data.role = ObjectRole::kGhost;
+        data.shape = ShapeType::kMesh;
+        data.depth_surface = true;
+        data.meshes.emplace_back();
+        data.material = static_cast<int>(materials.size());
+        materials.push_back(std::move(surface));
+        depth_object = objects.size();
+        objects.push_back(std::move(data));
+    }
+
     auto renderer = std::make_unique<EmbreeRenderer>(options, std::move(materials),
                                                      std::move(objects), std::move(lights));
+    renderer->setDepthObject(depth_object);
     MIXRAY_RETURN_IF_ERROR(renderer->init());
     return std::unique_ptr<Renderer>(std::move(renderer));
 }

@@ -194,6 +194,8 @@ Status SceneDescription::validate() const {
     }
     if (camera)
         MIXRAY_RETURN_IF_ERROR(validateCamera(*camera, file_where));
+    if (!(depth_surface.reflectance >= 0 && depth_surface.reflectance <= 1))
+        return corrupt(depth_surface.where, "depth_surface.reflectance", "must be in [0, 1]");
     return Status::ok();
 }
 

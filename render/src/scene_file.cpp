@@ -70,8 +70,9 @@ double radians(double degrees) {
 // ---------------------------------------------------------------------------------------------
 // Schema
 
-constexpr std::array<std::string_view, 5> kRootKeys = {"version", "materials", "objects", "lights",
-                                                       "camera"};
+constexpr std::array<std::string_view, 6> kRootKeys = {"version", "materials", "objects",
+                                                       "lights",  "camera",    "depth_surface"};
+constexpr std::array<std::string_view, 1> kDepthSurfaceKeys = {"reflectance"};
 constexpr std::array<std::string_view, 10> kMaterialKeys = {
     "type", "albedo", "albedo_texture", "specular",    "shininess",
     "f0",   "ior",    "transmission",   "reflectance", "reflectance_map"};
@@ -730,6 +731,19 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
     }
     if (const Item* camera = find(*fields, "camera"))
         MIXRAY_RETURN_IF_ERROR(parseCamera(*camera, scene));
+    if (const Item* depth = find(*fields, "depth_surface")) {
+        auto depth_fields =
+            r_.readMap(*depth, kDepthSurfaceKeys, "a depth_surface mapping with reflectance:");
+        if (!depth_fields)
+            return depth_fields.status();
+        scene.depth_surface.where = depth->where;
+        if (const Item* v = find(*depth_fields, "reflectance")) {
+            auto s = scalar(*v, 0, 1, false);
+            if (!s)
+                return s.status();
+            scene.depth_surface.reflectance = *s;
+        }
+    }
     return Status::ok();
 }
 

@@ -188,6 +188,19 @@ TEST(Cli, RenderCompositesTheSceneIntoEveryFrame) {
     EXPECT_TRUE(fs::exists(dir / "png" / "frame_000000.png"));
     EXPECT_TRUE(fs::exists(dir / "png" / "frame_000001.png"));
 
+    for (const char* mode : {"mesh", "none"}) {
+        CliRun depth = mixray("render " + q(kSession) + " --scene " +
+                              q(test::fixturesDir() / "scenes" / "pattern_session.yaml") + " -o " +
+                              q(dir / (std::string(mode) + ".mkv")) +
+                              " --max-frames 1 --shadows hard --depth-rays " + mode);
+        ASSERT_EQ(depth.exit_code, 0) << depth.output;
+        EXPECT_NE(depth.output.find("1 frames composited"), std::string::npos) << depth.output;
+    }
+    CliRun bad_depth = mixray("render " + q(kSession) + " --scene " +
+                              q(test::fixturesDir() / "scenes" / "pattern_session.yaml") + " -o " +
+                              q(dir / "z.mkv") + " --depth-rays triangles");
+    EXPECT_EQ(bad_depth.exit_code, 2) << bad_depth.output;
+
     CliRun wrong_size =
         mixray("render " + q(kSession) + " --scene " +
                q(test::fixturesDir() / "scenes" / "demo.yaml") + " -o " + q(dir / "x.mkv"));

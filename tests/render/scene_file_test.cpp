@@ -331,6 +331,15 @@ TEST(SceneFileTest, MalformedLightsAndCamera) {
         "camera:\n  model:\n    width: 640\n    height: 480\n    fx: 1\n    fy: 1\n"
         "    cx: 0\n",
         3, "camera.model.cy", "missing");
+    expectError("depth_surface:\n  reflectance: 1.5\n", 2, "depth_surface.reflectance");
+    expectError("depth_surface:\n  albedo: 0.5\n", 2, "depth_surface.albedo", "unknown field");
+    expectError("depth_surface: 0.2\n", 1, "depth_surface", "reflectance:");
+    auto parsed = parseScene("depth_surface: { reflectance: 0.25 }\n", "s.yaml");
+    ASSERT_TRUE(parsed.isOk()) << parsed.status().toString();
+    EXPECT_FLOAT_EQ(parsed->depth_surface.reflectance, 0.25f);
+    auto plain = parseScene("objects: []\n", "s.yaml");
+    ASSERT_TRUE(plain.isOk());
+    EXPECT_EQ(plain->depth_surface.reflectance, 0.f);
 }
 
 TEST(SceneFileTest, MalformedFiles) {
@@ -368,6 +377,7 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_EQ(scene->camera->model->distortion.size(), 5u);
     EXPECT_EQ(scene->materials.at("red_plastic").albedo_texture,
               fs::path("docs/textures/plastic.png"));
+    EXPECT_FLOAT_EQ(scene->depth_surface.reflectance, 0.1f);
 
     const std::string h = kHeader;
     const std::vector<std::string> inputs = {
@@ -501,6 +511,9 @@ TEST(SceneFileTest, ValidateScenesBuiltInCode) {
     model.distortion = {1, 2};
     s.camera->model = model;
     expectInvalid(s, "camera.model.distortion");
+    s = scene;
+    s.depth_surface.reflectance = std::nanf("");
+    expectInvalid(s, "depth_surface.reflectance");
 }
 
 }  // namespace

@@ -3,7 +3,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <optional>
+#include <vector>
 
 #include "mixray/calibration/camera_model.h"
 #include "mixray/graph/image.h"
@@ -50,5 +52,20 @@ struct DepthMeshOptions {
 // uvs name each vertex's pixel, ((x + 0.5) / width, (y + 0.5) / height), to texture the mesh
 // with the registered colour image.
 TriangleMesh depthToMesh(const DepthView& depth, const DepthMeshOptions& options = {});
+
+// depthToMesh for a stream of frames: builds into the caller's mesh and keeps its own scratch,
+// both sized for the largest mesh of the image size, so frames of one size allocate nothing
+// after the first. Thread-bound (one mesher per thread).
+class DepthMesher {
+public:
+    // Replaces `mesh` (same result as depthToMesh); its vectors keep their capacity.
+    void build(const DepthView& depth, const DepthMeshOptions& options, TriangleMesh& mesh);
+
+private:
+    std::vector<Eigen::Vector3d> points_;  // grid vertices on their pixel rays
+    std::vector<double> zs_;               // their z; 0: no point
+    std::vector<int64_t> index_;           // grid vertex -> mesh vertex, -1: unused
+    std::vector<Eigen::Vector3d> sums_;    // area-weighted face normals per mesh vertex
+};
 
 }  // namespace mixray::render

@@ -31,7 +31,7 @@ enum class MaterialType : uint8_t {
 struct Material {
     std::string name;
     MaterialType type = MaterialType::kDiffuse;
-    Rgb albedo{0.8f, 0.8f, 0.8f};   // diffuse reflectance
+    Rgb albedo{0.8f, 0.8f, 0.8f};          // diffuse reflectance
     std::filesystem::path albedo_texture;  // sRGB image over the object's uv; empty: none
     Rgb specular{0.04f, 0.04f, 0.04f};     // Blinn-Phong specular colour
     float shininess = 32;                  // Blinn-Phong exponent
@@ -86,14 +86,14 @@ struct Light {
     std::string name;
     LightType type = LightType::kPoint;
     std::string anchor = "world";
-    Eigen::Vector3d position{0, 0, 1};       // in the anchor frame
-    Eigen::Vector3d direction{0, 0, -1};     // kDirectional: travel direction, anchor frame
-    float radius = 0.05f;                    // kSphere
-    Rgb intensity{1, 1, 1};                  // point/sphere: intensity; directional: irradiance
-    std::filesystem::path environment;       // kEnvironment: .hdr or .exr equirectangular map
-    float environment_scale = 1;             // multiplies the map's radiance
+    Eigen::Vector3d position{0, 0, 1};    // in the anchor frame
+    Eigen::Vector3d direction{0, 0, -1};  // kDirectional: travel direction, anchor frame
+    float radius = 0.05f;                 // kSphere
+    Rgb intensity{1, 1, 1};               // point/sphere: intensity; directional: irradiance
+    std::filesystem::path environment;    // kEnvironment: .hdr or .exr equirectangular map
+    float environment_scale = 1;          // multiplies the map's radiance
     Eigen::Isometry3d T_world_environment = Eigen::Isometry3d::Identity();
-    bool mirror_lower_hemisphere = false;    // fill the lower half from the upper (fish-eye maps)
+    bool mirror_lower_hemisphere = false;  // fill the lower half from the upper (fish-eye maps)
     SourceLocation where;
 };
 
@@ -104,12 +104,23 @@ struct FixedCamera {
     std::optional<calibration::CameraModel> model;
 };
 
+// The real surfaces a depth camera measures, when the Renderer meshes its depth map
+// (DepthSecondaryRays::kMesh): diffuse, with an albedo taken from the camera image (the camera
+// pixel over the irradiance the scene's lights give there, so that the differential rendering
+// reproduces the camera pixel and scales it by exactly the lighting ratio virtual objects
+// cause). Only how much they also mirror is a setting. Plain value.
+struct DepthSurface {
+    float reflectance = 0;  // RT²AR reflectance 0..1: real surfaces that mirror virtual objects
+    SourceLocation where;
+};
+
 // A whole scene. Plain value; reentrant.
 struct SceneDescription {
     std::map<std::string, Material> materials;
     std::vector<SceneObject> objects;
     std::vector<Light> lights;
     std::optional<FixedCamera> camera;
+    DepthSurface depth_surface;
     std::filesystem::path source_path;  // where it was loaded from, for messages
 
     // kCorruptData with the entry's location on the first problem: unknown material names,
