@@ -81,6 +81,9 @@ public:
                          const Eigen::Vector3f& direction, float t_far);
     static bool occluded(RTCScene scene, const Eigen::Vector3f& origin,
                          const Eigen::Vector3f& direction, float t_far);
+    // Nearest hits of up to 16 coherent rays from one origin (camera rays), as one packet.
+    static void intersect16(RTCScene scene, const Eigen::Vector3f& origin,
+                            const Eigen::Vector3f* directions, int count, Hit* hits);
 
 private:
     EmbreeScene() = default;

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 
+#include "bare_trace.h"
 #include "embree_scene.h"
 #include "mixray/render/depth_occlusion.h"
 #include "optics.h"
@@ -37,6 +38,11 @@ Status RenderOptions::validate() const {
     if (tile_size < 1 || tile_size > 1024)
         return bad("tile_size must be in [1, 1024]");
     return Status::ok();
+}
+
+uint64_t RayLog::count(Kind kind) const {
+    return static_cast<uint64_t>(
+        std::count_if(rays.begin(), rays.end(), [kind](const Ray& r) { return r.kind == kind; }));
 }
 
 namespace {
@@ -70,11 +76,24 @@ struct Counters {
     uint64_t shadow = 0;
 };
 
+using RayList = std::vector<RayLog::Ray>;
+
 struct SampleState {
     optics::Rng rng;
     Counters* counters;
+    RayList* log = nullptr;  // RenderInputs::ray_log was given
     bool penumbra = false;
 };
+
+void logRay(RayList* log, RayLog::Kind kind, RTCScene scene, RTCScene ghosts, const Vec3& origin,
+            const Vec3& d, float t_far) {
+    if (log != nullptr)
+        log->push_back({{origin.x(), origin.y(), origin.z()},
+                        {d.x(), d.y(), d.z()},
+                        t_far,
+                        kind,
+                        scene == ghosts});
+}
 
 // What shading needs about a hit, in world coordinates.
 struct Surface {
@@ -163,6 +182,10 @@ public:
     }
 
     const RenderOptions& options() const override { return options_; }
+    BareTraceTimes traceBare(const RayLog& log, int repeats) const override {
+        return detail::traceBareEmbree(scene_->all(), scene_->ghosts(), log, options_.threads,
+                                       repeats);
+    }
     Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
 
     // The integrator (const: reentrant over tiles).
@@ -176,7 +199,7 @@ public:
                          float dist, Mode mode, SampleState& st) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     Vec3 environment(const Frame& f, const Vec3& d) const;
-    std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s) const;
+    std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s, SampleState& st) const;
     bool ghostInfluenced(const Frame& f, const Surface& s) const;
 
 private:
@@ -247,6 +270,8 @@ Vec3 EmbreeRenderer::environment(const Frame& f, const Vec3& d) const {
 Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
                                      const Vec3& to_light, float dist, Mode mode,
                                      SampleState& st) const {
+    if (!options_.shadows)
+        return {Vec3::Ones(), Vec3::Ones()};
     const bool want_m = mode != Mode::kReal;
     const bool want_r = mode != Mode::kMixed;
     // One shadow ray towards `target` (a point, or a direction when dist is infinite).
@@ -254,6 +279,8 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
         bool occ_m = false;
         if (want_m) {
             ++st.counters->shadow;
+            logRay(st.log, RayLog::Kind::kShadow, scene_->all(), scene_->ghosts(), origin, dir,
+                   length);
             occ_m = EmbreeScene::occluded(scene_->all(), origin, dir, length);
             lit_m += occ_m ? 0 : 1;
         }
@@ -261,6 +288,8 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
             bool occ_r = false;
             if (!want_m || occ_m) {
                 ++st.counters->shadow;
+                logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(), origin,
+                       dir, length);
                 occ_r = EmbreeScene::occluded(scene_->ghosts(), origin, dir, length);
             }
             lit_r += occ_r ? 0 : 1;
@@ -465,12 +494,16 @@ std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
 
 // The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it
 // into the image; nullopt when it falls outside or something real hides it from the camera.
-std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surface& s) const {
+std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surface& s,
+                                                     SampleState& st) const {
     const Vec3 to_camera = f.t_world_cam - s.p;
     const float dist = to_camera.norm();
     const Vec3 dir = to_camera / dist;
     const Vec3 origin =
         s.p + offsetFor(s.p) * (s.n_geometric.dot(dir) > 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    ++st.counters->shadow;
+    logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(), origin, dir,
+           dist * 0.999f);
     if (EmbreeScene::occluded(scene_->ghosts(), origin, dir, dist * 0.999f))
         return std::nullopt;
     return cameraPixelAt(f, s.p);
@@ -479,8 +512,9 @@ std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surfa
 Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, int depth, Mode mode,
                            SampleState& st) const {
     ++st.counters->secondary;
-    const Hit hit = EmbreeScene::intersect(mode == Mode::kReal ? scene_->ghosts() : scene_->all(),
-                                           origin, d, kInf);
+    const RTCScene scene = mode == Mode::kReal ? scene_->ghosts() : scene_->all();
+    logRay(st.log, RayLog::Kind::kSecondary, scene, scene_->ghosts(), origin, d, kInf);
+    const Hit hit = EmbreeScene::intersect(scene, origin, d, kInf);
     if (f.depth && options_.depth_secondary == DepthSecondaryRays::kScreenSpace) {
         // RT²AR Algorithm 2: the depth camera's surfaces, found in screen space, are real and
         // seen by the camera, so the camera pixel is their radiance in both scenes.
@@ -516,7 +550,7 @@ Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, in
     const Pair p = shade(f, s, hit, d, depth, Mode::kBoth, st);
     const MaterialType type = s.material->material.type;
     if (type == MaterialType::kDiffuse || type == MaterialType::kPhong) {
-        if (const auto measured = cameraRadianceAt(f, s)) {
+        if (const auto measured = cameraRadianceAt(f, s, st)) {
             const Vec3 m = (*measured + p.m - p.r).cwiseMax(0.f);
             return {m, m};
         }
@@ -731,7 +765,10 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
     const int ts = options_.tile_size;
     const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles_x) * tiles_y
+                                                         : 0);
     const auto renderTile = [&](int tile) {
+        RayList* log = tile_logs.empty() ? nullptr : &tile_logs[static_cast<size_t>(tile)];
         const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
         Counters counters;
         uint64_t tile_traced = 0, tile_primary = 0;
@@ -751,6 +788,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         continue;
                     dirs[k] = f.R_world_cam * dir_cam;
                     ++tile_primary;
+                    logRay(log, RayLog::Kind::kPrimary, scene_->all(), scene_->ghosts(),
+                           f.t_world_cam, dirs[k], kInf);
                     hits[k] = EmbreeScene::intersect(scene_->all(), f.t_world_cam, dirs[k], kInf);
                     // A real surface the depth camera measured in front hides what was hit.
                     if (hits[k].valid && depth_limit && *depth_limit < hits[k].t)
@@ -769,7 +808,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                      rsum = Vec3::Zero();
                 bool penumbra = false;
                 for (int k = 0; k < spp; ++k) {
-                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters};
+                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters,
+                                   log};
                     Pair p;
                     bool is_virtual = false;
                     if (!hits[k].valid) {
@@ -822,6 +862,11 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                           });
     });
 
+    if (in.ray_log != nullptr) {
+        in.ray_log->rays.clear();
+        for (const RayList& l : tile_logs)
+            in.ray_log->rays.insert(in.ray_log->rays.end(), l.begin(), l.end());
+    }
     if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
         meanFilterPenumbra(w, h, b);
 
@@ -944,6 +989,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         if (obj.shape.type == ShapeType::kSphere) {
             data.sphere_radius = obj.shape.radius;
             data.bound_radius = obj.shape.radius;
+        } else if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
+            data.meshes.push_back(*obj.shape.mesh_data);
+            for (Vec3& p : data.meshes.back().positions)
+                p *= obj.shape.scale;
+            boundMeshes(data);
         } else if (obj.shape.type == ShapeType::kMesh) {
             auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
             if (!loaded)

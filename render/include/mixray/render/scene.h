@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -15,6 +16,8 @@
 #include "mixray/graph/rig.h"
 
 namespace mixray::render {
+
+struct TriangleMesh;  // assets.h
 
 // Linear-light RGB (not sRGB-encoded).
 using Rgb = Eigen::Vector3f;
@@ -31,7 +34,7 @@ enum class MaterialType : uint8_t {
 struct Material {
     std::string name;
     MaterialType type = MaterialType::kDiffuse;
-    Rgb albedo{0.8f, 0.8f, 0.8f};   // diffuse reflectance
+    Rgb albedo{0.8f, 0.8f, 0.8f};          // diffuse reflectance
     std::filesystem::path albedo_texture;  // sRGB image over the object's uv; empty: none
     Rgb specular{0.04f, 0.04f, 0.04f};     // Blinn-Phong specular colour
     float shininess = 32;                  // Blinn-Phong exponent
@@ -51,8 +54,10 @@ enum class ShapeType : uint8_t { kMesh, kSphere, kBox, kPlane, kDisk };
 struct Shape {
     ShapeType type = ShapeType::kSphere;
     std::filesystem::path mesh;  // kMesh: OBJ, PLY or glTF 2.0 file (loaded with assimp)
-    float scale = 1;             // kMesh: uniform scale applied to the file's coordinates
-    float radius = 0.05f;        // kSphere, kDisk: metres; sphere centred at the origin
+    // kMesh built in code (benchmarks, generated geometry): used instead of `mesh` when set.
+    std::shared_ptr<const TriangleMesh> mesh_data;
+    float scale = 1;       // kMesh: uniform scale applied to the file's coordinates
+    float radius = 0.05f;  // kSphere, kDisk: metres; sphere centred at the origin
     Eigen::Vector3f size{0.1f, 0.1f, 0.1f};  // kBox: edge lengths, centred; kPlane: x, y extent
     // kPlane and kDisk lie in the object's z = 0 plane, normal +z.
 };
@@ -86,14 +91,14 @@ struct Light {
     std::string name;
     LightType type = LightType::kPoint;
     std::string anchor = "world";
-    Eigen::Vector3d position{0, 0, 1};       // in the anchor frame
-    Eigen::Vector3d direction{0, 0, -1};     // kDirectional: travel direction, anchor frame
-    float radius = 0.05f;                    // kSphere
-    Rgb intensity{1, 1, 1};                  // point/sphere: intensity; directional: irradiance
-    std::filesystem::path environment;       // kEnvironment: .hdr or .exr equirectangular map
-    float environment_scale = 1;             // multiplies the map's radiance
+    Eigen::Vector3d position{0, 0, 1};    // in the anchor frame
+    Eigen::Vector3d direction{0, 0, -1};  // kDirectional: travel direction, anchor frame
+    float radius = 0.05f;                 // kSphere
+    Rgb intensity{1, 1, 1};               // point/sphere: intensity; directional: irradiance
+    std::filesystem::path environment;    // kEnvironment: .hdr or .exr equirectangular map
+    float environment_scale = 1;          // multiplies the map's radiance
     Eigen::Isometry3d T_world_environment = Eigen::Isometry3d::Identity();
-    bool mirror_lower_hemisphere = false;    // fill the lower half from the upper (fish-eye maps)
+    bool mirror_lower_hemisphere = false;  // fill the lower half from the upper (fish-eye maps)
     SourceLocation where;
 };
 
