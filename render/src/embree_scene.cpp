@@ -221,4 +221,34 @@ void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f& origin,
     }
 }
 
+void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
+                             const Eigen::Vector3f* directions, const float* t_far,
+                             const bool* active, int count, bool* occluded) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int valid[16];
+    alignas(64) RTCRay16 ray;
+    for (int i = 0; i < 16; ++i) {
+        const bool on = i < count && (active == nullptr || active[i]);
+        valid[i] = on ? -1 : 0;
+        const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
+        ray.org_x[i] = origin.x();
+        ray.org_y[i] = origin.y();
+        ray.org_z[i] = origin.z();
+        ray.dir_x[i] = d.x();
+        ray.dir_y[i] = d.y();
+        ray.dir_z[i] = d.z();
+        ray.tnear[i] = 0;
+        ray.tfar[i] = on ? t_far[i] : 0;
+        ray.time[i] = 0;
+        ray.mask[i] = 0xFFFFFFFFu;
+        ray.id[i] = static_cast<unsigned>(i);
+        ray.flags[i] = 0;
+    }
+    rtcOccluded16(valid, scene, &context, &ray);
+    for (int i = 0; i < count; ++i)
+        occluded[i] = valid[i] != 0 && ray.tfar[i] < 0;
+}
+
 }  // namespace mixray::render::detail

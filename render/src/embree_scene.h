@@ -84,6 +84,11 @@ public:
     // Nearest hits of up to 16 coherent rays from one origin (camera rays), as one packet.
     static void intersect16(RTCScene scene, const Eigen::Vector3f& origin,
                             const Eigen::Vector3f* directions, int count, Hit* hits);
+    // occluded() of up to 16 coherent rays from one origin (soft-shadow samples) as one
+    // packet; lanes with active[i] false (active may be null: all) are not traced and false.
+    static void occluded16(RTCScene scene, const Eigen::Vector3f& origin,
+                           const Eigen::Vector3f* directions, const float* t_far,
+                           const bool* active, int count, bool* occluded);
 
 private:
     EmbreeScene() = default;

@@ -3,6 +3,7 @@
 #include "mixray/render/renderer.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -11,10 +12,12 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "bare_trace.h"
 #include "embree_scene.h"
+#include "footprint.h"
 #include "mixray/render/depth_occlusion.h"
 #include "optics.h"
 
@@ -147,7 +150,8 @@ struct RayCache {
     calibration::CameraModel model;
     int samples = 0;
     uint64_t seed = 0;
-    std::vector<Vec3> directions;  // ((y * width + x) * samples + s)
+    std::vector<Vec3> directions;         // ((y * width + x) * samples + s)
+    std::vector<detail::TileCone> cones;  // per tile of options.tile_size
 };
 
 // Per-frame tracing context: read-only during the parallel loop.
@@ -162,6 +166,31 @@ struct Frame {
     std::vector<const LightData*> environments;
     std::optional<DepthView> depth;
     std::array<float, 256> srgb_lut{};
+    // The only active ghost is a plane or disk: no ray leaving it can meet a ghost again.
+    bool lone_flat_ghost = false;
+    detail::FootprintScene footprint;
+};
+
+// Per-pixel accumulators of one frame, kept between frames: only tiles marked dirty hold
+// anything but zeros.
+struct PixelBuffers {
+    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
+    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
+    std::vector<float> mask;             // M
+    std::vector<uint8_t> flags;          // kTraced | kPenumbra
+    std::vector<Vec3> mixed, real;       // keep_layers
+    std::vector<uint8_t> tile_dirty;
+    int width = 0, height = 0;
+};
+constexpr uint8_t kTraced = 1;
+constexpr uint8_t kPenumbra = 2;
+
+// A tile's primary hits and directions: reused by the thread, so the loop never allocates.
+struct TileScratch {
+    std::vector<Hit> hits;
+    std::vector<Vec3> dirs;
+    std::vector<Surface> surfaces;  // one pixel's samples, from the footprint test to shading
+    std::vector<uint8_t> have_surface;
 };
 
 class EmbreeRenderer final : public Renderer {
@@ -200,12 +229,15 @@ public:
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     Vec3 environment(const Frame& f, const Vec3& d) const;
     std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s, SampleState& st) const;
-    bool ghostInfluenced(const Frame& f, const Surface& s) const;
+    bool ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const;
 
 private:
     Status checkInputs(const RenderInputs& inputs) const;
     Status prepareFrame(const RenderInputs& inputs, Frame& f);
     void updateRayCache(const calibration::CameraModel& camera);
+    void prepareFootprint(Frame& f) const;
+    void primaryHits(const Frame& f, int x0, int y0, int x1, int y1, TileScratch& scratch,
+                     RayList* log) const;
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;
@@ -213,6 +245,9 @@ private:
     std::vector<LightData> lights_;
     std::unique_ptr<EmbreeScene> scene_;
     RayCache rays_;
+    PixelBuffers buffers_;
+    std::vector<uint8_t> tile_mask_;
+    tbb::enumerable_thread_specific<TileScratch> scratch_;
 };
 
 Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
@@ -295,6 +330,39 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
             lit_r += occ_r ? 0 : 1;
         }
     };
+    // Up to 16 shadow rays towards points on the light: one packet per scene.
+    const auto testPacket = [&](const Vec3* dirs, const float* lengths, int count, int& lit_m,
+                                int& lit_r) {
+        std::array<bool, 16> occ_m{}, active{}, occ_r{};
+        if (want_m) {
+            for (int i = 0; i < count; ++i) {
+                ++st.counters->shadow;
+                logRay(st.log, RayLog::Kind::kShadow, scene_->all(), scene_->ghosts(), origin,
+                       dirs[i], lengths[i]);
+            }
+            EmbreeScene::occluded16(scene_->all(), origin, dirs, lengths, nullptr, count,
+                                    occ_m.data());
+            for (int i = 0; i < count; ++i)
+                lit_m += occ_m[i] ? 0 : 1;
+        }
+        if (want_r) {
+            bool any = false;
+            for (int i = 0; i < count; ++i) {
+                active[i] = !want_m || occ_m[i];
+                if (active[i]) {
+                    any = true;
+                    ++st.counters->shadow;
+                    logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(),
+                           origin, dirs[i], lengths[i]);
+                }
+            }
+            if (any)
+                EmbreeScene::occluded16(scene_->ghosts(), origin, dirs, lengths, active.data(),
+                                        count, occ_r.data());
+            for (int i = 0; i < count; ++i)
+                lit_r += occ_r[i] ? 0 : 1;
+        }
+    };
     const float shorten = 1.f - 1e-4f;
     int lit_m = 0, lit_r = 0;
     const SoftShadowMethod method = options_.soft_shadows;
@@ -310,16 +378,20 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
     const Vec3 v = w.cross(u);
     const Vec3 centre = origin + dist * w;
     const float radius = light.light.radius;
-    const auto toward = [&](const Vec3& target, int& m, int& r) {
+    std::array<Vec3, 16> dirs;
+    std::array<float, 16> lengths;
+    const auto aim = [&](int lane, const Vec3& target) {
         const Vec3 delta = target - origin;
         const float length = delta.norm();
-        test(delta / length, length * shorten, m, r);
+        dirs[static_cast<size_t>(lane)] = delta / length;
+        lengths[static_cast<size_t>(lane)] = length * shorten;
     };
     if (method == SoftShadowMethod::kAdaptive) {
         const std::array<Vec3, 5> points = {centre, centre + radius * u, centre - radius * u,
                                             centre + radius * v, centre - radius * v};
-        for (const Vec3& q : points)
-            toward(q, lit_m, lit_r);
+        for (int i = 0; i < 5; ++i)
+            aim(i, points[static_cast<size_t>(i)]);
+        testPacket(dirs.data(), lengths.data(), 5, lit_m, lit_r);
         const bool agree_m = !want_m || lit_m == 0 || lit_m == 5;
         const bool agree_r = !want_r || lit_r == 0 || lit_r == 5;
         if (agree_m && agree_r)
@@ -329,9 +401,13 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
     }
     const int n = options_.shadow_samples;
     const float rotation = st.rng.uniform() * 2 * optics::kPi;
-    for (int k = 0; k < n; ++k) {
-        const Vec2 q = optics::discSample(k, n, st.rng.uniform(), rotation);
-        toward(centre + radius * (q.x() * u + q.y() * v), lit_m, lit_r);
+    for (int k0 = 0; k0 < n; k0 += 16) {
+        const int count = std::min(16, n - k0);
+        for (int i = 0; i < count; ++i) {
+            const Vec2 q = optics::discSample(k0 + i, n, st.rng.uniform(), rotation);
+            aim(i, centre + radius * (q.x() * u + q.y() * v));
+        }
+        testPacket(dirs.data(), lengths.data(), count, lit_m, lit_r);
     }
     return {Vec3::Constant(static_cast<float>(lit_m) / static_cast<float>(n)),
             Vec3::Constant(static_cast<float>(lit_r) / static_cast<float>(n))};
@@ -560,14 +636,29 @@ Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, in
 
 // Conservative: can virtual objects change the shading of this real point? True for reflective
 // ghosts, and where a virtual bounding sphere meets the segment (or cone) towards a light.
-bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s) const {
+bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const {
     if (f.virtual_bounds.empty())
         return false;
     const Material& mat = s.material->material;
-    if (mat.type != MaterialType::kDiffuse && mat.type != MaterialType::kPhong)
+    const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
+    if (mat.type == MaterialType::kGlass)
         return true;
-    if (mat.reflectance > 0)
-        return true;
+    if (!lambert || mat.reflectance > 0) {
+        // Off the only, flat, ghost a mirrored ray never meets a ghost again, so it changes
+        // the pixel only if it passes a virtual bounding sphere (the ray starts offset).
+        if (!f.lone_flat_ghost)
+            return true;
+        const Vec3 n = s.n_geometric.dot(d) < 0 ? s.n_shading : Vec3(-s.n_shading);
+        const Vec3 r = optics::reflect(d, n).normalized();
+        const float slack = 2 * offsetFor(s.p);
+        for (const SphereBound& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, s.p, r, kInf) <= b.radius + slack)
+                return true;
+        if (!lambert)
+            return false;
+    }
+    if (!options_.shadows)
+        return false;
     for (const LightData* light : f.lights) {
         Vec3 dir;
         float length = kInf;
@@ -628,7 +719,7 @@ void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
     if (!rays_.directions.empty() && sameModel(rays_.model, camera) && rays_.samples == spp &&
         rays_.seed == options_.seed)
         return;
-    rays_ = {camera, spp, options_.seed, {}};
+    rays_ = {camera, spp, options_.seed, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
     rays_.directions.resize(static_cast<size_t>(w) * camera.height * spp);
@@ -649,6 +740,100 @@ void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
             }
         }
     });
+    rays_.cones = detail::tileCones(camera, rays_.directions, spp, options_.tile_size);
+}
+
+// What the screen footprint needs of this frame, and whether the lone-flat-ghost shortcut of
+// ghostInfluenced() holds.
+void EmbreeRenderer::prepareFootprint(Frame& f) const {
+    int ghosts = 0;
+    bool flat = false;
+    for (const ObjectData& o : objects_)
+        if (o.active && o.role == ObjectRole::kGhost) {
+            ++ghosts;
+            flat = o.shape == ShapeType::kPlane || o.shape == ShapeType::kDisk;
+        }
+    f.lone_flat_ghost = ghosts == 1 && flat;
+    detail::FootprintScene& fp = f.footprint;
+    fp.R_world_cam = f.R_world_cam;
+    fp.t_world_cam = f.t_world_cam;
+    for (const SphereBound& b : f.virtual_bounds)
+        fp.virtual_bounds.push_back({b.centre, b.radius});
+    if (options_.shadows)
+        for (const LightData* light : f.lights)
+            fp.lights.push_back(
+                {light->light.type == LightType::kDirectional, light->position_world,
+                 light->direction_world,
+                 light->light.type == LightType::kSphere ? light->light.radius : 0.f});
+    for (const ObjectData& o : objects_) {
+        if (!o.active || o.role != ObjectRole::kGhost)
+            continue;
+        detail::FootprintGhost g;
+        g.bound = {o.R_world_object * o.bound_centre + o.t_world_object,
+                   o.bound_radius * 1.001f + 1e-4f};
+        g.flat = o.shape == ShapeType::kPlane || o.shape == ShapeType::kDisk;
+        g.plane_point = o.t_world_object;
+        g.plane_normal = o.R_world_object.col(2);
+        const Material& mat = materials_[static_cast<size_t>(o.material)].material;
+        const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
+        const bool reflects = !lambert || mat.reflectance > 0;
+        g.always = mat.type == MaterialType::kGlass || (reflects && !f.lone_flat_ghost);
+        g.receives = lambert;
+        if (reflects && !g.always) {
+            // ghostInfluenced()'s slack for hit points anywhere on the ghost.
+            const float slack = 2e-4f * (1 + g.bound.centre.cwiseAbs().maxCoeff() + g.bound.radius);
+            for (const SphereBound& b : f.virtual_bounds)
+                fp.mirrored_bounds.push_back(
+                    {b.centre - 2 * g.plane_normal.dot(b.centre - g.plane_point) * g.plane_normal,
+                     b.radius + slack});
+        }
+        fp.ghosts.push_back(g);
+    }
+}
+
+// The primary hits of the tile [x0, x1) x [y0, y1) in 16-ray packets of 4x4-pixel blocks,
+// logged in that order.
+void EmbreeRenderer::primaryHits(const Frame& f, int x0, int y0, int x1, int y1,
+                                 TileScratch& scratch, RayList* log) const {
+    const int spp = options_.samples_per_pixel;
+    const int w = f.inputs->camera.width, tw = x1 - x0;
+    const size_t n = static_cast<size_t>(tw) * (y1 - y0) * spp;
+    scratch.hits.assign(n, Hit{});
+    scratch.dirs.resize(n);
+    std::array<size_t, 16> lane_index;
+    std::array<Vec3, 16> lane_dir;
+    std::array<Hit, 16> lane_hit;
+    int lanes = 0;
+    const auto flush = [&] {
+        if (lanes == 0)
+            return;
+        EmbreeScene::intersect16(scene_->all(), f.t_world_cam, lane_dir.data(), lanes,
+                                 lane_hit.data());
+        for (int i = 0; i < lanes; ++i) {
+            scratch.hits[lane_index[i]] = lane_hit[i];
+            logRay(log, RayLog::Kind::kPrimary, scene_->all(), scene_->ghosts(), f.t_world_cam,
+                   lane_dir[i], kInf);
+        }
+        lanes = 0;
+    };
+    for (int by = y0; by < y1; by += 4)
+        for (int bx = x0; bx < x1; bx += 4) {
+            for (int y = by; y < std::min(y1, by + 4); ++y)
+                for (int x = bx; x < std::min(x1, bx + 4); ++x)
+                    for (int k = 0; k < spp; ++k) {
+                        const size_t i = (static_cast<size_t>(y - y0) * tw + (x - x0)) * spp + k;
+                        const Vec3& dir_cam =
+                            rays_.directions[(static_cast<size_t>(y) * w + x) * spp + k];
+                        if (!dir_cam.allFinite())
+                            continue;
+                        scratch.dirs[i] = f.R_world_cam * dir_cam;
+                        lane_index[lanes] = i;
+                        lane_dir[lanes] = scratch.dirs[i];
+                        if (++lanes == 16)
+                            flush();
+                    }
+            flush();
+        }
 }
 
 Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
@@ -705,41 +890,50 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
     return Status::ok();
 }
 
-// Per-pixel accumulators of one frame.
-struct PixelBuffers {
-    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
-    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
-    std::vector<float> mask;             // M
-    std::vector<uint8_t> flags;          // kTraced | kPenumbra
-    std::vector<Vec3> mixed, real;       // keep_layers
-};
-constexpr uint8_t kTraced = 1;
-constexpr uint8_t kPenumbra = 2;
-
 // RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
 // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
-void meanFilterPenumbra(int w, int h, PixelBuffers& b) {
-    const std::vector<Vec3> vr = b.virtual_radiance, diff = b.difference;
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const size_t i = static_cast<size_t>(y) * w + x;
-            if (!(b.flags[i] & kPenumbra))
-                continue;
-            Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
-            int nv = 0, nd = 0;
-            for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
-                for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
-                    const size_t j = static_cast<size_t>(yy) * w + xx;
-                    if (b.mask[j] > 0)
-                        sv += vr[j], ++nv;
-                    if (b.mask[j] < 1)
-                        sd += diff[j], ++nd;
-                }
-            if (b.mask[i] > 0 && nv > 0)
-                b.virtual_radiance[i] = sv / static_cast<float>(nv);
-            if (b.mask[i] < 1 && nd > 0)
-                b.difference[i] = sd / static_cast<float>(nd);
-        }
+// Only dirty tiles hold penumbra pixels; new values are applied after all are computed, so every
+// mean reads unfiltered neighbours.
+void meanFilterPenumbra(int w, int h, int ts, PixelBuffers& b) {
+    struct Filtered {
+        size_t pixel;
+        Vec3 virtual_radiance, difference;
+    };
+    std::vector<Filtered> filtered;
+    const std::vector<Vec3>& vr = b.virtual_radiance;
+    const std::vector<Vec3>& diff = b.difference;
+    const int tiles_x = (w + ts - 1) / ts;
+    for (size_t t = 0; t < b.tile_dirty.size(); ++t) {
+        if (!b.tile_dirty[t])
+            continue;
+        const int x0 = static_cast<int>(t % tiles_x) * ts, y0 = static_cast<int>(t / tiles_x) * ts;
+        for (int y = y0; y < std::min(h, y0 + ts); ++y)
+            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                if (!(b.flags[i] & kPenumbra))
+                    continue;
+                Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
+                int nv = 0, nd = 0;
+                for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
+                    for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
+                        const size_t j = static_cast<size_t>(yy) * w + xx;
+                        if (b.mask[j] > 0)
+                            sv += vr[j], ++nv;
+                        if (b.mask[j] < 1)
+                            sd += diff[j], ++nd;
+                    }
+                Filtered out{i, vr[i], diff[i]};
+                if (b.mask[i] > 0 && nv > 0)
+                    out.virtual_radiance = sv / static_cast<float>(nv);
+                if (b.mask[i] < 1 && nd > 0)
+                    out.difference = sd / static_cast<float>(nd);
+                filtered.push_back(out);
+            }
+    }
+    for (const Filtered& p : filtered) {
+        b.virtual_radiance[p.pixel] = p.virtual_radiance;
+        b.difference[p.pixel] = p.difference;
+    }
 }
 
 Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
@@ -748,60 +942,90 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     Frame f;
     MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
 
+    prepareFootprint(f);
+
     const int w = in.camera.width, h = in.camera.height;
     const size_t count = static_cast<size_t>(w) * h;
     const int spp = options_.samples_per_pixel;
     const bool keep = options_.keep_layers;
-    PixelBuffers b;
-    b.virtual_radiance.assign(count, Vec3::Zero());
-    b.difference.assign(count, Vec3::Zero());
-    b.mask.assign(count, 0.f);
-    b.flags.assign(count, 0);
+    const int ts = options_.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    const int tiles = tiles_x * tiles_y;
+    PixelBuffers& b = buffers_;
+    if (b.width != w || b.height != h) {
+        b.virtual_radiance.assign(count, Vec3::Zero());
+        b.difference.assign(count, Vec3::Zero());
+        b.mask.assign(count, 0.f);
+        b.flags.assign(count, 0);
+        b.tile_dirty.assign(static_cast<size_t>(tiles), 0);
+        b.width = w;
+        b.height = h;
+    }
     if (keep) {
         b.mixed.assign(count, Vec3::Zero());
         b.real.assign(count, Vec3::Zero());
     }
+    const auto clearTile = [&](int tile) {
+        const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        const int x1 = std::min(w, x0 + ts);
+        for (int y = y0; y < std::min(h, y0 + ts); ++y) {
+            const size_t i = static_cast<size_t>(y) * w + x0;
+            const auto n = static_cast<std::ptrdiff_t>(x1 - x0);
+            std::fill_n(b.virtual_radiance.begin() + static_cast<std::ptrdiff_t>(i), n,
+                        Vec3::Zero());
+            std::fill_n(b.difference.begin() + static_cast<std::ptrdiff_t>(i), n, Vec3::Zero());
+            std::fill_n(b.mask.begin() + static_cast<std::ptrdiff_t>(i), n, 0.f);
+            std::fill_n(b.flags.begin() + static_cast<std::ptrdiff_t>(i), n, uint8_t{0});
+        }
+        b.tile_dirty[static_cast<size_t>(tile)] = 0;
+    };
+    const bool use_mask = options_.screen_footprint && options_.only_virtual_footprint && !keep;
 
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
-    const int ts = options_.tile_size;
-    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
-    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles_x) * tiles_y
-                                                         : 0);
+    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
     const auto renderTile = [&](int tile) {
+        if (b.tile_dirty[static_cast<size_t>(tile)])
+            clearTile(tile);
+        if (use_mask && !tile_mask_[static_cast<size_t>(tile)])
+            return;
         RayList* log = tile_logs.empty() ? nullptr : &tile_logs[static_cast<size_t>(tile)];
         const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        const int x1 = std::min(w, x0 + ts), y1 = std::min(h, y0 + ts);
+        TileScratch& scratch = scratch_.local();
+        scratch.surfaces.resize(static_cast<size_t>(spp));
+        scratch.have_surface.resize(static_cast<size_t>(spp));
+        primaryHits(f, x0, y0, x1, y1, scratch, log);
         Counters counters;
         uint64_t tile_traced = 0, tile_primary = 0;
-        std::vector<Hit> hits(static_cast<size_t>(spp));
-        std::vector<Vec3> dirs(static_cast<size_t>(spp));
-        for (int y = y0; y < std::min(h, y0 + ts); ++y)
-            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
                 const size_t pixel = static_cast<size_t>(y) * w + x;
+                Hit* hits = scratch.hits.data() +
+                            (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
+                const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
                 const std::optional<float> depth_limit =
                     f.depth ? rayDistanceAt(*f.depth, x, y) : std::nullopt;
-                // First pass: primary hits, and whether virtual content can touch this pixel.
+                // Whether virtual content can touch this pixel.
                 bool influenced = false;
+                std::fill(scratch.have_surface.begin(), scratch.have_surface.end(), 0);
                 for (int k = 0; k < spp; ++k) {
-                    hits[k] = Hit{};
-                    const Vec3& dir_cam = rays_.directions[pixel * spp + k];
-                    if (!dir_cam.allFinite())
+                    if (!rays_.directions[pixel * spp + k].allFinite())
                         continue;
-                    dirs[k] = f.R_world_cam * dir_cam;
                     ++tile_primary;
-                    logRay(log, RayLog::Kind::kPrimary, scene_->all(), scene_->ghosts(),
-                           f.t_world_cam, dirs[k], kInf);
-                    hits[k] = EmbreeScene::intersect(scene_->all(), f.t_world_cam, dirs[k], kInf);
                     // A real surface the depth camera measured in front hides what was hit.
                     if (hits[k].valid && depth_limit && *depth_limit < hits[k].t)
                         hits[k] = Hit{};
                     if (!hits[k].valid || influenced)
                         continue;
-                    const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
-                    influenced = s.object->role == ObjectRole::kVirtual || ghostInfluenced(f, s);
+                    const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
+                        surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                    scratch.have_surface[static_cast<size_t>(k)] = 1;
+                    influenced =
+                        s.object->role == ObjectRole::kVirtual || ghostInfluenced(f, s, dirs[k]);
                 }
                 if (!influenced && !keep && options_.only_virtual_footprint)
                     continue;
-                // Second pass: shade.
+                // Shade.
                 ++tile_traced;
                 int n_virtual = 0;
                 Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
@@ -816,7 +1040,9 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         if (rays_.directions[pixel * spp + k].allFinite())
                             p.m = p.r = environment(f, dirs[k]);
                     } else {
-                        const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        const Surface s = scratch.have_surface[static_cast<size_t>(k)]
+                                              ? scratch.surfaces[static_cast<size_t>(k)]
+                                              : surfaceAt(hits[k], f.t_world_cam, dirs[k]);
                         is_virtual = s.object->role == ObjectRole::kVirtual;
                         if (is_virtual) {
                             p.m = shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
@@ -842,6 +1068,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                     b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
                 b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
                 b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
+                b.tile_dirty[static_cast<size_t>(tile)] = 1;
                 if (keep) {
                     b.mixed[pixel] = msum / static_cast<float>(spp);
                     b.real[pixel] = rsum / static_cast<float>(spp);
@@ -852,45 +1079,60 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         secondary += counters.secondary;
         shadow += counters.shadow;
     };
-    const int tiles = tiles_x * tiles_y;
+
+    // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
+    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
+        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+    MutableImageView dst = out.composite.mutableView();
+    const auto compositeRow = [&](int y) {
+        const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
+        uint8_t* dst_row = dst.row<uint8_t>(y);
+        const int tile_row = (y / ts) * tiles_x;
+        for (int tx = 0; tx < tiles_x; ++tx) {
+            const int x0 = tx * ts, x1 = std::min(w, x0 + ts);
+            if (!b.tile_dirty[static_cast<size_t>(tile_row + tx)]) {
+                std::memcpy(dst_row + 3 * x0, src_row + 3 * x0, 3 * static_cast<size_t>(x1 - x0));
+                continue;
+            }
+            for (int x = x0; x < x1; ++x) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                const uint8_t* c = src_row + 3 * x;
+                uint8_t* o = dst_row + 3 * x;
+                const float mask = b.mask[i];
+                if (mask == 0 && b.difference[i] == Vec3::Zero()) {
+                    o[0] = c[0], o[1] = c[1], o[2] = c[2];
+                    continue;
+                }
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float real = f.srgb_lut[c[ch]] + b.difference[i][ch];
+                    o[ch] =
+                        optics::encodeSrgb8(mask * b.virtual_radiance[i][ch] + (1 - mask) * real);
+                }
+            }
+        }
+    };
+
     tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
     arena.execute([&] {
+        if (use_mask)
+            detail::footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts,
+                                  tile_mask_);
         tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                           [&](const tbb::blocked_range<int>& r) {
                               for (int t = r.begin(); t < r.end(); ++t)
                                   renderTile(t);
                           });
+        if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
+            meanFilterPenumbra(w, h, ts, b);
+        tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
+            for (int y = r.begin(); y < r.end(); ++y)
+                compositeRow(y);
+        });
     });
-
     if (in.ray_log != nullptr) {
         in.ray_log->rays.clear();
         for (const RayList& l : tile_logs)
             in.ray_log->rays.insert(in.ray_log->rays.end(), l.begin(), l.end());
-    }
-    if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
-        meanFilterPenumbra(w, h, b);
-
-    // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); untouched pixels are copied.
-    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
-        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
-    MutableImageView dst = out.composite.mutableView();
-    for (int y = 0; y < h; ++y) {
-        const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
-        uint8_t* dst_row = dst.row<uint8_t>(y);
-        for (int x = 0; x < w; ++x) {
-            const size_t i = static_cast<size_t>(y) * w + x;
-            const uint8_t* c = src_row + 3 * x;
-            uint8_t* o = dst_row + 3 * x;
-            const float mask = b.mask[i];
-            if (mask == 0 && b.difference[i] == Vec3::Zero()) {
-                o[0] = c[0], o[1] = c[1], o[2] = c[2];
-                continue;
-            }
-            for (int ch = 0; ch < 3; ++ch) {
-                const float real = f.srgb_lut[c[ch]] + b.difference[i][ch];
-                o[ch] = optics::encodeSrgb8(mask * b.virtual_radiance[i][ch] + (1 - mask) * real);
-            }
-        }
     }
     if (keep) {
         const auto toImage = [&](const std::vector<Vec3>& src, FloatImage& img) {
