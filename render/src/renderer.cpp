@@ -140,6 +140,12 @@ float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir, float len
     return (a + s * dir - c).norm();
 }
 
+// R·v spelled out: GCC at -O2 leaves Eigen's fixed-size product as an out-of-line call, which
+// showed up in profiles of the per-hit code.
+inline Vec3 rotate(const Eigen::Matrix3f& R, const Vec3& v) {
+    return R.col(0) * v.x() + R.col(1) * v.y() + R.col(2) * v.z();
+}
+
 float offsetFor(const Vec3& p) {
     return 1e-4f * (1.f + p.cwiseAbs().maxCoeff());
 }
@@ -260,8 +266,8 @@ Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3
         // Recompute the point on the exact sphere: less drift than origin + t·d.
         const Vec3 p_obj = R.transpose() * (origin + hit.t * d - object.t_world_object);
         const Vec3 n_obj = p_obj.normalized();
-        s.n_geometric = s.n_shading = R * n_obj;
-        s.p = R * (n_obj * object.sphere_radius) + object.t_world_object;
+        s.n_geometric = s.n_shading = rotate(R, n_obj);
+        s.p = rotate(R, n_obj * object.sphere_radius) + object.t_world_object;
         s.uv = {0.5f + std::atan2(n_obj.y(), n_obj.x()) / (2 * optics::kPi),
                 std::acos(std::clamp(n_obj.z(), -1.f, 1.f)) / optics::kPi};
         return s;
@@ -273,13 +279,13 @@ Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3
     const Vec3& b = mesh.positions[tri[1]];
     const Vec3& c = mesh.positions[tri[2]];
     const Vec3 n_geo = (b - a).cross(c - a).normalized();
-    s.n_geometric = R * n_geo;
+    s.n_geometric = rotate(R, n_geo);
     s.p = origin + hit.t * d;
     if (mesh.normals.size() == mesh.positions.size()) {
         Vec3 n =
             w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
         if (n.squaredNorm() > 1e-12f) {
-            n = R * n.normalized();
+            n = rotate(R, n.normalized());
             s.n_shading = n.dot(s.n_geometric) >= 0 ? n : Vec3(-n);
         } else {
             s.n_shading = s.n_geometric;
@@ -826,7 +832,7 @@ void EmbreeRenderer::primaryHits(const Frame& f, int x0, int y0, int x1, int y1,
                             rays_.directions[(static_cast<size_t>(y) * w + x) * spp + k];
                         if (!dir_cam.allFinite())
                             continue;
-                        scratch.dirs[i] = f.R_world_cam * dir_cam;
+                        scratch.dirs[i] = rotate(f.R_world_cam, dir_cam);
                         lane_index[lanes] = i;
                         lane_dir[lanes] = scratch.dirs[i];
                         if (++lanes == 16)
@@ -1017,11 +1023,14 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         hits[k] = Hit{};
                     if (!hits[k].valid || influenced)
                         continue;
+                    if (objects_[hits[k].object].role == ObjectRole::kVirtual) {
+                        influenced = true;
+                        continue;
+                    }
                     const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
                         surfaceAt(hits[k], f.t_world_cam, dirs[k]);
                     scratch.have_surface[static_cast<size_t>(k)] = 1;
-                    influenced =
-                        s.object->role == ObjectRole::kVirtual || ghostInfluenced(f, s, dirs[k]);
+                    influenced = ghostInfluenced(f, s, dirs[k]);
                 }
                 if (!influenced && !keep && options_.only_virtual_footprint)
                     continue;
