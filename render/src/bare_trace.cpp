@@ -5,6 +5,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -73,17 +74,34 @@ Packet16 toPackets(const std::vector<const RayLog::Ray*>& rays) {
     return p;
 }
 
-// Seconds of the fastest of `repeats` runs of `trace(first, count)` over chunks of `work`,
-// each run on a fresh copy of `pristine`.
+double processCpuSeconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+struct Seconds {
+    double wall = 0, cpu = 0;
+    Seconds& operator+=(const Seconds& o) {
+        wall += o.wall;
+        cpu += o.cpu;
+        return *this;
+    }
+};
+
+// Wall and CPU seconds of the fastest of `repeats` runs of `trace(first, count)` over chunks
+// of `work`, each run on a fresh copy of `pristine`.
 template <class T, class Trace>
-double bestTime(tbb::task_arena& arena, const std::vector<T>& pristine, size_t grain, int repeats,
-                const Trace& trace) {
+Seconds bestTime(tbb::task_arena& arena, const std::vector<T>& pristine, size_t grain, int repeats,
+                 const Trace& trace) {
     if (pristine.empty())
-        return 0;
+        return {};
     std::vector<T> work;
-    double best = std::numeric_limits<double>::infinity();
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    Seconds best{kInf, kInf};
     for (int r = 0; r < repeats; ++r) {
         work = pristine;
+        const double cpu_start = processCpuSeconds();
         const auto start = std::chrono::steady_clock::now();
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, work.size(), grain),
@@ -91,8 +109,10 @@ double bestTime(tbb::task_arena& arena, const std::vector<T>& pristine, size_t g
                                   trace(work.data() + range.begin(), range.size(), range.begin());
                               });
         });
-        best = std::min(
-            best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        best.wall = std::min(
+            best.wall,
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        best.cpu = std::min(best.cpu, processCpuSeconds() - cpu_start);
     }
     return best;
 }
@@ -113,7 +133,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
     constexpr size_t kGrain = 256;
 
     const auto intersect1 = [&](const KindRays& k, bool coherent) {
-        double sum = 0;
+        Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRayHit> rays;
             for (const RayLog::Ray* r : k.scene[s])
@@ -130,7 +150,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         return sum;
     };
     const auto intersect1M = [&](const KindRays& k) {
-        double sum = 0;
+        Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRayHit> rays;
             for (const RayLog::Ray* r : k.scene[s])
@@ -145,7 +165,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         return sum;
     };
     const auto intersect16 = [&](const KindRays& k) {
-        double sum = 0;
+        Seconds sum;
         for (int s = 0; s < 2; ++s) {
             const Packet16 packets = toPackets(k.scene[s]);
             sum += bestTime(arena, packets.rays, kGrain / 16, repeats,
@@ -161,7 +181,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         return sum;
     };
     const auto occluded = [&](const KindRays& k, bool stream) {
-        double sum = 0;
+        Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRay> rays;
             for (const RayLog::Ray* r : k.scene[s])
@@ -180,12 +200,13 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         }
         return sum;
     };
-    const auto best = [](double& seconds, std::string& method,
-                         std::initializer_list<std::pair<double, const char*>> tries) {
+    const auto best = [](double& seconds, double& cpu_seconds, std::string& method,
+                         std::initializer_list<std::pair<Seconds, const char*>> tries) {
         seconds = std::numeric_limits<double>::infinity();
         for (const auto& [s, name] : tries)
-            if (s < seconds) {
-                seconds = s;
+            if (s.wall < seconds) {
+                seconds = s.wall;
+                cpu_seconds = s.cpu;
                 method = name;
             }
     };
@@ -194,12 +215,12 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
     const KindRays& primary = kinds[static_cast<int>(RayLog::Kind::kPrimary)];
     const KindRays& secondary = kinds[static_cast<int>(RayLog::Kind::kSecondary)];
     const KindRays& shadow = kinds[static_cast<int>(RayLog::Kind::kShadow)];
-    best(times.primary_s, times.primary_method,
+    best(times.primary_s, times.primary_cpu_s, times.primary_method,
          {{intersect1(primary, true), "rtcIntersect1"}, {intersect16(primary), "rtcIntersect16"}});
-    best(times.secondary_s, times.secondary_method,
+    best(times.secondary_s, times.secondary_cpu_s, times.secondary_method,
          {{intersect1(secondary, false), "rtcIntersect1"},
           {intersect1M(secondary), "rtcIntersect1M"}});
-    best(times.shadow_s, times.shadow_method,
+    best(times.shadow_s, times.shadow_cpu_s, times.shadow_method,
          {{occluded(shadow, false), "rtcOccluded1"}, {occluded(shadow, true), "rtcOccluded1M"}});
     return times;
 }

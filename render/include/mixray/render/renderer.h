@@ -85,13 +85,17 @@ struct RayLog {
 };
 
 // Seconds bare Embree took to trace a RayLog on the renderer's BVH with its threads: the best
-// of the ways tried for each kind (single rays, 16-ray packets for primaries, streams).
+// of the ways tried for each kind (single rays, 16-ray packets for primaries, streams), as
+// wall-clock time and as the process's CPU time (which other programs on the machine disturb
+// less).
 struct BareTraceTimes {
     double primary_s = 0;
     double secondary_s = 0;
     double shadow_s = 0;
+    double primary_cpu_s = 0, secondary_cpu_s = 0, shadow_cpu_s = 0;
     std::string primary_method, secondary_method, shadow_method;
     double total() const { return primary_s + secondary_s + shadow_s; }
+    double totalCpu() const { return primary_cpu_s + secondary_cpu_s + shadow_cpu_s; }
 };
 
 // One frame to composite into.
