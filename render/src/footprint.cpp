@@ -26,14 +26,10 @@ bool coneMeetsSphere(const TileCone& cone, const Vec3& centre_cam, float radius)
     return beta <= cone.half_angle + std::asin(std::min(1.f, radius / d)) + kAngleSlack;
 }
 
-float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir, float length) {
-    const float s = std::clamp((c - a).dot(dir), 0.f, length);
-    return (a + s * dir - c).norm();
-}
-
 // Whether any point within `rho` of `q` can have a virtual bounding sphere on its way to a
-// light: the segment from such a point x to the light stays within rho of the one from q (for
-// a point light the two segments share the far end; for a directional one they are parallel).
+// light: at a fraction s of the way, the segment from such a point x to a point within R of
+// the light's centre stays within (1 − s)·rho + s·R of the one from q to the centre (for a
+// directional light the segments are parallel: rho all along).
 bool regionShadowable(const FootprintScene& scene, const Vec3& q, float rho) {
     for (const FootprintLight& light : scene.lights) {
         Vec3 dir;
@@ -49,8 +45,8 @@ bool regionShadowable(const FootprintScene& scene, const Vec3& q, float rho) {
         }
         const float slack = kDistanceSlack * (1 + q.cwiseAbs().maxCoeff());
         for (const BoundSphere& b : scene.virtual_bounds)
-            if (distanceToSegment(b.centre, q, dir, length) <=
-                b.radius + light.radius + rho + slack)
+            if (nearTaperedSegment(b.centre, q, dir, length, b.radius + rho + slack,
+                                   b.radius + light.radius + slack))
                 return true;
     }
     return false;

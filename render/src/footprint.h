@@ -4,13 +4,34 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
 
 namespace mixray::render::detail {
+
+// Whether `c` lies within tol_a + (tol_b − tol_a)·t/length of the point a + t·dir for some t
+// in [0, length]: a segment whose tolerance changes linearly along it, as the shadow rays from
+// a point to a spherical light of radius R fan out by R over their length. A ray (length
+// infinite) keeps tol_a. Exact: the distance minus the tolerance is convex in t, so its
+// stationary point, clamped, is the minimum.
+inline bool nearTaperedSegment(const Eigen::Vector3f& c, const Eigen::Vector3f& a,
+                               const Eigen::Vector3f& dir, float length, float tol_a, float tol_b) {
+    const Eigen::Vector3f q = c - a;
+    const float along = q.dot(dir);
+    if (!std::isfinite(length))
+        return (a + std::max(0.f, along) * dir - c).norm() <= tol_a;
+    const float k = (tol_b - tol_a) / length;
+    if (!(std::abs(k) < 0.999f))
+        return true;
+    const float h = std::sqrt(std::max(0.f, q.squaredNorm() - along * along));
+    const float t = std::clamp(along + k * h / std::sqrt(1 - k * k), 0.f, length);
+    return (a + t * dir - c).norm() <= tol_a + k * t;
+}
 
 // The narrowest cone around one tile's camera-ray directions (camera frame).
 struct TileCone {

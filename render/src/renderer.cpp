@@ -678,8 +678,9 @@ bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s, const Vec
             if (light->light.type == LightType::kSphere)
                 extra = light->light.radius;
         }
+        // Shadow rays to a spherical light fan out from s.p to its radius at the light.
         for (const SphereBound& b : f.virtual_bounds)
-            if (distanceToSegment(b.centre, s.p, dir, length) <= b.radius + extra)
+            if (detail::nearTaperedSegment(b.centre, s.p, dir, length, b.radius, b.radius + extra))
                 return true;
     }
     return false;
