@@ -200,6 +200,22 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         }
         return sum;
     };
+    const auto occluded16 = [&](const KindRays& k) {
+        Seconds sum;
+        for (int s = 0; s < 2; ++s) {
+            const Packet16 packets = toPackets(k.scene[s]);
+            sum += bestTime(arena, packets.rays, kGrain / 16, repeats,
+                            [&](RTCRayHit16* first, size_t n, size_t offset) {
+                                RTCIntersectContext context;
+                                rtcInitIntersectContext(&context);
+                                context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+                                for (size_t i = 0; i < n; ++i)
+                                    rtcOccluded16(packets.valid[offset + i].lanes, scenes[s],
+                                                  &context, &first[i].ray);
+                            });
+        }
+        return sum;
+    };
     const auto best = [](double& seconds, double& cpu_seconds, std::string& method,
                          std::initializer_list<std::pair<Seconds, const char*>> tries) {
         seconds = std::numeric_limits<double>::infinity();
@@ -221,7 +237,9 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
          {{intersect1(secondary, false), "rtcIntersect1"},
           {intersect1M(secondary), "rtcIntersect1M"}});
     best(times.shadow_s, times.shadow_cpu_s, times.shadow_method,
-         {{occluded(shadow, false), "rtcOccluded1"}, {occluded(shadow, true), "rtcOccluded1M"}});
+         {{occluded(shadow, false), "rtcOccluded1"},
+          {occluded(shadow, true), "rtcOccluded1M"},
+          {occluded16(shadow), "rtcOccluded16"}});
     return times;
 }
 

@@ -397,7 +397,9 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
                                             centre + radius * v, centre - radius * v};
         for (int i = 0; i < 5; ++i)
             aim(i, points[static_cast<size_t>(i)]);
-        testPacket(dirs.data(), lengths.data(), 5, lit_m, lit_r);
+        // Five rays fill a third of a packet: measured slower than single rays.
+        for (int i = 0; i < 5; ++i)
+            test(dirs[static_cast<size_t>(i)], lengths[static_cast<size_t>(i)], lit_m, lit_r);
         const bool agree_m = !want_m || lit_m == 0 || lit_m == 5;
         const bool agree_r = !want_r || lit_r == 0 || lit_r == 5;
         if (agree_m && agree_r)
@@ -413,7 +415,12 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
             const Vec2 q = optics::discSample(k0 + i, n, st.rng.uniform(), rotation);
             aim(i, centre + radius * (q.x() * u + q.y() * v));
         }
-        testPacket(dirs.data(), lengths.data(), count, lit_m, lit_r);
+        if (count >= 8) {
+            testPacket(dirs.data(), lengths.data(), count, lit_m, lit_r);
+        } else {
+            for (int i = 0; i < count; ++i)
+                test(dirs[static_cast<size_t>(i)], lengths[static_cast<size_t>(i)], lit_m, lit_r);
+        }
     }
     return {Vec3::Constant(static_cast<float>(lit_m) / static_cast<float>(n)),
             Vec3::Constant(static_cast<float>(lit_r) / static_cast<float>(n))};

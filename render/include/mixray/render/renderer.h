@@ -85,7 +85,7 @@ struct RayLog {
 };
 
 // Seconds bare Embree took to trace a RayLog on the renderer's BVH with its threads: the best
-// of the ways tried for each kind (single rays, 16-ray packets for primaries, streams), as
+// of the ways tried for each kind (single rays, 16-ray packets, streams), as
 // wall-clock time and as the process's CPU time (which other programs on the machine disturb
 // less).
 struct BareTraceTimes {
