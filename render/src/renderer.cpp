@@ -647,8 +647,9 @@ Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, in
     return {p.m, p.m};
 }
 
-// Conservative: can virtual objects change the shading of this real point? True for reflective
-// ghosts, and where a virtual bounding sphere meets the segment (or cone) towards a light.
+// Conservative: can virtual objects change the shading of this real point seen along `d`? True
+// for glass and reflective ghosts (when the only ghost is flat: where the mirrored ray passes a
+// virtual bounding sphere), and where a bounding sphere meets the way to a light.
 bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const {
     if (f.virtual_bounds.empty())
         return false;
