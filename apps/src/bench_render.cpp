@@ -492,10 +492,13 @@ int runBenchRender(BenchRenderOptions options) {
         const auto missing = std::find_if(needed.begin(), needed.end(),
                                           [](const fs::path& p) { return !fs::exists(p); });
         if (missing != needed.end()) {
-            std::printf(
-                "%s: skipped: %s not found (real data under ../shared/data, see its "
-                "MANIFEST.md; or --shared-data)\n",
-                name.c_str(), missing->c_str());
+            const std::string why = missing->string() +
+                                    " not found (real data under ../shared/data, see its "
+                                    "MANIFEST.md; or --shared-data)";
+            if (options.json)
+                results.push_back({{"scene", name}, {"skipped", why}});
+            else
+                std::printf("%s: skipped: %s\n", name.c_str(), why.c_str());
             continue;
         }
         Result<SceneDescription> scene =

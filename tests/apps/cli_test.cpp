@@ -227,6 +227,17 @@ TEST(Cli, BenchRenderSaysWhichDataIsMissing) {
     EXPECT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("teapot: skipped: "), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("newell_teapot.obj not found"), std::string::npos) << run.output;
+    CliRun json = mixray(
+        "bench render --size 64x48 --frames 1 --scenes teapot --json "
+        "--shared-data " +
+        q(test::tempDir()));
+    EXPECT_EQ(json.exit_code, 0) << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 1u);
+    EXPECT_EQ(figures[0]["scene"], "teapot");
+    EXPECT_NE(figures[0]["skipped"].get<std::string>().find("newell_teapot.obj not found"),
+              std::string::npos);
 }
 
 TEST(Cli, BenchRenderPrintsItsFigures) {
