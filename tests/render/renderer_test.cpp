@@ -5,9 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <limits>
 
-#include "footprint.h"
 #include "renderer_test_util.h"
 
 namespace mixray::render::test {
@@ -785,35 +783,6 @@ TEST(Renderer, ShadowsCanBeSwitchedOff) {
     const int x = static_cast<int>(std::lround(shadow->x())),
               y = static_cast<int>(std::lround(shadow->y()));
     EXPECT_EQ(pixelBytes(out.composite, x, y)[0], optics::encodeSrgb8(lit));
-}
-
-// The footprint's shadow test against brute force: a dense walk along the segment.
-TEST(Footprint, TaperedSegmentTestMatchesAWalkAlongTheSegment) {
-    optics::Rng rng(7);
-    const auto u = [&] { return rng.uniform() * 2 - 1; };
-    int near = 0, far = 0;
-    for (int i = 0; i < 2000; ++i) {
-        const Eigen::Vector3f a(u(), u(), u());
-        const Eigen::Vector3f dir = Eigen::Vector3f(u(), u(), u()).normalized();
-        const float length = 0.4f + rng.uniform();
-        // Centres around the segment and beyond its ends; tolerances that widen or narrow by
-        // less than the length (steeper tapers are answered "near" without looking).
-        const Eigen::Vector3f c = a + (1.4f * rng.uniform() - 0.2f) * length * dir +
-                                  0.4f * Eigen::Vector3f(u(), u(), u());
-        const float tol_a = 0.3f * rng.uniform(), tol_b = 0.3f * rng.uniform();
-        float slack = std::numeric_limits<float>::infinity();  // min of distance − tolerance
-        for (int k = 0; k <= 20000; ++k) {
-            const float t = length * static_cast<float>(k) / 20000;
-            slack =
-                std::min(slack, (a + t * dir - c).norm() - (tol_a + (tol_b - tol_a) * t / length));
-        }
-        if (std::abs(slack) < 1e-4f)
-            continue;  // too close to call with a finite walk
-        EXPECT_EQ(detail::nearTaperedSegment(c, a, dir, length, tol_a, tol_b), slack < 0) << i;
-        (slack < 0 ? near : far) += 1;
-    }
-    EXPECT_GT(near, 100);
-    EXPECT_GT(far, 100);
 }
 
 }  // namespace
