@@ -15,6 +15,7 @@
 
 #include "alloc_counter.h"
 #include "backends.h"
+#include "bench_render.h"
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/graph.h"
@@ -438,6 +439,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
     graph->add_option("--shared-data", options->shared_data,
                       "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({graph, [options] { return runBenchGraph(*options); }});
+    registerBenchRender(*bench, commands);
 }
 
 }  // namespace mixray::cli

@@ -195,4 +195,78 @@ bool EmbreeScene::occluded(RTCScene scene, const Eigen::Vector3f& origin,
     return ray.tfar < 0;
 }
 
+void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f& origin,
+                              const Eigen::Vector3f* directions, int count, Hit* hits,
+                              unsigned mask) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int valid[16];
+    alignas(64) RTCRayHit16 rh;
+    for (int i = 0; i < 16; ++i) {
+        const bool on = i < count;
+        valid[i] = on ? -1 : 0;
+        const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
+        rh.ray.org_x[i] = origin.x();
+        rh.ray.org_y[i] = origin.y();
+        rh.ray.org_z[i] = origin.z();
+        rh.ray.dir_x[i] = d.x();
+        rh.ray.dir_y[i] = d.y();
+        rh.ray.dir_z[i] = d.z();
+        rh.ray.tnear[i] = 0;
+        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+        rh.ray.time[i] = 0;
+        rh.ray.mask[i] = mask;
+        rh.ray.id[i] = static_cast<unsigned>(i);
+        rh.ray.flags[i] = 0;
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, scene, &context, &rh);
+    for (int i = 0; i < count; ++i) {
+        Hit& hit = hits[i];
+        hit = Hit{};
+        if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ||
+            rh.hit.instID[0][i] == RTC_INVALID_GEOMETRY_ID)
+            continue;
+        hit.valid = true;
+        hit.t = rh.ray.tfar[i];
+        hit.object = rh.hit.instID[0][i];
+        hit.mesh = rh.hit.geomID[i];
+        hit.prim = rh.hit.primID[i];
+        hit.u = rh.hit.u[i];
+        hit.v = rh.hit.v[i];
+    }
+}
+
+void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
+                             const Eigen::Vector3f* directions, const float* t_far,
+                             const bool* active, int count, bool* occluded) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int valid[16];
+    alignas(64) RTCRay16 ray;
+    for (int i = 0; i < 16; ++i) {
+        const bool on = i < count && (active == nullptr || active[i]);
+        valid[i] = on ? -1 : 0;
+        const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
+        ray.org_x[i] = origin.x();
+        ray.org_y[i] = origin.y();
+        ray.org_z[i] = origin.z();
+        ray.dir_x[i] = d.x();
+        ray.dir_y[i] = d.y();
+        ray.dir_z[i] = d.z();
+        ray.tnear[i] = 0;
+        ray.tfar[i] = on ? t_far[i] : 0;
+        ray.time[i] = 0;
+        ray.mask[i] = 0xFFFFFFFFu;
+        ray.id[i] = static_cast<unsigned>(i);
+        ray.flags[i] = 0;
+    }
+    rtcOccluded16(valid, scene, &context, &ray);
+    for (int i = 0; i < count; ++i)
+        occluded[i] = valid[i] != 0 && ray.tfar[i] < 0;
+}
+
 }  // namespace mixray::render::detail

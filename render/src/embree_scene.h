@@ -97,6 +97,15 @@ public:
                          const Eigen::Vector3f& direction, float t_far, unsigned mask = kAnyMask);
     static bool occluded(RTCScene scene, const Eigen::Vector3f& origin,
                          const Eigen::Vector3f& direction, float t_far);
+    // Nearest hits of up to 16 coherent rays from one origin (camera rays), as one packet.
+    static void intersect16(RTCScene scene, const Eigen::Vector3f& origin,
+                            const Eigen::Vector3f* directions, int count, Hit* hits,
+                            unsigned mask = kAnyMask);
+    // occluded() of up to 16 coherent rays from one origin (soft-shadow samples) as one
+    // packet; lanes with active[i] false (active may be null: all) are not traced and false.
+    static void occluded16(RTCScene scene, const Eigen::Vector3f& origin,
+                           const Eigen::Vector3f* directions, const float* t_far,
+                           const bool* active, int count, bool* occluded);
 
 private:
     EmbreeScene() = default;

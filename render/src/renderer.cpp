@@ -3,6 +3,7 @@
 #include "mixray/render/renderer.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -11,9 +12,12 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
+#include "bare_trace.h"
 #include "embree_scene.h"
+#include "footprint.h"
 #include "mixray/render/depth_occlusion.h"
 #include "optics.h"
 
@@ -37,6 +41,11 @@ Status RenderOptions::validate() const {
     if (tile_size < 1 || tile_size > 1024)
         return bad("tile_size must be in [1, 1024]");
     return Status::ok();
+}
+
+uint64_t RayLog::count(Kind kind) const {
+    return static_cast<uint64_t>(
+        std::count_if(rays.begin(), rays.end(), [kind](const Ray& r) { return r.kind == kind; }));
 }
 
 namespace {
@@ -70,11 +79,24 @@ struct Counters {
     uint64_t shadow = 0;
 };
 
+using RayList = std::vector<RayLog::Ray>;
+
 struct SampleState {
     optics::Rng rng;
     Counters* counters;
+    RayList* log = nullptr;  // RenderInputs::ray_log was given
     bool penumbra = false;
 };
+
+void logRay(RayList* log, RayLog::Kind kind, RTCScene scene, RTCScene ghosts, const Vec3& origin,
+            const Vec3& d, float t_far) {
+    if (log != nullptr)
+        log->push_back({{origin.x(), origin.y(), origin.z()},
+                        {d.x(), d.y(), d.z()},
+                        t_far,
+                        kind,
+                        scene == ghosts});
+}
 
 // What shading needs about a hit, in world coordinates.
 struct Surface {
@@ -118,6 +140,12 @@ float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir, float len
     return (a + s * dir - c).norm();
 }
 
+// R·v spelled out: GCC at -O2 leaves Eigen's fixed-size product as an out-of-line call, which
+// showed up in profiles of the per-hit code.
+inline Vec3 rotate(const Eigen::Matrix3f& R, const Vec3& v) {
+    return R.col(0) * v.x() + R.col(1) * v.y() + R.col(2) * v.z();
+}
+
 float offsetFor(const Vec3& p) {
     return 1e-4f * (1.f + p.cwiseAbs().maxCoeff());
 }
@@ -128,7 +156,8 @@ struct RayCache {
     calibration::CameraModel model;
     int samples = 0;
     uint64_t seed = 0;
-    std::vector<Vec3> directions;  // ((y * width + x) * samples + s)
+    std::vector<Vec3> directions;         // ((y * width + x) * samples + s)
+    std::vector<detail::TileCone> cones;  // per tile of options.tile_size
 };
 
 // Per-frame tracing context: read-only during the parallel loop.
@@ -144,6 +173,31 @@ struct Frame {
     std::optional<DepthView> depth;
     bool depth_mesh = false;  // the depth surface is in the BVH this frame (kMesh)
     std::array<float, 256> srgb_lut{};
+    // The only active ghost is a plane or disk: no ray leaving it can meet a ghost again.
+    bool lone_flat_ghost = false;
+    detail::FootprintScene footprint;
+};
+
+// Per-pixel accumulators of one frame, kept between frames: only tiles marked dirty hold
+// anything but zeros.
+struct PixelBuffers {
+    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
+    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
+    std::vector<float> mask;             // M
+    std::vector<uint8_t> flags;          // kTraced | kPenumbra
+    std::vector<Vec3> mixed, real;       // keep_layers
+    std::vector<uint8_t> tile_dirty;
+    int width = 0, height = 0;
+};
+constexpr uint8_t kTraced = 1;
+constexpr uint8_t kPenumbra = 2;
+
+// A tile's primary hits and directions: reused by the thread, so the loop never allocates.
+struct TileScratch {
+    std::vector<Hit> hits;
+    std::vector<Vec3> dirs;
+    std::vector<Surface> surfaces;  // one pixel's samples, from the footprint test to shading
+    std::vector<uint8_t> have_surface;
 };
 
 class EmbreeRenderer final : public Renderer {
@@ -165,6 +219,10 @@ public:
 
     const RenderOptions& options() const override { return options_; }
     void setDepthObject(std::optional<size_t> index) { depth_object_ = index; }
+    BareTraceTimes traceBare(const RayLog& log, int repeats) const override {
+        return detail::traceBareEmbree(scene_->all(), scene_->ghosts(), log, options_.threads,
+                                       repeats);
+    }
     Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
 
     // The integrator (const: reentrant over tiles).
@@ -176,21 +234,26 @@ public:
                 Mode mode, SampleState& st) const;
     Pair lightVisibility(const LightData& light, const Vec3& origin, const Vec3& to_light,
                          float dist, Mode mode, SampleState& st) const;
-    Hit primaryHit(const Frame& f, const Vec3& d, std::optional<float> depth_limit) const;
+    Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
+                         std::optional<float> depth_limit) const;
     Pair cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
                             SampleState& st) const;
     bool depthMapShadows(const Frame& f, const Vec3& origin, const Vec3& wi, float dist) const;
     bool depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     Vec3 environment(const Frame& f, const Vec3& d) const;
-    std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s) const;
-    bool ghostInfluenced(const Frame& f, const Surface& s) const;
+    std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s, SampleState& st) const;
+    bool ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const;
 
 private:
     Status checkInputs(const RenderInputs& inputs) const;
     Status prepareFrame(const RenderInputs& inputs, Frame& f);
     void updateDepthMesh(Frame& f);
     void updateRayCache(const calibration::CameraModel& camera);
+    void prepareFootprint(Frame& f) const;
+    void depthRegions(const Frame& f, detail::FootprintScene& fp) const;
+    void primaryHits(const Frame& f, int x0, int y0, int x1, int y1, TileScratch& scratch,
+                     RayList* log) const;
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;
@@ -200,6 +263,9 @@ private:
     RayCache rays_;
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
     DepthMesher mesher_;
+    PixelBuffers buffers_;
+    std::vector<uint8_t> tile_mask_;
+    tbb::enumerable_thread_specific<TileScratch> scratch_;
 };
 
 Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
@@ -212,8 +278,8 @@ Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3
         // Recompute the point on the exact sphere: less drift than origin + t·d.
         const Vec3 p_obj = R.transpose() * (origin + hit.t * d - object.t_world_object);
         const Vec3 n_obj = p_obj.normalized();
-        s.n_geometric = s.n_shading = R * n_obj;
-        s.p = R * (n_obj * object.sphere_radius) + object.t_world_object;
+        s.n_geometric = s.n_shading = rotate(R, n_obj);
+        s.p = rotate(R, n_obj * object.sphere_radius) + object.t_world_object;
         s.uv = {0.5f + std::atan2(n_obj.y(), n_obj.x()) / (2 * optics::kPi),
                 std::acos(std::clamp(n_obj.z(), -1.f, 1.f)) / optics::kPi};
         return s;
@@ -225,13 +291,13 @@ Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3
     const Vec3& b = mesh.positions[tri[1]];
     const Vec3& c = mesh.positions[tri[2]];
     const Vec3 n_geo = (b - a).cross(c - a).normalized();
-    s.n_geometric = R * n_geo;
+    s.n_geometric = rotate(R, n_geo);
     s.p = origin + hit.t * d;
     if (mesh.normals.size() == mesh.positions.size()) {
         Vec3 n =
             w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
         if (n.squaredNorm() > 1e-12f) {
-            n = R * n.normalized();
+            n = rotate(R, n.normalized());
             s.n_shading = n.dot(s.n_geometric) >= 0 ? n : Vec3(-n);
         } else {
             s.n_shading = s.n_geometric;
@@ -257,6 +323,8 @@ Vec3 EmbreeRenderer::environment(const Frame& f, const Vec3& d) const {
 Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
                                      const Vec3& to_light, float dist, Mode mode,
                                      SampleState& st) const {
+    if (!options_.shadows)
+        return {Vec3::Ones(), Vec3::Ones()};
     const bool want_m = mode != Mode::kReal;
     const bool want_r = mode != Mode::kMixed;
     // One shadow ray towards `target` (a point, or a direction when dist is infinite).
@@ -264,6 +332,8 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
         bool occ_m = false;
         if (want_m) {
             ++st.counters->shadow;
+            logRay(st.log, RayLog::Kind::kShadow, scene_->all(), scene_->ghosts(), origin, dir,
+                   length);
             occ_m = EmbreeScene::occluded(scene_->all(), origin, dir, length);
             lit_m += occ_m ? 0 : 1;
         }
@@ -271,9 +341,44 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
             bool occ_r = false;
             if (!want_m || occ_m) {
                 ++st.counters->shadow;
+                logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(), origin,
+                       dir, length);
                 occ_r = EmbreeScene::occluded(scene_->ghosts(), origin, dir, length);
             }
             lit_r += occ_r ? 0 : 1;
+        }
+    };
+    // Up to 16 shadow rays towards points on the light: one packet per scene.
+    const auto testPacket = [&](const Vec3* dirs, const float* lengths, int count, int& lit_m,
+                                int& lit_r) {
+        std::array<bool, 16> occ_m{}, active{}, occ_r{};
+        if (want_m) {
+            for (int i = 0; i < count; ++i) {
+                ++st.counters->shadow;
+                logRay(st.log, RayLog::Kind::kShadow, scene_->all(), scene_->ghosts(), origin,
+                       dirs[i], lengths[i]);
+            }
+            EmbreeScene::occluded16(scene_->all(), origin, dirs, lengths, nullptr, count,
+                                    occ_m.data());
+            for (int i = 0; i < count; ++i)
+                lit_m += occ_m[i] ? 0 : 1;
+        }
+        if (want_r) {
+            bool any = false;
+            for (int i = 0; i < count; ++i) {
+                active[i] = !want_m || occ_m[i];
+                if (active[i]) {
+                    any = true;
+                    ++st.counters->shadow;
+                    logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(),
+                           origin, dirs[i], lengths[i]);
+                }
+            }
+            if (any)
+                EmbreeScene::occluded16(scene_->ghosts(), origin, dirs, lengths, active.data(),
+                                        count, occ_r.data());
+            for (int i = 0; i < count; ++i)
+                lit_r += occ_r[i] ? 0 : 1;
         }
     };
     const float shorten = 1.f - 1e-4f;
@@ -291,16 +396,22 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
     const Vec3 v = w.cross(u);
     const Vec3 centre = origin + dist * w;
     const float radius = light.light.radius;
-    const auto toward = [&](const Vec3& target, int& m, int& r) {
+    std::array<Vec3, 16> dirs;
+    std::array<float, 16> lengths;
+    const auto aim = [&](int lane, const Vec3& target) {
         const Vec3 delta = target - origin;
         const float length = delta.norm();
-        test(delta / length, length * shorten, m, r);
+        dirs[static_cast<size_t>(lane)] = delta / length;
+        lengths[static_cast<size_t>(lane)] = length * shorten;
     };
     if (method == SoftShadowMethod::kAdaptive) {
         const std::array<Vec3, 5> points = {centre, centre + radius * u, centre - radius * u,
                                             centre + radius * v, centre - radius * v};
-        for (const Vec3& q : points)
-            toward(q, lit_m, lit_r);
+        for (int i = 0; i < 5; ++i)
+            aim(i, points[static_cast<size_t>(i)]);
+        // Five rays fill a third of a packet: measured slower than single rays.
+        for (int i = 0; i < 5; ++i)
+            test(dirs[static_cast<size_t>(i)], lengths[static_cast<size_t>(i)], lit_m, lit_r);
         const bool agree_m = !want_m || lit_m == 0 || lit_m == 5;
         const bool agree_r = !want_r || lit_r == 0 || lit_r == 5;
         if (agree_m && agree_r)
@@ -310,9 +421,18 @@ Pair EmbreeRenderer::lightVisibility(const LightData& light, const Vec3& origin,
     }
     const int n = options_.shadow_samples;
     const float rotation = st.rng.uniform() * 2 * optics::kPi;
-    for (int k = 0; k < n; ++k) {
-        const Vec2 q = optics::discSample(k, n, st.rng.uniform(), rotation);
-        toward(centre + radius * (q.x() * u + q.y() * v), lit_m, lit_r);
+    for (int k0 = 0; k0 < n; k0 += 16) {
+        const int count = std::min(16, n - k0);
+        for (int i = 0; i < count; ++i) {
+            const Vec2 q = optics::discSample(k0 + i, n, st.rng.uniform(), rotation);
+            aim(i, centre + radius * (q.x() * u + q.y() * v));
+        }
+        if (count >= 8) {
+            testPacket(dirs.data(), lengths.data(), count, lit_m, lit_r);
+        } else {
+            for (int i = 0; i < count; ++i)
+                test(dirs[static_cast<size_t>(i)], lengths[static_cast<size_t>(i)], lit_m, lit_r);
+        }
     }
     return {Vec3::Constant(static_cast<float>(lit_m) / static_cast<float>(n)),
             Vec3::Constant(static_cast<float>(lit_r) / static_cast<float>(n))};
@@ -522,17 +642,13 @@ bool EmbreeRenderer::depthMapShadows(const Frame& f, const Vec3& origin, const V
 // real surface nearer along the pixel's ray (rayDistanceAt), in every DepthSecondaryRays mode.
 // With the depth mesh, the real surface such a pixel shows is traced too (the nearest of the
 // ghosts and the mesh), so that virtual shadows and reflections on it are shaded.
-Hit EmbreeRenderer::primaryHit(const Frame& f, const Vec3& d,
-                               std::optional<float> depth_limit) const {
-    if (!f.depth_mesh) {
-        Hit hit = EmbreeScene::intersect(scene_->all(), f.t_world_cam, d, kInf);
-        if (hit.valid && depth_limit && *depth_limit < hit.t)
-            hit = Hit{};
-        return hit;
-    }
-    const Hit hit =
-        EmbreeScene::intersect(scene_->all(), f.t_world_cam, d, kInf, detail::kObjectMask);
+// A primary ray's hit among the scene's objects (the depth mesh masked out), checked against the
+// depth map: a real surface the depth camera measured in front hides what was hit.
+Hit EmbreeRenderer::finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
+                                     std::optional<float> depth_limit) const {
     const bool hidden = hit.valid && depth_limit && *depth_limit < hit.t;
+    if (!f.depth_mesh)
+        return hidden ? Hit{} : hit;
     if (hit.valid && !hidden && objects_[hit.object].role == ObjectRole::kVirtual)
         return hit;
     // Most of the depth surface is out of reach of every virtual object: there it stays the
@@ -577,12 +693,16 @@ bool EmbreeRenderer::depthSurfaceInfluenced(const Frame& f, const Vec3& p, float
 
 // The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it
 // into the image; nullopt when it falls outside or something real hides it from the camera.
-std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surface& s) const {
+std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surface& s,
+                                                     SampleState& st) const {
     const Vec3 to_camera = f.t_world_cam - s.p;
     const float dist = to_camera.norm();
     const Vec3 dir = to_camera / dist;
     const Vec3 origin =
         s.p + offsetFor(s.p) * (s.n_geometric.dot(dir) > 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    ++st.counters->shadow;
+    logRay(st.log, RayLog::Kind::kShadow, scene_->ghosts(), scene_->ghosts(), origin, dir,
+           dist * 0.999f);
     if (EmbreeScene::occluded(scene_->ghosts(), origin, dir, dist * 0.999f))
         return std::nullopt;
     return cameraPixelAt(f, s.p);
@@ -591,8 +711,9 @@ std::optional<Vec3> EmbreeRenderer::cameraRadianceAt(const Frame& f, const Surfa
 Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, int depth, Mode mode,
                            SampleState& st) const {
     ++st.counters->secondary;
-    const Hit hit = EmbreeScene::intersect(mode == Mode::kReal ? scene_->ghosts() : scene_->all(),
-                                           origin, d, kInf);
+    const RTCScene scene = mode == Mode::kReal ? scene_->ghosts() : scene_->all();
+    logRay(st.log, RayLog::Kind::kSecondary, scene, scene_->ghosts(), origin, d, kInf);
+    const Hit hit = EmbreeScene::intersect(scene, origin, d, kInf);
     if (f.depth && options_.depth_secondary == DepthSecondaryRays::kScreenSpace) {
         // RT²AR Algorithm 2: the depth camera's surfaces, found in screen space, are real and
         // seen by the camera, so the camera pixel is their radiance in both scenes.
@@ -628,7 +749,7 @@ Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, in
     const Pair p = shade(f, s, hit, d, depth, Mode::kBoth, st);
     const MaterialType type = s.material->material.type;
     if (type == MaterialType::kDiffuse || type == MaterialType::kPhong) {
-        if (const auto measured = cameraRadianceAt(f, s)) {
+        if (const auto measured = cameraRadianceAt(f, s, st)) {
             const Vec3 m = (*measured + p.m - p.r).cwiseMax(0.f);
             return {m, m};
         }
@@ -636,16 +757,32 @@ Pair EmbreeRenderer::trace(const Frame& f, const Vec3& origin, const Vec3& d, in
     return {p.m, p.m};
 }
 
-// Conservative: can virtual objects change the shading of this real point? True for reflective
-// ghosts, and where a virtual bounding sphere meets the segment (or cone) towards a light.
-bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s) const {
+// Conservative: can virtual objects change the shading of this real point seen along `d`? True
+// for glass and reflective ghosts (when the only ghost is flat: where the mirrored ray passes a
+// virtual bounding sphere), and where a bounding sphere meets the way to a light.
+bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const {
     if (f.virtual_bounds.empty())
         return false;
     const Material& mat = s.material->material;
-    if (mat.type != MaterialType::kDiffuse && mat.type != MaterialType::kPhong)
+    const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
+    if (mat.type == MaterialType::kGlass)
         return true;
-    if (mat.reflectance > 0)
-        return true;
+    if (!lambert || mat.reflectance > 0) {
+        // Off the only, flat, ghost a mirrored ray never meets a ghost again, so it changes
+        // the pixel only if it passes a virtual bounding sphere (the ray starts offset).
+        if (!f.lone_flat_ghost)
+            return true;
+        const Vec3 n = s.n_geometric.dot(d) < 0 ? s.n_shading : Vec3(-s.n_shading);
+        const Vec3 r = optics::reflect(d, n).normalized();
+        const float slack = 2 * offsetFor(s.p);
+        for (const SphereBound& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, s.p, r, kInf) <= b.radius + slack)
+                return true;
+        if (!lambert)
+            return false;
+    }
+    if (!options_.shadows)
+        return false;
     for (const LightData* light : f.lights) {
         Vec3 dir;
         float length = kInf;
@@ -659,8 +796,9 @@ bool EmbreeRenderer::ghostInfluenced(const Frame& f, const Surface& s) const {
             if (light->light.type == LightType::kSphere)
                 extra = light->light.radius;
         }
+        // Shadow rays to a spherical light fan out from s.p to its radius at the light.
         for (const SphereBound& b : f.virtual_bounds)
-            if (distanceToSegment(b.centre, s.p, dir, length) <= b.radius + extra)
+            if (detail::nearTaperedSegment(b.centre, s.p, dir, length, b.radius, b.radius + extra))
                 return true;
     }
     return false;
@@ -706,7 +844,7 @@ void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
     if (!rays_.directions.empty() && sameModel(rays_.model, camera) && rays_.samples == spp &&
         rays_.seed == options_.seed)
         return;
-    rays_ = {camera, spp, options_.seed, {}};
+    rays_ = {camera, spp, options_.seed, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
     rays_.directions.resize(static_cast<size_t>(w) * camera.height * spp);
@@ -727,6 +865,144 @@ void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
             }
         }
     });
+    rays_.cones = detail::tileCones(camera, rays_.directions, spp, options_.tile_size);
+}
+
+// What the screen footprint needs of this frame, and whether the lone-flat-ghost shortcut of
+// ghostInfluenced() holds.
+void EmbreeRenderer::prepareFootprint(Frame& f) const {
+    int ghosts = 0;
+    bool flat = false;
+    for (const ObjectData& o : objects_)
+        if (o.active && o.role == ObjectRole::kGhost) {
+            ++ghosts;
+            flat = o.shape == ShapeType::kPlane || o.shape == ShapeType::kDisk;
+        }
+    f.lone_flat_ghost = ghosts == 1 && flat;
+    detail::FootprintScene& fp = f.footprint;
+    fp.R_world_cam = f.R_world_cam;
+    fp.t_world_cam = f.t_world_cam;
+    for (const SphereBound& b : f.virtual_bounds)
+        fp.virtual_bounds.push_back({b.centre, b.radius});
+    if (options_.shadows)
+        for (const LightData* light : f.lights)
+            fp.lights.push_back(
+                {light->light.type == LightType::kDirectional, light->position_world,
+                 light->direction_world,
+                 light->light.type == LightType::kSphere ? light->light.radius : 0.f});
+    for (size_t i = 0; i < objects_.size(); ++i) {
+        const ObjectData& o = objects_[i];
+        if (!o.active || o.role != ObjectRole::kGhost || i == depth_object_)
+            continue;
+        detail::FootprintGhost g;
+        g.bound = {o.R_world_object * o.bound_centre + o.t_world_object,
+                   o.bound_radius * 1.001f + 1e-4f};
+        g.flat = o.shape == ShapeType::kPlane || o.shape == ShapeType::kDisk;
+        g.plane_point = o.t_world_object;
+        g.plane_normal = o.R_world_object.col(2);
+        const Material& mat = materials_[static_cast<size_t>(o.material)].material;
+        const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
+        const bool reflects = !lambert || mat.reflectance > 0;
+        g.always = mat.type == MaterialType::kGlass || (reflects && !f.lone_flat_ghost);
+        g.receives = lambert;
+        if (reflects && !g.always) {
+            // ghostInfluenced()'s slack for hit points anywhere on the ghost.
+            const float slack = 2e-4f * (1 + g.bound.centre.cwiseAbs().maxCoeff() + g.bound.radius);
+            for (const SphereBound& b : f.virtual_bounds)
+                fp.mirrored_bounds.push_back(
+                    {b.centre - 2 * g.plane_normal.dot(b.centre - g.plane_point) * g.plane_normal,
+                     b.radius + slack});
+        }
+        fp.ghosts.push_back(g);
+    }
+    if (f.depth_mesh)
+        depthRegions(f, fp);
+}
+
+// The footprint of the depth mesh: finishPrimaryHit() traces it where depthSurfaceInfluenced()
+// holds for the measured point, with a margin of 5 % of its distance; each tile's sphere holds
+// every such point and its margin.
+void EmbreeRenderer::depthRegions(const Frame& f, detail::FootprintScene& fp) const {
+    const int w = f.inputs->camera.width, h = f.inputs->camera.height;
+    const int spp = options_.samples_per_pixel, ts = options_.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    fp.depth_reflects =
+        materials_[static_cast<size_t>(objects_[*depth_object_].material)].material.reflectance > 0;
+    fp.depth_regions.assign(static_cast<size_t>(tiles_x) * tiles_y, {Vec3::Zero(), -1.f});
+    for (int ty = 0; ty < tiles_y; ++ty)
+        for (int tx = 0; tx < tiles_x; ++tx) {
+            Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+            float margin = 0;
+            for (int y = ty * ts; y < std::min(h, (ty + 1) * ts); ++y)
+                for (int x = tx * ts; x < std::min(w, (tx + 1) * ts); ++x) {
+                    const std::optional<float> dist = rayDistanceAt(*f.depth, x, y);
+                    if (!dist)
+                        continue;
+                    for (int k = 0; k < spp; ++k) {
+                        const Vec3& d =
+                            rays_.directions[(static_cast<size_t>(y) * w + x) * spp + k];
+                        if (!d.allFinite())
+                            continue;
+                        const Vec3 p = *dist * d;
+                        lo = lo.cwiseMin(p);
+                        hi = hi.cwiseMax(p);
+                        margin = std::max(margin, 0.05f * *dist);
+                    }
+                }
+            if (!(lo.array() <= hi.array()).all())
+                continue;
+            const Vec3 centre_cam = 0.5f * (lo + hi);
+            fp.depth_regions[static_cast<size_t>(ty) * tiles_x + tx] = {
+                rotate(f.R_world_cam, centre_cam) + f.t_world_cam,
+                0.5f * (hi - lo).norm() + margin};
+        }
+}
+
+// The primary hits of the tile [x0, x1) x [y0, y1) in 16-ray packets of 4x4-pixel blocks,
+// logged in that order.
+void EmbreeRenderer::primaryHits(const Frame& f, int x0, int y0, int x1, int y1,
+                                 TileScratch& scratch, RayList* log) const {
+    const int spp = options_.samples_per_pixel;
+    const int w = f.inputs->camera.width, tw = x1 - x0;
+    const size_t n = static_cast<size_t>(tw) * (y1 - y0) * spp;
+    scratch.hits.assign(n, Hit{});
+    scratch.dirs.resize(n);
+    std::array<size_t, 16> lane_index;
+    std::array<Vec3, 16> lane_dir;
+    std::array<Hit, 16> lane_hit;
+    // The depth mesh is resolved per pixel in finishPrimaryHit().
+    const unsigned object_mask = f.depth_mesh ? detail::kObjectMask : detail::kAnyMask;
+    int lanes = 0;
+    const auto flush = [&] {
+        if (lanes == 0)
+            return;
+        EmbreeScene::intersect16(scene_->all(), f.t_world_cam, lane_dir.data(), lanes,
+                                 lane_hit.data(), object_mask);
+        for (int i = 0; i < lanes; ++i) {
+            scratch.hits[lane_index[i]] = lane_hit[i];
+            logRay(log, RayLog::Kind::kPrimary, scene_->all(), scene_->ghosts(), f.t_world_cam,
+                   lane_dir[i], kInf);
+        }
+        lanes = 0;
+    };
+    for (int by = y0; by < y1; by += 4)
+        for (int bx = x0; bx < x1; bx += 4) {
+            for (int y = by; y < std::min(y1, by + 4); ++y)
+                for (int x = bx; x < std::min(x1, bx + 4); ++x)
+                    for (int k = 0; k < spp; ++k) {
+                        const size_t i = (static_cast<size_t>(y - y0) * tw + (x - x0)) * spp + k;
+                        const Vec3& dir_cam =
+                            rays_.directions[(static_cast<size_t>(y) * w + x) * spp + k];
+                        if (!dir_cam.allFinite())
+                            continue;
+                        scratch.dirs[i] = rotate(f.R_world_cam, dir_cam);
+                        lane_index[lanes] = i;
+                        lane_dir[lanes] = scratch.dirs[i];
+                        if (++lanes == 16)
+                            flush();
+                    }
+            flush();
+        }
 }
 
 Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
@@ -807,41 +1083,50 @@ void EmbreeRenderer::updateDepthMesh(Frame& f) {
     f.depth_mesh = object.active;
 }
 
-// Per-pixel accumulators of one frame.
-struct PixelBuffers {
-    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
-    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
-    std::vector<float> mask;             // M
-    std::vector<uint8_t> flags;          // kTraced | kPenumbra
-    std::vector<Vec3> mixed, real;       // keep_layers
-};
-constexpr uint8_t kTraced = 1;
-constexpr uint8_t kPenumbra = 2;
-
 // RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
 // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
-void meanFilterPenumbra(int w, int h, PixelBuffers& b) {
-    const std::vector<Vec3> vr = b.virtual_radiance, diff = b.difference;
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const size_t i = static_cast<size_t>(y) * w + x;
-            if (!(b.flags[i] & kPenumbra))
-                continue;
-            Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
-            int nv = 0, nd = 0;
-            for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
-                for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
-                    const size_t j = static_cast<size_t>(yy) * w + xx;
-                    if (b.mask[j] > 0)
-                        sv += vr[j], ++nv;
-                    if (b.mask[j] < 1)
-                        sd += diff[j], ++nd;
-                }
-            if (b.mask[i] > 0 && nv > 0)
-                b.virtual_radiance[i] = sv / static_cast<float>(nv);
-            if (b.mask[i] < 1 && nd > 0)
-                b.difference[i] = sd / static_cast<float>(nd);
-        }
+// Only dirty tiles hold penumbra pixels; new values are applied after all are computed, so every
+// mean reads unfiltered neighbours.
+void meanFilterPenumbra(int w, int h, int ts, PixelBuffers& b) {
+    struct Filtered {
+        size_t pixel;
+        Vec3 virtual_radiance, difference;
+    };
+    std::vector<Filtered> filtered;
+    const std::vector<Vec3>& vr = b.virtual_radiance;
+    const std::vector<Vec3>& diff = b.difference;
+    const int tiles_x = (w + ts - 1) / ts;
+    for (size_t t = 0; t < b.tile_dirty.size(); ++t) {
+        if (!b.tile_dirty[t])
+            continue;
+        const int x0 = static_cast<int>(t % tiles_x) * ts, y0 = static_cast<int>(t / tiles_x) * ts;
+        for (int y = y0; y < std::min(h, y0 + ts); ++y)
+            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                if (!(b.flags[i] & kPenumbra))
+                    continue;
+                Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
+                int nv = 0, nd = 0;
+                for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
+                    for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
+                        const size_t j = static_cast<size_t>(yy) * w + xx;
+                        if (b.mask[j] > 0)
+                            sv += vr[j], ++nv;
+                        if (b.mask[j] < 1)
+                            sd += diff[j], ++nd;
+                    }
+                Filtered out{i, vr[i], diff[i]};
+                if (b.mask[i] > 0 && nv > 0)
+                    out.virtual_radiance = sv / static_cast<float>(nv);
+                if (b.mask[i] < 1 && nd > 0)
+                    out.difference = sd / static_cast<float>(nd);
+                filtered.push_back(out);
+            }
+    }
+    for (const Filtered& p : filtered) {
+        b.virtual_radiance[p.pixel] = p.virtual_radiance;
+        b.difference[p.pixel] = p.difference;
+    }
 }
 
 Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
@@ -850,66 +1135,108 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     Frame f;
     MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
 
+    prepareFootprint(f);
+
     const int w = in.camera.width, h = in.camera.height;
     const size_t count = static_cast<size_t>(w) * h;
     const int spp = options_.samples_per_pixel;
     const bool keep = options_.keep_layers;
-    PixelBuffers b;
-    b.virtual_radiance.assign(count, Vec3::Zero());
-    b.difference.assign(count, Vec3::Zero());
-    b.mask.assign(count, 0.f);
-    b.flags.assign(count, 0);
+    const int ts = options_.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    const int tiles = tiles_x * tiles_y;
+    PixelBuffers& b = buffers_;
+    if (b.width != w || b.height != h) {
+        b.virtual_radiance.assign(count, Vec3::Zero());
+        b.difference.assign(count, Vec3::Zero());
+        b.mask.assign(count, 0.f);
+        b.flags.assign(count, 0);
+        b.tile_dirty.assign(static_cast<size_t>(tiles), 0);
+        b.width = w;
+        b.height = h;
+    }
     if (keep) {
         b.mixed.assign(count, Vec3::Zero());
         b.real.assign(count, Vec3::Zero());
     }
+    const auto clearTile = [&](int tile) {
+        const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        const int x1 = std::min(w, x0 + ts);
+        for (int y = y0; y < std::min(h, y0 + ts); ++y) {
+            const size_t i = static_cast<size_t>(y) * w + x0;
+            const auto n = static_cast<std::ptrdiff_t>(x1 - x0);
+            std::fill_n(b.virtual_radiance.begin() + static_cast<std::ptrdiff_t>(i), n,
+                        Vec3::Zero());
+            std::fill_n(b.difference.begin() + static_cast<std::ptrdiff_t>(i), n, Vec3::Zero());
+            std::fill_n(b.mask.begin() + static_cast<std::ptrdiff_t>(i), n, 0.f);
+            std::fill_n(b.flags.begin() + static_cast<std::ptrdiff_t>(i), n, uint8_t{0});
+        }
+        b.tile_dirty[static_cast<size_t>(tile)] = 0;
+    };
+    const bool use_mask = options_.screen_footprint && options_.only_virtual_footprint && !keep;
 
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
-    const int ts = options_.tile_size;
-    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
     const auto renderTile = [&](int tile) {
+        if (b.tile_dirty[static_cast<size_t>(tile)])
+            clearTile(tile);
+        if (use_mask && !tile_mask_[static_cast<size_t>(tile)])
+            return;
+        RayList* log = tile_logs.empty() ? nullptr : &tile_logs[static_cast<size_t>(tile)];
         const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        const int x1 = std::min(w, x0 + ts), y1 = std::min(h, y0 + ts);
+        TileScratch& scratch = scratch_.local();
+        scratch.surfaces.resize(static_cast<size_t>(spp));
+        scratch.have_surface.resize(static_cast<size_t>(spp));
+        primaryHits(f, x0, y0, x1, y1, scratch, log);
         Counters counters;
         uint64_t tile_traced = 0, tile_primary = 0;
-        std::vector<Hit> hits(static_cast<size_t>(spp));
-        std::vector<Vec3> dirs(static_cast<size_t>(spp));
-        for (int y = y0; y < std::min(h, y0 + ts); ++y)
-            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
                 const size_t pixel = static_cast<size_t>(y) * w + x;
+                Hit* hits = scratch.hits.data() +
+                            (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
+                const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
                 const std::optional<float> depth_limit =
                     f.depth ? rayDistanceAt(*f.depth, x, y) : std::nullopt;
-                // First pass: primary hits, and whether virtual content can touch this pixel.
+                // Whether virtual content can touch this pixel.
                 bool influenced = false;
+                std::fill(scratch.have_surface.begin(), scratch.have_surface.end(), 0);
                 for (int k = 0; k < spp; ++k) {
-                    hits[k] = Hit{};
-                    const Vec3& dir_cam = rays_.directions[pixel * spp + k];
-                    if (!dir_cam.allFinite())
+                    if (!rays_.directions[pixel * spp + k].allFinite())
                         continue;
-                    dirs[k] = f.R_world_cam * dir_cam;
                     ++tile_primary;
-                    hits[k] = primaryHit(f, dirs[k], depth_limit);
+                    hits[k] = finishPrimaryHit(f, hits[k], dirs[k], depth_limit);
                     if (!hits[k].valid || influenced)
                         continue;
-                    const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
-                    influenced = s.object->role == ObjectRole::kVirtual || ghostInfluenced(f, s);
+                    if (objects_[hits[k].object].role == ObjectRole::kVirtual) {
+                        influenced = true;
+                        continue;
+                    }
+                    const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
+                        surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                    scratch.have_surface[static_cast<size_t>(k)] = 1;
+                    influenced = ghostInfluenced(f, s, dirs[k]);
                 }
                 if (!influenced && !keep && options_.only_virtual_footprint)
                     continue;
-                // Second pass: shade.
+                // Shade.
                 ++tile_traced;
                 int n_virtual = 0;
                 Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
                      rsum = Vec3::Zero();
                 bool penumbra = false;
                 for (int k = 0; k < spp; ++k) {
-                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters};
+                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters,
+                                   log};
                     Pair p;
                     bool is_virtual = false;
                     if (!hits[k].valid) {
                         if (rays_.directions[pixel * spp + k].allFinite())
                             p.m = p.r = environment(f, dirs[k]);
                     } else {
-                        const Surface s = surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        const Surface s = scratch.have_surface[static_cast<size_t>(k)]
+                                              ? scratch.surfaces[static_cast<size_t>(k)]
+                                              : surfaceAt(hits[k], f.t_world_cam, dirs[k]);
                         is_virtual = s.object->role == ObjectRole::kVirtual;
                         if (is_virtual) {
                             p.m = shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
@@ -935,6 +1262,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                     b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
                 b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
                 b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
+                b.tile_dirty[static_cast<size_t>(tile)] = 1;
                 if (keep) {
                     b.mixed[pixel] = msum / static_cast<float>(spp);
                     b.real[pixel] = rsum / static_cast<float>(spp);
@@ -945,40 +1273,60 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         secondary += counters.secondary;
         shadow += counters.shadow;
     };
-    const int tiles = tiles_x * tiles_y;
+
+    // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
+    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
+        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+    MutableImageView dst = out.composite.mutableView();
+    const auto compositeRow = [&](int y) {
+        const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
+        uint8_t* dst_row = dst.row<uint8_t>(y);
+        const int tile_row = (y / ts) * tiles_x;
+        for (int tx = 0; tx < tiles_x; ++tx) {
+            const int x0 = tx * ts, x1 = std::min(w, x0 + ts);
+            if (!b.tile_dirty[static_cast<size_t>(tile_row + tx)]) {
+                std::memcpy(dst_row + 3 * x0, src_row + 3 * x0, 3 * static_cast<size_t>(x1 - x0));
+                continue;
+            }
+            for (int x = x0; x < x1; ++x) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                const uint8_t* c = src_row + 3 * x;
+                uint8_t* o = dst_row + 3 * x;
+                const float mask = b.mask[i];
+                if (mask == 0 && b.difference[i] == Vec3::Zero()) {
+                    o[0] = c[0], o[1] = c[1], o[2] = c[2];
+                    continue;
+                }
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float real = f.srgb_lut[c[ch]] + b.difference[i][ch];
+                    o[ch] =
+                        optics::encodeSrgb8(mask * b.virtual_radiance[i][ch] + (1 - mask) * real);
+                }
+            }
+        }
+    };
+
     tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
     arena.execute([&] {
+        if (use_mask)
+            detail::footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts,
+                                  tile_mask_);
         tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                           [&](const tbb::blocked_range<int>& r) {
                               for (int t = r.begin(); t < r.end(); ++t)
                                   renderTile(t);
                           });
+        if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
+            meanFilterPenumbra(w, h, ts, b);
+        tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
+            for (int y = r.begin(); y < r.end(); ++y)
+                compositeRow(y);
+        });
     });
-
-    if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
-        meanFilterPenumbra(w, h, b);
-
-    // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); untouched pixels are copied.
-    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
-        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
-    MutableImageView dst = out.composite.mutableView();
-    for (int y = 0; y < h; ++y) {
-        const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
-        uint8_t* dst_row = dst.row<uint8_t>(y);
-        for (int x = 0; x < w; ++x) {
-            const size_t i = static_cast<size_t>(y) * w + x;
-            const uint8_t* c = src_row + 3 * x;
-            uint8_t* o = dst_row + 3 * x;
-            const float mask = b.mask[i];
-            if (mask == 0 && b.difference[i] == Vec3::Zero()) {
-                o[0] = c[0], o[1] = c[1], o[2] = c[2];
-                continue;
-            }
-            for (int ch = 0; ch < 3; ++ch) {
-                const float real = f.srgb_lut[c[ch]] + b.difference[i][ch];
-                o[ch] = optics::encodeSrgb8(mask * b.virtual_radiance[i][ch] + (1 - mask) * real);
-            }
-        }
+    if (in.ray_log != nullptr) {
+        in.ray_log->rays.clear();
+        for (const RayList& l : tile_logs)
+            in.ray_log->rays.insert(in.ray_log->rays.end(), l.begin(), l.end());
     }
     if (keep) {
         const auto toImage = [&](const std::vector<Vec3>& src, FloatImage& img) {
@@ -1073,6 +1421,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         if (obj.shape.type == ShapeType::kSphere) {
             data.sphere_radius = obj.shape.radius;
             data.bound_radius = obj.shape.radius;
+        } else if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
+            data.meshes.push_back(*obj.shape.mesh_data);
+            for (Vec3& p : data.meshes.back().positions)
+                p *= obj.shape.scale;
+            boundMeshes(data);
         } else if (obj.shape.type == ShapeType::kMesh) {
             auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
             if (!loaded)

@@ -92,7 +92,7 @@ Status validateShape(const SceneObject& o, const std::string& path) {
                 return corrupt(o.where, path + ".size", "extents must be finite and above 0");
             break;
         case ShapeType::kMesh:
-            if (s.mesh.empty())
+            if (s.mesh.empty() && s.mesh_data == nullptr)
                 return corrupt(o.where, path + ".file", "empty path");
             if (!(std::isfinite(s.scale) && s.scale > 0))
                 return corrupt(o.where, path + ".scale", "must be a finite number above 0");

@@ -50,7 +50,8 @@ TEST(Cli, HelpAndUsageErrors) {
     EXPECT_EQ(none.exit_code, 2) << none.output;
     CliRun unknown = mixray("frobnicate");
     EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
-    for (const char* command : {"devices", "record", "info", "play", "convert", "bench graph"}) {
+    for (const char* command :
+         {"devices", "record", "info", "play", "convert", "bench graph", "bench render"}) {
         CliRun help = mixray(std::string(command) + " --help");
         EXPECT_EQ(help.exit_code, 0) << command;
         EXPECT_NE(help.output.find("Usage"), std::string::npos) << command;
@@ -219,6 +220,64 @@ TEST(Cli, BenchGraphPrintsItsFigures) {
           "raw disk write, ", "recording uncompressed,", "recording FFV1,"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
+}
+
+TEST(Cli, BenchRenderRejectsBadArguments) {
+    for (const char* args : {"--size 64by48", "--size 64x48,8x8", "--size ''", "--scenes nope",
+                             "--scenes teapot,", "--frames 0", "--threads -1", "--repeats 0"}) {
+        CliRun run = mixray(std::string("bench render ") + args);
+        EXPECT_EQ(run.exit_code, 2) << args << "\n" << run.output;
+    }
+    CliRun size = mixray("bench render --size 64by48");
+    EXPECT_NE(size.output.find("'64by48' is not WIDTHxHEIGHT"), std::string::npos) << size.output;
+    CliRun scene = mixray("bench render --scenes teapot,nope");
+    EXPECT_NE(scene.output.find("unknown scene 'nope'"), std::string::npos) << scene.output;
+}
+
+TEST(Cli, BenchRenderSaysWhichDataIsMissing) {
+    CliRun run = mixray("bench render --size 64x48 --frames 1 --scenes teapot --shared-data " +
+                        q(test::tempDir()));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("teapot: skipped: "), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("newell_teapot.obj not found"), std::string::npos) << run.output;
+    CliRun json = mixray(
+        "bench render --size 64x48 --frames 1 --scenes teapot --json "
+        "--shared-data " +
+        q(test::tempDir()));
+    EXPECT_EQ(json.exit_code, 0) << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 1u);
+    EXPECT_EQ(figures[0]["scene"], "teapot");
+    EXPECT_NE(figures[0]["skipped"].get<std::string>().find("newell_teapot.obj not found"),
+              std::string::npos);
+}
+
+TEST(Cli, BenchRenderPrintsItsFigures) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
+    CliRun run = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes teapot");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    for (const char* line : {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
+                             "teapot: + shadows + 3 bounces, 64x48", "fps ", "pixels traced",
+                             "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency"}) {
+        EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
+    }
+    EXPECT_EQ(run.output.find("does not match"), std::string::npos) << run.output;
+
+    CliRun json = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes teapot --json");
+    ASSERT_EQ(json.exit_code, 0) << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 3u);
+    for (const auto& f : figures) {
+        EXPECT_EQ(f["width"], 64);
+        EXPECT_TRUE(f["log_matches_stats"].get<bool>());
+        EXPECT_GT(f["fps"].get<double>(), 0);
+        EXPECT_GT(f["rays_per_frame"]["primary"].get<double>(), 0);
+        EXPECT_GT(f["bare_ms"]["total"].get<double>(), 0);
+    }
+    EXPECT_EQ(figures[0]["rays_per_frame"]["shadow"].get<double>(), 0);  // primary only
+    EXPECT_GT(figures[2]["rays_per_frame"]["secondary"].get<double>(), 0);
 }
 
 }  // namespace

@@ -637,5 +637,152 @@ TEST(Renderer, GhostsShadowVirtualObjectsAndRealMirrorsReflectThem) {
     EXPECT_EQ(pixelBytes(out.composite, kW - 5, y)[0], 90);  // the bare mirror: the camera pixel
 }
 
+// RT²AR's bench scene in miniature: a metal ball on a slightly reflective real table under a
+// spherical lamp, optionally with a second ghost (a diffuse box) so the table is no longer the
+// only ghost and reflections of ghosts in ghosts are possible.
+SceneDescription reflectiveTableScene(bool second_ghost) {
+    SceneDescription scene;
+    Material table = material(MaterialType::kDiffuse, "table");
+    table.albedo = Rgb::Constant(0.55f);
+    table.reflectance = 0.15f;
+    scene.materials["table"] = table;
+    SceneObject plane = object("table", ObjectRole::kGhost, ShapeType::kPlane, "table", {0, 0, 0});
+    plane.shape.size = {3, 2, 0};
+    scene.objects.push_back(plane);
+    scene.materials["metal"] = material(MaterialType::kMetal, "metal");
+    SceneObject ball =
+        object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "metal", {0, 0, 0.1});
+    ball.shape.radius = 0.1f;
+    scene.objects.push_back(ball);
+    if (second_ghost) {
+        scene.materials["box"] = material(MaterialType::kDiffuse, "box");
+        SceneObject box =
+            object("box", ObjectRole::kGhost, ShapeType::kBox, "box", {-0.4, 0.3, 0.1});
+        box.shape.size = {0.2f, 0.2f, 0.2f};
+        scene.objects.push_back(box);
+    }
+    Light lamp = pointLight({0.6, -0.4, 1.2}, 3);
+    lamp.type = LightType::kSphere;
+    lamp.radius = 0.08f;
+    scene.lights.push_back(lamp);
+    return scene;
+}
+
+Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+    const Eigen::Vector3d forward = (target - eye).normalized();
+    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear().col(0) = right;
+    T.linear().col(1) = forward.cross(right);
+    T.linear().col(2) = forward;
+    T.translation() = eye;
+    return T;
+}
+
+// The screen footprint only skips tiles whose pixels the per-pixel test would not trace, and
+// the per-pixel test only skips pixels whose mixed and real radiance agree bit for bit, so
+// every switch gives the same bytes.
+TEST(Renderer, ScreenFootprintSkipsTilesButNotOnePixelChanges) {
+    for (bool second_ghost : {false, true})
+        for (SoftShadowMethod method : {SoftShadowMethod::kHard, SoftShadowMethod::kAdaptive})
+            for (bool distorted : {false, true}) {
+                Image images[3];
+                RenderStats stats[3];
+                for (int i = 0; i < 3; ++i) {
+                    RenderOptions options;
+                    options.soft_shadows = method;
+                    options.shadow_samples = 8;
+                    options.samples_per_pixel = 4;
+                    options.tile_size = 8;
+                    options.screen_footprint = i == 0;
+                    options.only_virtual_footprint = i < 2;
+                    auto renderer = makeRenderer(reflectiveTableScene(second_ghost), options);
+                    ASSERT_TRUE(renderer);
+                    // The distorted camera looks flatter, so tiles cross the table's horizon.
+                    Frame frame =
+                        distorted
+                            ? makeFrame(lookAt({0.4, -1.2, 0.35}, {0, 0, 0.1}), noiseImage(), 120)
+                            : makeFrame(lookAt({0.3, -0.9, 0.7}, {0, 0, 0.05}), noiseImage(), 150);
+                    if (distorted)
+                        frame.inputs.camera.distortion = {-0.15, 0.03, 0.001, -0.001};
+                    RenderLayers out;
+                    ASSERT_TRUE(renderer->render(frame.inputs, out, &stats[i]));
+                    images[i] = out.composite;
+                }
+                const std::string what =
+                    std::string(second_ghost ? "two ghosts" : "lone table") +
+                    (method == SoftShadowMethod::kHard ? ", hard" : ", adaptive") +
+                    (distorted ? ", distorted lens" : "");
+                EXPECT_TRUE(sameImage(images[0].view(), images[1].view())) << what;
+                EXPECT_TRUE(sameImage(images[0].view(), images[2].view())) << what;
+                EXPECT_FALSE(sameImage(images[0].view(), noiseImage().view())) << what;
+                // Tiles without virtual content trace no primary ray at all.
+                EXPECT_LT(stats[0].primary_rays, stats[1].primary_rays) << what;
+                EXPECT_EQ(stats[1].primary_rays, static_cast<uint64_t>(4 * kW * kH)) << what;
+                EXPECT_EQ(stats[0].pixels_traced, stats[1].pixels_traced) << what;
+                EXPECT_LT(stats[1].pixels_traced, stats[2].pixels_traced) << what;
+            }
+}
+
+TEST(Renderer, RayLogHoldsExactlyTheRaysTheStatsCount) {
+    RenderOptions options;
+    options.soft_shadows = SoftShadowMethod::kAdaptive;
+    options.shadow_samples = 8;
+    auto renderer = makeRenderer(reflectiveTableScene(true), options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookAt({0.3, -0.9, 0.7}, {0, 0, 0.05}), noiseImage(), 150);
+    RenderLayers plain, logged;
+    RenderStats plain_stats, stats;
+    ASSERT_TRUE(renderer->render(frame.inputs, plain, &plain_stats));
+    RayLog log;
+    log.rays.resize(3);  // stale entries from an earlier frame are replaced
+    frame.inputs.ray_log = &log;
+    ASSERT_TRUE(renderer->render(frame.inputs, logged, &stats));
+    EXPECT_TRUE(sameImage(plain.composite.view(), logged.composite.view()));
+    EXPECT_EQ(stats.rays(), plain_stats.rays());
+    EXPECT_GT(stats.secondary_rays, 0u);
+    EXPECT_GT(stats.shadow_rays, 0u);
+    EXPECT_EQ(log.count(RayLog::Kind::kPrimary), stats.primary_rays);
+    EXPECT_EQ(log.count(RayLog::Kind::kSecondary), stats.secondary_rays);
+    EXPECT_EQ(log.count(RayLog::Kind::kShadow), stats.shadow_rays);
+    EXPECT_EQ(log.rays.size(), stats.rays());
+    size_t ghost_rays = 0;
+    for (const RayLog::Ray& r : log.rays) {
+        const Eigen::Vector3f d(r.direction[0], r.direction[1], r.direction[2]);
+        EXPECT_NEAR(d.norm(), 1.f, 1e-4f);
+        EXPECT_GT(r.t_far, 0.f);
+        ghost_rays += r.ghosts_only ? 1 : 0;
+    }
+    EXPECT_GT(ghost_rays, 0u);  // real-only rays of the differential pair
+    // Bare Embree traces them all on the same BVH.
+    const BareTraceTimes bare = renderer->traceBare(log, 1);
+    EXPECT_GT(bare.total(), 0.0);
+    EXPECT_FALSE(bare.primary_method.empty());
+    EXPECT_FALSE(bare.shadow_method.empty());
+}
+
+TEST(Renderer, ShadowsCanBeSwitchedOff) {
+    SceneDescription scene = shadowScene({1, 0, -2}, 2, 1);
+    RenderOptions options;
+    options.shadows = false;
+    options.soft_shadows = SoftShadowMethod::kHard;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    const float lit = 0.6f / optics::kPi * (2 * 2 / std::sqrt(5.f) + 1);
+    Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(optics::encodeSrgb8(lit)));
+    RenderLayers out;
+    RenderStats stats;
+    ASSERT_TRUE(renderer->render(frame.inputs, out, &stats));
+    EXPECT_EQ(stats.shadow_rays, 0u);
+    EXPECT_GT(stats.primary_rays, 0u);
+    // Where the shadow of light a would fall, (0.25, 0, 0), the floor is the camera pixel.
+    const auto shadow = frame.inputs.camera.project(frame.inputs.T_world_cam.inverse() *
+                                                    Eigen::Vector3d(0.25, 0, 0));
+    ASSERT_TRUE(shadow);
+    const int x = static_cast<int>(std::lround(shadow->x())),
+              y = static_cast<int>(std::lround(shadow->y()));
+    EXPECT_EQ(pixelBytes(out.composite, x, y)[0], optics::encodeSrgb8(lit));
+}
+
 }  // namespace
 }  // namespace mixray::render::test

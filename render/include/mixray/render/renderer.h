@@ -22,7 +22,9 @@ struct FloatImage {
     int height = 0;
     int channels = 3;
     std::vector<float> pixels;
-    float* at(int x, int y) { return pixels.data() + (static_cast<size_t>(y) * width + x) * channels; }
+    float* at(int x, int y) {
+        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
+    }
     const float* at(int x, int y) const {
         return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
     }
@@ -43,22 +45,57 @@ enum class DepthSecondaryRays : uint8_t {
 };
 
 struct RenderOptions {
-    int max_depth = 3;              // secondary bounces after the primary hit
-    int samples_per_pixel = 1;      // stratified jittered supersampling; a square number
+    int max_depth = 3;          // secondary bounces after the primary hit
+    bool shadows = true;        // false: lights are never occluded (no shadow rays)
+    int samples_per_pixel = 1;  // stratified jittered supersampling; a square number
     SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
-    int shadow_samples = 20;        // rays per spherical light for kUniform / penumbra pixels
-    bool shadow_mean_filter = true; // smooth adaptive penumbrae (RT²AR)
+    int shadow_samples = 20;         // rays per spherical light for kUniform / penumbra pixels
+    bool shadow_mean_filter = true;  // smooth adaptive penumbrae (RT²AR)
     DepthSecondaryRays depth_secondary = DepthSecondaryRays::kScreenSpace;
     float depth_thickness_m = 0.05f;  // how thick a depth sample is taken to be for rays
     // Trace only pixels whose rays can touch virtual content (the screen footprint of virtual
     // objects, their shadows and reflections on ghosts); the rest is the camera image as is.
     bool only_virtual_footprint = true;
+    // With only_virtual_footprint: skip whole tiles whose rays provably cannot meet virtual
+    // content (bounding spheres, their mirror images in flat reflective ghosts and the ghost
+    // regions their shadows can reach), without tracing their primary rays. Same image.
+    bool screen_footprint = true;
     bool keep_layers = false;  // also return I_m, I_r and M
     int threads = 0;           // 0: all hardware threads
     int tile_size = 16;        // pixels per tile side
     uint64_t seed = 1;         // sampling is deterministic for a given seed
 
     Status validate() const;
+};
+
+// Every ray one frame traced, in a deterministic order, so a benchmark can trace the same rays
+// with bare Embree on the same BVH. Filled only on request (RenderInputs::ray_log).
+struct RayLog {
+    enum class Kind : uint8_t { kPrimary, kSecondary, kShadow };
+    struct Ray {
+        float origin[3];
+        float direction[3];
+        float t_far;
+        Kind kind;
+        bool ghosts_only;  // traced in the scene of ghosts (real-only radiance), else all objects
+    };
+    std::vector<Ray> rays;
+
+    uint64_t count(Kind kind) const;
+};
+
+// Seconds bare Embree took to trace a RayLog on the renderer's BVH with its threads: the best
+// of the ways tried for each kind (single rays, 16-ray packets, streams), as
+// wall-clock time and as the process's CPU time (which other programs on the machine disturb
+// less).
+struct BareTraceTimes {
+    double primary_s = 0;
+    double secondary_s = 0;
+    double shadow_s = 0;
+    double primary_cpu_s = 0, secondary_cpu_s = 0, shadow_cpu_s = 0;
+    std::string primary_method, secondary_method, shadow_method;
+    double total() const { return primary_s + secondary_s + shadow_s; }
+    double totalCpu() const { return primary_cpu_s + secondary_cpu_s + shadow_cpu_s; }
 };
 
 // One frame to composite into.
@@ -70,10 +107,12 @@ struct RenderInputs {
     // Poses of the anchors objects are bound to, this frame ("marker:3" -> T_world_marker).
     // "world" is implicit. Objects whose anchor is missing are not drawn this frame.
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
+    // Debug hook: when set, every ray of this frame is appended (slower; off costs nothing).
+    RayLog* ray_log = nullptr;
 };
 
 struct RenderLayers {
-    Image composite;  // I_f as rgb8 sRGB, the size of the camera image
+    Image composite;       // I_f as rgb8 sRGB, the size of the camera image
     FloatImage mixed;      // I_m (keep_layers), linear
     FloatImage real_only;  // I_r (keep_layers), linear
     FloatImage mask;       // M in [0,1], one channel (keep_layers)
@@ -83,7 +122,8 @@ struct RenderStats {
     uint64_t pixels_traced = 0;
     uint64_t primary_rays = 0;
     uint64_t secondary_rays = 0;
-    uint64_t shadow_rays = 0;
+    uint64_t shadow_rays = 0;  // occlusion rays: towards lights, and towards the camera for
+                               // real surfaces seen through virtual ones
     double seconds = 0;
     uint64_t rays() const { return primary_rays + secondary_rays + shadow_rays; }
 };
@@ -104,6 +144,10 @@ public:
                           RenderStats* stats = nullptr) = 0;
 
     virtual const RenderOptions& options() const = 0;
+
+    // Traces `log` (from the last render()) with bare Embree on the same BVH and poses, with
+    // options().threads, `repeats` times; the fastest run per ray kind counts.
+    virtual BareTraceTimes traceBare(const RayLog& log, int repeats) const = 0;
 };
 
 }  // namespace mixray::render

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -15,6 +16,8 @@
 #include "mixray/graph/rig.h"
 
 namespace mixray::render {
+
+struct TriangleMesh;  // assets.h
 
 // Linear-light RGB (not sRGB-encoded).
 using Rgb = Eigen::Vector3f;
@@ -51,8 +54,10 @@ enum class ShapeType : uint8_t { kMesh, kSphere, kBox, kPlane, kDisk };
 struct Shape {
     ShapeType type = ShapeType::kSphere;
     std::filesystem::path mesh;  // kMesh: OBJ, PLY or glTF 2.0 file (loaded with assimp)
-    float scale = 1;             // kMesh: uniform scale applied to the file's coordinates
-    float radius = 0.05f;        // kSphere, kDisk: metres; sphere centred at the origin
+    // kMesh built in code (benchmarks, generated geometry): used instead of `mesh` when set.
+    std::shared_ptr<const TriangleMesh> mesh_data;
+    float scale = 1;       // kMesh: uniform scale applied to the file's coordinates
+    float radius = 0.05f;  // kSphere, kDisk: metres; sphere centred at the origin
     Eigen::Vector3f size{0.1f, 0.1f, 0.1f};  // kBox: edge lengths, centred; kPlane: x, y extent
     // kPlane and kDisk lie in the object's z = 0 plane, normal +z.
 };

@@ -1,0 +1,562 @@
+// mixray bench render: RT²AR's scenes (a metal teapot on a real chessboard table; two Stanford
+// dragons of ~1.1M triangles each beside it) rendered with a slowly orbiting camera, and the
+// rays of one frame traced again by bare Embree on the same BVH: the renderer's efficiency.
+#include "bench_render.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <sstream>
+#include <thread>
+
+#include "mixray/render/assets.h"
+#include "mixray/render/renderer.h"
+#include "test_data_paths.h"
+
+namespace mixray::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace mixray::render;
+
+struct BenchRenderOptions {
+    std::string sizes = "640x480,1280x720";
+    int frames = 20;
+    int threads = 0;
+    std::string scenes = "teapot,soft,dragons";
+    bool json = false;
+    int repeats = 3;
+    std::string shared_data;
+};
+
+struct Size {
+    int width = 0, height = 0;
+};
+
+// Comma-separated items, empty ones included ("a," is "a" and "").
+std::vector<std::string> splitList(const std::string& text) {
+    std::vector<std::string> items(1);
+    for (char c : text)
+        if (c == ',')
+            items.emplace_back();
+        else
+            items.back() += c;
+    return items;
+}
+
+Result<std::vector<Size>> parseSizes(const std::string& text) {
+    std::vector<Size> sizes;
+    for (const std::string& item : splitList(text)) {
+        Size s;
+        char x = 0;
+        std::stringstream one(item);
+        if (!(one >> s.width >> x >> s.height) || x != 'x' || !one.eof() || s.width < 16 ||
+            s.height < 16 || s.width > 8192 || s.height > 8192)
+            return Status(ErrorCode::kInvalidArgument,
+                          "--size: '" + item + "' is not WIDTHxHEIGHT with sides in [16, 8192]");
+        sizes.push_back(s);
+    }
+    return sizes;
+}
+
+Result<std::vector<std::string>> parseScenes(const std::string& text) {
+    static const std::vector<std::string> known = {"teapot", "soft", "dragons"};
+    std::vector<std::string> scenes = splitList(text);
+    for (const std::string& item : scenes)
+        if (std::find(known.begin(), known.end(), item) == known.end())
+            return Status(ErrorCode::kInvalidArgument,
+                          "--scenes: unknown scene '" + item + "' (teapot, soft, dragons)");
+    return scenes;
+}
+
+// One midpoint split: every triangle into four (shared edge midpoints are computed from the
+// same two endpoints, so neighbours agree), or one triangle into two across its longest edge.
+// The second leaves T-junctions whose cracks are below float precision: fine for throughput.
+struct Subdivider {
+    TriangleMesh& mesh;
+
+    uint32_t midpoint(uint32_t a, uint32_t b) {
+        mesh.positions.push_back(0.5f * (mesh.positions[a] + mesh.positions[b]));
+        if (!mesh.normals.empty()) {
+            const Eigen::Vector3f n = mesh.normals[a] + mesh.normals[b];
+            mesh.normals.push_back(n.squaredNorm() > 0 ? n.normalized() : mesh.normals[a]);
+        }
+        if (!mesh.uvs.empty())
+            mesh.uvs.push_back(0.5f * (mesh.uvs[a] + mesh.uvs[b]));
+        return static_cast<uint32_t>(mesh.positions.size() - 1);
+    }
+    void splitAllInFour() {
+        std::map<std::pair<uint32_t, uint32_t>, uint32_t> mids;
+        const auto mid = [&](uint32_t a, uint32_t b) {
+            const auto key = std::minmax(a, b);
+            const auto it = mids.find(key);
+            if (it != mids.end())
+                return it->second;
+            return mids[key] = midpoint(key.first, key.second);
+        };
+        std::vector<std::array<uint32_t, 3>> out;
+        out.reserve(mesh.triangles.size() * 4);
+        for (const auto t : mesh.triangles) {
+            const uint32_t ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+            out.push_back({t[0], ab, ca});
+            out.push_back({ab, t[1], bc});
+            out.push_back({ca, bc, t[2]});
+            out.push_back({ab, bc, ca});
+        }
+        mesh.triangles = std::move(out);
+    }
+    void splitInTwo(size_t i) {
+        auto t = mesh.triangles[i];
+        const auto len = [&](int e) {
+            return (mesh.positions[t[e]] - mesh.positions[t[(e + 1) % 3]]).squaredNorm();
+        };
+        const int e = len(0) >= len(1) && len(0) >= len(2) ? 0 : (len(1) >= len(2) ? 1 : 2);
+        const uint32_t a = t[e], b = t[(e + 1) % 3], c = t[(e + 2) % 3];
+        const uint32_t m = midpoint(a, b);
+        mesh.triangles[i] = {a, m, c};
+        mesh.triangles.push_back({m, b, c});
+    }
+    float area(size_t i) const {
+        const auto& t = mesh.triangles[i];
+        return (mesh.positions[t[1]] - mesh.positions[t[0]])
+            .cross(mesh.positions[t[2]] - mesh.positions[t[0]])
+            .squaredNorm();
+    }
+    void subdivideTo(size_t target) {
+        while (mesh.triangles.size() * 4 <= target)
+            splitAllInFour();
+        while (mesh.triangles.size() * 2 <= target) {
+            const size_t n = mesh.triangles.size();
+            for (size_t i = 0; i < n; ++i)
+                splitInTwo(i);
+        }
+        const size_t extra = target - mesh.triangles.size();
+        std::vector<size_t> order(mesh.triangles.size());
+        std::iota(order.begin(), order.end(), 0);
+        std::nth_element(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(extra),
+                         order.end(), [&](size_t a, size_t b) { return area(a) > area(b); });
+        for (size_t k = 0; k < extra; ++k)
+            splitInTwo(order[k]);
+    }
+};
+
+Eigen::Isometry3d pose(const Eigen::Vector3d& translation, double rot_x_deg, double rot_z_deg) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translate(translation);
+    T.rotate(Eigen::AngleAxisd(rot_z_deg * M_PI / 180, Eigen::Vector3d::UnitZ()));
+    T.rotate(Eigen::AngleAxisd(rot_x_deg * M_PI / 180, Eigen::Vector3d::UnitX()));
+    return T;
+}
+
+// fixtures/scenes/teapot_chessboard.yaml, built in code so the bench needs no source tree.
+const Eigen::Vector3d kBoardCentre(0.125, 0.0875, 0);
+
+SceneDescription teapotScene(const fs::path& shared, bool sphere_light) {
+    SceneDescription scene;
+    Material metal;
+    metal.name = "teapot_metal";
+    metal.type = MaterialType::kMetal;
+    metal.f0 = {0.95f, 0.93f, 0.88f};
+    scene.materials[metal.name] = metal;
+    Material table;
+    table.name = "table";
+    table.albedo = Rgb::Constant(0.55f);
+    table.reflectance = 0.15f;
+    scene.materials[table.name] = table;
+    SceneObject teapot;
+    teapot.name = "teapot";
+    teapot.shape.type = ShapeType::kMesh;
+    teapot.shape.mesh = shared / "06_models" / "newell_teapot.obj";
+    teapot.shape.scale = 0.02f;
+    teapot.material = metal.name;
+    teapot.T_anchor_object = pose(kBoardCentre, 90, 0);
+    scene.objects.push_back(teapot);
+    SceneObject plane;
+    plane.name = "table";
+    plane.role = ObjectRole::kGhost;
+    plane.shape.type = ShapeType::kPlane;
+    plane.shape.size = {1.2f, 0.8f, 0};
+    plane.material = table.name;
+    plane.T_anchor_object = pose(kBoardCentre, 0, 0);
+    scene.objects.push_back(plane);
+    Light lamp;
+    lamp.name = "lamp";
+    lamp.type = sphere_light ? LightType::kSphere : LightType::kPoint;
+    lamp.position = {0.4, -0.3, 0.8};
+    lamp.radius = 0.08f;
+    lamp.intensity = Rgb::Constant(2.0f);
+    scene.lights.push_back(lamp);
+    return scene;
+}
+
+constexpr size_t kDragonTriangles = 1'100'000;
+
+Result<SceneDescription> dragonScene(const fs::path& shared) {
+    SceneDescription scene = teapotScene(shared, false);
+    auto loaded = loadMeshFile(shared / "06_models" / "photon_dragon_100k.obj");
+    if (!loaded)
+        return loaded.status();
+    auto mesh = std::make_shared<TriangleMesh>();
+    for (const LoadedMesh& part : *loaded) {
+        const auto base = static_cast<uint32_t>(mesh->positions.size());
+        mesh->positions.insert(mesh->positions.end(), part.mesh.positions.begin(),
+                               part.mesh.positions.end());
+        mesh->normals.insert(mesh->normals.end(), part.mesh.normals.begin(),
+                             part.mesh.normals.end());
+        for (auto t : part.mesh.triangles)
+            mesh->triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+    }
+    if (mesh->normals.size() != mesh->positions.size())
+        mesh->normals.clear();
+    Subdivider{*mesh}.subdivideTo(kDragonTriangles);
+    Material jade;
+    jade.name = "dragon";
+    jade.type = MaterialType::kPhong;
+    jade.albedo = {0.25f, 0.55f, 0.3f};
+    scene.materials[jade.name] = jade;
+    for (int i = 0; i < 2; ++i) {
+        SceneObject dragon;
+        dragon.name = "dragon" + std::to_string(i);
+        dragon.shape.type = ShapeType::kMesh;
+        dragon.shape.mesh_data = mesh;
+        dragon.shape.mesh = "photon_dragon_100k.obj (subdivided)";
+        dragon.shape.scale = 0.01f;
+        dragon.material = jade.name;
+        dragon.T_anchor_object = pose(
+            kBoardCentre + Eigen::Vector3d(i == 0 ? -0.16 : 0.16, 0.06, 0), 90, i == 0 ? 30 : -30);
+        scene.objects.push_back(dragon);
+    }
+    return scene;
+}
+
+double processCpuSeconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+struct Config {
+    std::string scene;  // teapot, soft, dragons
+    std::string name;
+    RenderOptions options;
+};
+
+std::vector<Config> configsFor(const std::string& scene, int threads) {
+    RenderOptions base;
+    base.threads = threads;
+    base.soft_shadows = SoftShadowMethod::kHard;
+    std::vector<Config> out;
+    if (scene == "teapot") {
+        RenderOptions primary = base;
+        primary.max_depth = 0;
+        primary.shadows = false;
+        RenderOptions shadows = base;
+        shadows.max_depth = 0;
+        RenderOptions bounces = base;
+        bounces.max_depth = 3;
+        out.push_back({scene, "primary only", primary});
+        out.push_back({scene, "+ hard shadows", shadows});
+        out.push_back({scene, "+ shadows + 3 bounces", bounces});
+    } else if (scene == "soft") {
+        RenderOptions uniform = base;
+        uniform.soft_shadows = SoftShadowMethod::kUniform;
+        uniform.shadow_samples = 20;
+        RenderOptions adaptive = uniform;
+        adaptive.soft_shadows = SoftShadowMethod::kAdaptive;
+        out.push_back({scene, "soft shadows, 20 samples uniform, 3 bounces", uniform});
+        out.push_back({scene, "soft shadows, 20 samples adaptive, 3 bounces", adaptive});
+    } else {
+        out.push_back(
+            {scene, "2 dragons (1.1M triangles each) + teapot, shadows + 3 bounces", base});
+    }
+    return out;
+}
+
+// A camera 0.5 m from the board centre, 45° above the table, orbiting a little each frame.
+Eigen::Isometry3d cameraPose(int frame) {
+    const double azimuth = (-100 + 0.7 * frame) * M_PI / 180;
+    const double elevation = (45 + 2 * std::sin(frame * 0.3)) * M_PI / 180;
+    const Eigen::Vector3d target = kBoardCentre + Eigen::Vector3d(0, 0, 0.04);
+    const Eigen::Vector3d eye =
+        target + 0.5 * Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
+                                       std::cos(elevation) * std::sin(azimuth),
+                                       std::sin(elevation));
+    const Eigen::Vector3d forward = (target - eye).normalized();
+    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+    const Eigen::Vector3d down = forward.cross(right);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear().col(0) = right;
+    T.linear().col(1) = down;
+    T.linear().col(2) = forward;
+    T.translation() = eye;
+    return T;
+}
+
+// What the real camera would see: the 10x7 chessboard of 25 mm squares on a grey table.
+void paintCameraImage(const calibration::CameraModel& camera, const Eigen::Isometry3d& T_world_cam,
+                      Image& image) {
+    for (int y = 0; y < camera.height; ++y) {
+        uint8_t* row = image.bytes().data() + static_cast<size_t>(y) * camera.width * 3;
+        for (int x = 0; x < camera.width; ++x) {
+            const Eigen::Vector3d d =
+                T_world_cam.linear() *
+                Eigen::Vector3d((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1);
+            uint8_t v = 70;  // the room behind the table
+            const double t = -T_world_cam.translation().z() / d.z();
+            if (t > 0) {
+                const Eigen::Vector3d p = T_world_cam.translation() + t * d;
+                const Eigen::Vector3d q = p - kBoardCentre;
+                if (std::abs(q.x()) < 0.6 && std::abs(q.y()) < 0.4)
+                    v = 150;
+                if (p.x() >= 0 && p.x() < 0.25 && p.y() >= 0 && p.y() < 0.175)
+                    v = ((static_cast<int>(p.x() / 0.025) + static_cast<int>(p.y() / 0.025)) & 1)
+                            ? 30
+                            : 225;
+            }
+            row[3 * x] = row[3 * x + 1] = row[3 * x + 2] = v;
+        }
+    }
+}
+
+struct Figures {
+    std::string scene, config;
+    Size size;
+    int frames = 0;
+    double fps = 0;
+    double frame_ms = 0;
+    double pixels_traced = 0;                       // per frame
+    double primary = 0, secondary = 0, shadow = 0;  // rays per frame
+    double mrays_per_s = 0;
+    // The logged frame: its rays on the renderer and on bare Embree.
+    uint64_t logged_rays = 0;
+    double renderer_ms = 0;
+    double renderer_cpu_ms = 0;  // the process's CPU time
+    BareTraceTimes bare;
+    bool log_matches_stats = false;
+};
+
+Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, int frames,
+                         int repeats) {
+    const double f = 0.9 * size.width;
+    RenderInputs inputs;
+    inputs.camera = calibration::CameraModel::pinhole(
+        size.width, size.height, f, f, (size.width - 1) / 2.0, (size.height - 1) / 2.0);
+    Image image(ImageDesc::packed(PixelFormat::kRGB8, size.width, size.height));
+    inputs.camera_image = image.view();
+    RenderLayers out;
+    // Wall-clock and process CPU seconds of one render() call.
+    const auto frame = [&](int i, RenderStats& stats) -> Result<std::pair<double, double>> {
+        inputs.T_world_cam = cameraPose(i);
+        paintCameraImage(inputs.camera, inputs.T_world_cam, image);
+        const double cpu_start = processCpuSeconds();
+        const auto start = std::chrono::steady_clock::now();
+        MIXRAY_RETURN_IF_ERROR(renderer.render(inputs, out, &stats));
+        return std::pair{
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+            processCpuSeconds() - cpu_start};
+    };
+    RenderStats stats;
+    MIXRAY_RETURN_IF_ERROR(frame(-1, stats).status());  // warm-up: ray cache, page faults
+    Figures fig;
+    fig.scene = config.scene;
+    fig.config = config.name;
+    fig.size = size;
+    fig.frames = frames;
+    double total = 0;
+    for (int i = 0; i < frames; ++i) {
+        auto seconds = frame(i, stats);
+        if (!seconds)
+            return seconds.status();
+        total += seconds->first;
+        fig.pixels_traced += static_cast<double>(stats.pixels_traced);
+        fig.primary += static_cast<double>(stats.primary_rays);
+        fig.secondary += static_cast<double>(stats.secondary_rays);
+        fig.shadow += static_cast<double>(stats.shadow_rays);
+    }
+    fig.fps = frames / total;
+    fig.frame_ms = 1e3 * total / frames;
+    fig.mrays_per_s = (fig.primary + fig.secondary + fig.shadow) / total / 1e6;
+    for (double* v : {&fig.pixels_traced, &fig.primary, &fig.secondary, &fig.shadow})
+        *v /= frames;
+
+    // One frame logged, then the same frame (same pose, same seed: the same rays) timed
+    // without the log, best of `repeats` as for bare Embree.
+    RayLog log;
+    inputs.ray_log = &log;
+    MIXRAY_RETURN_IF_ERROR(frame(frames / 2, stats).status());
+    inputs.ray_log = nullptr;
+    fig.logged_rays = log.rays.size();
+    fig.log_matches_stats = log.count(RayLog::Kind::kPrimary) == stats.primary_rays &&
+                            log.count(RayLog::Kind::kSecondary) == stats.secondary_rays &&
+                            log.count(RayLog::Kind::kShadow) == stats.shadow_rays;
+    double best = 1e30, best_cpu = 1e30;
+    for (int r = 0; r < repeats; ++r) {
+        auto seconds = frame(frames / 2, stats);
+        if (!seconds)
+            return seconds.status();
+        best = std::min(best, seconds->first);
+        best_cpu = std::min(best_cpu, seconds->second);
+    }
+    fig.renderer_ms = 1e3 * best;
+    fig.renderer_cpu_ms = 1e3 * best_cpu;
+    fig.bare = renderer.traceBare(log, repeats);
+    return fig;
+}
+
+void printFigures(const Figures& f) {
+    std::printf("%s: %s, %dx%d, %d frames\n", f.scene.c_str(), f.config.c_str(), f.size.width,
+                f.size.height, f.frames);
+    const double pixels = static_cast<double>(f.size.width) * f.size.height;
+    std::printf("  fps %8.1f   frame %7.2f ms   pixels traced %9.0f (%4.1f %%)\n", f.fps,
+                f.frame_ms, f.pixels_traced, 100 * f.pixels_traced / pixels);
+    std::printf("  rays/frame  primary %9.0f  secondary %9.0f  shadow %9.0f   %7.2f Mrays/s\n",
+                f.primary, f.secondary, f.shadow, f.mrays_per_s);
+    const double bare_ms = 1e3 * f.bare.total();
+    std::printf(
+        "  same %llu rays, bare Embree %7.2f ms (primary %s %.2f, secondary %s %.2f, shadow %s "
+        "%.2f) vs renderer %7.2f ms: efficiency %5.1f %%%s\n",
+        static_cast<unsigned long long>(f.logged_rays), bare_ms, f.bare.primary_method.c_str(),
+        1e3 * f.bare.primary_s, f.bare.secondary_method.c_str(), 1e3 * f.bare.secondary_s,
+        f.bare.shadow_method.c_str(), 1e3 * f.bare.shadow_s, f.renderer_ms,
+        f.renderer_ms > 0 ? 100 * bare_ms / f.renderer_ms : 0.0,
+        f.log_matches_stats ? "" : "  (ray log does not match the stats!)");
+    const double bare_cpu_ms = 1e3 * f.bare.totalCpu();
+    std::printf(
+        "  same rays, CPU time: bare Embree %7.2f ms vs renderer %7.2f ms: efficiency "
+        "%5.1f %%\n",
+        bare_cpu_ms, f.renderer_cpu_ms,
+        f.renderer_cpu_ms > 0 ? 100 * bare_cpu_ms / f.renderer_cpu_ms : 0.0);
+}
+
+nlohmann::json toJson(const Figures& f) {
+    return {{"scene", f.scene},
+            {"config", f.config},
+            {"width", f.size.width},
+            {"height", f.size.height},
+            {"frames", f.frames},
+            {"fps", f.fps},
+            {"frame_ms", f.frame_ms},
+            {"pixels_traced", f.pixels_traced},
+            {"rays_per_frame",
+             {{"primary", f.primary}, {"secondary", f.secondary}, {"shadow", f.shadow}}},
+            {"mrays_per_s", f.mrays_per_s},
+            {"logged_rays", f.logged_rays},
+            {"log_matches_stats", f.log_matches_stats},
+            {"renderer_ms", f.renderer_ms},
+            {"bare_ms",
+             {{"primary", 1e3 * f.bare.primary_s},
+              {"secondary", 1e3 * f.bare.secondary_s},
+              {"shadow", 1e3 * f.bare.shadow_s},
+              {"total", 1e3 * f.bare.total()}}},
+            {"bare_methods",
+             {{"primary", f.bare.primary_method},
+              {"secondary", f.bare.secondary_method},
+              {"shadow", f.bare.shadow_method}}},
+            {"efficiency", f.renderer_ms > 0 ? 1e3 * f.bare.total() / f.renderer_ms : 0.0},
+            {"renderer_cpu_ms", f.renderer_cpu_ms},
+            {"bare_cpu_ms", 1e3 * f.bare.totalCpu()},
+            {"efficiency_cpu",
+             f.renderer_cpu_ms > 0 ? 1e3 * f.bare.totalCpu() / f.renderer_cpu_ms : 0.0}};
+}
+
+int runBenchRender(BenchRenderOptions options) {
+    auto sizes = parseSizes(options.sizes);
+    if (!sizes)
+        return fail("bench render", sizes.status());
+    auto scenes = parseScenes(options.scenes);
+    if (!scenes)
+        return fail("bench render", scenes.status());
+    const fs::path shared =
+        options.shared_data.empty() ? defaultSharedDataDir() : fs::path(options.shared_data);
+    const unsigned threads = options.threads > 0
+                                 ? static_cast<unsigned>(options.threads)
+                                 : std::max(1u, std::thread::hardware_concurrency());
+    if (!options.json)
+        std::printf(
+            "bench render: %u threads; efficiency = bare Embree time / renderer time "
+            "for the same rays\n",
+            threads);
+    nlohmann::json results = nlohmann::json::array();
+    for (const std::string& name : *scenes) {
+        std::vector<fs::path> needed = {shared / "06_models" / "newell_teapot.obj"};
+        if (name == "dragons")
+            needed.push_back(shared / "06_models" / "photon_dragon_100k.obj");
+        const auto missing = std::find_if(needed.begin(), needed.end(),
+                                          [](const fs::path& p) { return !fs::exists(p); });
+        if (missing != needed.end()) {
+            const std::string why = missing->string() +
+                                    " not found (real data under ../shared/data, see its "
+                                    "MANIFEST.md; or --shared-data)";
+            if (options.json)
+                results.push_back({{"scene", name}, {"skipped", why}});
+            else
+                std::printf("%s: skipped: %s\n", name.c_str(), why.c_str());
+            continue;
+        }
+        Result<SceneDescription> scene =
+            name == "dragons" ? dragonScene(shared)
+                              : Result<SceneDescription>(teapotScene(shared, name == "soft"));
+        if (!scene)
+            return fail("bench render", scene.status());
+        for (const Config& config : configsFor(name, options.threads)) {
+            auto renderer = Renderer::create(*scene, config.options);
+            if (!renderer)
+                return fail("bench render", renderer.status());
+            for (const Size& size : *sizes) {
+                auto figures = benchOne(**renderer, config, size, options.frames, options.repeats);
+                if (!figures)
+                    return fail("bench render", figures.status());
+                if (options.json) {
+                    results.push_back(toJson(*figures));
+                } else {
+                    printFigures(*figures);
+                    std::fflush(stdout);
+                }
+            }
+        }
+    }
+    if (options.json)
+        std::printf("%s\n", results.dump(2).c_str());
+    return kExitOk;
+}
+
+}  // namespace
+
+void registerBenchRender(CLI::App& bench, Commands& commands) {
+    auto* render = bench.add_subcommand(
+        "render",
+        "Frames/s and rays/s of the Embree renderer on RT²AR's scenes (teapot on a chessboard "
+        "table; soft shadows; two 1.1M-triangle dragons), against bare Embree tracing the same "
+        "rays on the same BVH in the same run");
+    auto options = std::make_shared<BenchRenderOptions>();
+    render->add_option("--size", options->sizes, "Image sizes, WIDTHxHEIGHT[,WIDTHxHEIGHT...]")
+        ->capture_default_str();
+    render->add_option("--frames", options->frames, "Timed frames per scene and size")
+        ->check(CLI::Range(1, 100'000))
+        ->capture_default_str();
+    render->add_option("--threads", options->threads, "Render threads (0: all hardware threads)")
+        ->check(CLI::Range(0, 1024))
+        ->capture_default_str();
+    render->add_option("--scenes", options->scenes, "Scenes: teapot, soft, dragons (comma list)")
+        ->capture_default_str();
+    render
+        ->add_option("--repeats", options->repeats,
+                     "Runs of the logged frame, on the renderer and on bare Embree; the best "
+                     "counts")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    render->add_flag("--json", options->json, "Print the figures as JSON");
+    render->add_option("--shared-data", options->shared_data,
+                       "Real third-party data (default: ../shared/data beside the source tree)");
+    commands.push_back({render, [options] { return runBenchRender(*options); }});
+}
+
+}  // namespace mixray::cli
