@@ -149,9 +149,9 @@ Result<PoseRecord> decodePoseRecord(const uint8_t* data, size_t size) {
     r.error = getF32(data + kOffError);
     for (int i = 0; i < 3; ++i)
         r.translation[i] = getF64(data + kOffTranslation + 8 * i);
-    r.rotation = Eigen::Quaterniond(getF64(data + kOffRotation + 24), getF64(data + kOffRotation),
-                                    getF64(data + kOffRotation + 8),
-                                    getF64(data + kOffRotation + 16));
+    r.rotation =
+        Eigen::Quaterniond(getF64(data + kOffRotation + 24), getF64(data + kOffRotation),
+                           getF64(data + kOffRotation + 8), getF64(data + kOffRotation + 16));
     const auto* anchor = reinterpret_cast<const char*>(data + kOffAnchor);
     const size_t length = strnlen(anchor, kAnchorField);
     if (length == kAnchorField)

@@ -32,9 +32,9 @@ struct PoseRecord {
     uint64_t frame_sequence = 0;        // FrameMetadata::sequence of the frame it belongs to
     int64_t frame_device_stamp_ns = 0;  // that frame's device stamp
     PoseStatus status = PoseStatus::kValid;
-    int32_t marker_id = -1;  // -1 when the anchor is not a marker
+    int32_t marker_id = -1;        // -1 when the anchor is not a marker
     std::string anchor = "world";  // 1 to kPoseAnchorMaxChars printable ASCII characters
-    Eigen::Vector3d translation = Eigen::Vector3d::Zero();  // metres
+    Eigen::Vector3d translation = Eigen::Vector3d::Zero();         // metres
     Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // unit
     float error = -1;  // the estimator's residual (RMS reprojection, px); -1 unknown, 0 truth
 
