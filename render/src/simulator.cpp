@@ -3,10 +3,6 @@
 // and Kinect-like depth traced through the same geometry.
 #include "mixray/render/simulator.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>

@@ -16,18 +16,25 @@ namespace fs = std::filesystem;
 using Eigen::Isometry3d;
 using Eigen::Vector3d;
 
-// Shortest text that reads back as the same double: truth files stay exact.
-std::string num(double v) {
-    char buf[32];
+// Shortest text that reads back as the same number (floats as floats, so 0.9f is "0.9"):
+// truth files stay exact. Exponents get a mantissa with a point ("6.0e-04"), which YAML 1.1
+// readers need to see a float.
+template <typename T>
+std::string num(T v) {
+    char buf[40];
     const auto r = std::to_chars(buf, buf + sizeof buf, v);
-    return std::string(buf, r.ptr);
+    std::string s(buf, r.ptr);
+    const size_t e = s.find('e');
+    if (e != std::string::npos && s.find('.') == std::string::npos)
+        s.insert(e, ".0");
+    return s;
 }
 
 template <typename V>
 std::string list(const V& v) {
     std::string s = "[";
     for (int i = 0; i < static_cast<int>(v.size()); ++i)
-        s += (i ? ", " : "") + num(static_cast<double>(v[i]));
+        s += (i ? ", " : "") + num(v[i]);
     return s + "]";
 }
 
