@@ -569,12 +569,15 @@ SceneDescription frameScene(const SimTruth& t, const SimFrameTruth& f) {
     return scene;
 }
 
-constexpr int kBackgroundSamples = 2;  // per pixel side
-
 class SimulatorImpl : public Simulator {
 public:
     SimulatorImpl(const SimulatorOptions& options, detail::SimSetup setup, fs::path temp)
-        : options_(options), setup_(std::move(setup)), temp_(std::move(temp)) {}
+        : options_(options),
+          setup_(std::move(setup)),
+          temp_(std::move(temp)),
+          // The background is antialiased like the renderer's samples (n x n per pixel).
+          background_samples_(static_cast<int>(std::lround(std::sqrt(options.samples_per_pixel)))) {
+    }
     ~SimulatorImpl() override {
         renderers_.clear();
         if (!temp_.empty()) {
@@ -622,11 +625,11 @@ public:
     Status init() {
         const SimTruth& t = setup_.truth;
         color_rays_ = detail::pixelRays(t.color);
-        background_rays_.push_back(detail::pixelRays(t.color, kBackgroundSamples));
+        background_rays_.push_back(detail::pixelRays(t.color, background_samples_));
         background_rays_.push_back(t.scenario == SimScenario::kCalibration
-                                       ? detail::pixelRays(t.ir, kBackgroundSamples)
+                                       ? detail::pixelRays(t.ir, background_samples_)
                                        : std::vector<Eigen::Vector3f>{});
-        background_rays_.push_back(detail::pixelRays(t.env, kBackgroundSamples));
+        background_rays_.push_back(detail::pixelRays(t.env, background_samples_));
         return Status::ok();
     }
 
@@ -663,7 +666,7 @@ private:
                                const Isometry3d& T_world_cam) {
         const Image background =
             detail::environmentView(setup_.environment, model, background_rays_[which],
-                                    kBackgroundSamples, T_world_cam, options_.threads);
+                                    background_samples_, T_world_cam, options_.threads);
         RenderInputs in;
         in.camera_image = background.view();
         in.camera = model;
@@ -676,6 +679,7 @@ private:
     SimulatorOptions options_;
     detail::SimSetup setup_;
     fs::path temp_;
+    int background_samples_ = 2;
     std::vector<std::unique_ptr<Renderer>> renderers_;  // colour, IR, environment
     std::unique_ptr<detail::SimGeometry> geometry_;
     std::vector<Eigen::Vector3f> color_rays_;                    // pixel centres, for depth
