@@ -574,7 +574,8 @@ TEST(Simulator, CalibrationBoardCornersLandWhereTheTruthProjectsThem) {
     const SimTruth& t = (*sim)->truth();
     ASSERT_TRUE(t.board);
     EXPECT_EQ(t.boardCorners().size(), 24u);
-    for (int view : {0, 2}) {
+    {
+        const int view = 2;  // held over the fish-eye: seen by all three cameras
         const SimFrameTruth& f = t.frames[static_cast<size_t>(view)];
         ASSERT_TRUE(f.T_world_board);
         auto frame = (*sim)->render(view);
