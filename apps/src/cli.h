@@ -40,5 +40,6 @@ void registerInfoCommand(CLI::App& app, Commands& commands);
 void registerPlayCommand(CLI::App& app, Commands& commands);
 void registerRecordCommand(CLI::App& app, Commands& commands);
 void registerRenderCommand(CLI::App& app, Commands& commands);
+void registerSimulateCommand(CLI::App& app, Commands& commands);
 
 }  // namespace mixray::cli

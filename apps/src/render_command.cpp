@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "cli.h"
@@ -12,6 +13,7 @@
 #include "mixray/render/renderer.h"
 #include "mixray/render/scene_file.h"
 #include "mixray/replay/open_recording.h"
+#include "pose_track.h"
 
 namespace mixray::cli {
 namespace {
@@ -32,6 +34,7 @@ struct RenderCommandOptions {
     int shadow_samples = 20;
     int threads = 0;
     uint64_t max_frames = 0;  // 0: all
+    std::string pose_stream;  // empty: the only pose stream, when the scene has no camera pose
 };
 
 Result<render::SoftShadowMethod> shadowMethod(const std::string& name) {
@@ -96,9 +99,18 @@ int runRender(const RenderCommandOptions& options) {
         return fail("render", scene.status());
     if (!scene->camera || !scene->camera->model) {
         return fail("render", {ErrorCode::kInvalidArgument,
-                               options.scene + ": the scene needs a camera with a pose and a model "
-                                               "(recordings carry no camera pose or calibration "
-                                               "yet)"});
+                               options.scene + ": the scene needs a camera with a model "
+                                               "(recordings carry no calibration yet)"});
+    }
+    // Without a fixed pose (or when asked), the camera follows the recording's pose stream.
+    std::optional<PoseTrack> poses;
+    if (!scene->camera->has_pose || !options.pose_stream.empty()) {
+        auto track = readPoseTrack(options.session, options.pose_stream);
+        if (!track)
+            return fail("render", track.status().withContext(
+                                      "the scene's camera has no pose, so it must come from a "
+                                      "pose stream"));
+        poses = std::move(track).value();
     }
     auto reader = replay::openRecording(options.session);
     if (!reader)
@@ -163,6 +175,7 @@ int runRender(const RenderCommandOptions& options) {
     StatusLine status;
     FrameRef depth;
     uint64_t frames = 0;
+    uint64_t frames_without_pose = 0;
     double render_seconds = 0;
     double worst_seconds = 0;
     render::RenderLayers layers;
@@ -191,6 +204,15 @@ int runRender(const RenderCommandOptions& options) {
             inputs.depth_mm = depth.image();
         inputs.camera = camera;
         inputs.T_world_cam = scene->camera->T_world_cam;
+        if (poses) {
+            const auto T_world_cam =
+                poses->poseFor(color_info.name, frame->meta(), static_cast<int64_t>(0.5e9 / fps));
+            if (!T_world_cam) {
+                ++frames_without_pose;
+                continue;
+            }
+            inputs.T_world_cam = *T_world_cam;
+        }
         inputs.T_world_anchor = anchors;
         render::RenderStats stats;
         result = (*renderer)->render(inputs, layers, &stats);
@@ -232,6 +254,9 @@ int runRender(const RenderCommandOptions& options) {
         return fail("render", result);
     if (!closed)
         return fail("render", closed);
+    if (frames_without_pose > 0)
+        std::fprintf(stderr, "mixray render: %llu colour frames skipped: no pose in %s\n",
+                     static_cast<unsigned long long>(frames_without_pose), poses->stream.c_str());
     std::printf("%s: %llu frames composited (%s), mean %.1f ms, worst %.1f ms per frame\n",
                 options.output.c_str(), static_cast<unsigned long long>(frames),
                 std::string(render::toString((*video)->codec())).c_str(),
@@ -278,6 +303,9 @@ void registerRenderCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
         ->check(CLI::Range(0, 1024));
     sub->add_option("--max-frames", o->max_frames, "Stop after this many frames (0: all)");
+    sub->add_option("--pose-stream", o->pose_stream,
+                    "Pose stream that places the camera (default: the only one, used when the "
+                    "scene's camera has no pose)");
     commands.push_back({sub, [o] { return runRender(*o); }});
 }
 

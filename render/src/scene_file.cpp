@@ -615,6 +615,7 @@ Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {
         return fields.status();
     // Filled in place: moving an optional<CameraModel> trips GCC's maybe-uninitialized.
     FixedCamera& camera = scene.camera.emplace();
+    camera.has_pose = find(*fields, "pose") != nullptr;
     if (const Item* p = find(*fields, "pose")) {
         auto T = pose(*p);
         if (!T)

@@ -106,6 +106,9 @@ struct Light {
 // optionally, its intrinsics (else the recording's calibration is used).
 struct FixedCamera {
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    // False when a scene file's camera gave no pose: the pose then comes from the recording's
+    // pose stream (mixray render).
+    bool has_pose = true;
     std::optional<calibration::CameraModel> model;
 };
 

@@ -1,0 +1,183 @@
+// Pose records: encoding, decoding and validation of the kPose stream payload.
+#include "mixray/graph/pose.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "ffmpeg_util.h"
+
+namespace mixray {
+namespace {
+
+// "MXPO" read as a little-endian u32: a record that starts elsewhere is caught at once.
+constexpr uint32_t kMagic = 0x4f50584d;
+
+void putLe(uint8_t* out, uint64_t value, int bytes) {
+    for (int i = 0; i < bytes; ++i)
+        out[i] = static_cast<uint8_t>(value >> (8 * i));
+}
+uint64_t getLe(const uint8_t* in, int bytes) {
+    uint64_t value = 0;
+    for (int i = 0; i < bytes; ++i)
+        value |= static_cast<uint64_t>(in[i]) << (8 * i);
+    return value;
+}
+void putF64(uint8_t* out, double v) {
+    uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    putLe(out, bits, 8);
+}
+double getF64(const uint8_t* in) {
+    const uint64_t bits = getLe(in, 8);
+    double v;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+}
+void putF32(uint8_t* out, float v) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    putLe(out, bits, 4);
+}
+float getF32(const uint8_t* in) {
+    const auto bits = static_cast<uint32_t>(getLe(in, 4));
+    float v;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+}
+
+// Offsets in the record.
+constexpr size_t kOffVersion = 4, kOffStatus = 6, kOffReserved0 = 7, kOffSequence = 8,
+                 kOffStamp = 16, kOffMarker = 24, kOffError = 28, kOffTranslation = 32,
+                 kOffRotation = 56, kOffAnchor = 88, kOffReserved1 = 120, kOffCrc = 124;
+constexpr size_t kAnchorField = kOffReserved1 - kOffAnchor;  // 32 bytes, NUL-padded
+
+}  // namespace
+
+std::string_view toString(PoseStatus status) {
+    switch (status) {
+        case PoseStatus::kValid:
+            return "valid";
+        case PoseStatus::kStale:
+            return "stale";
+        case PoseStatus::kLost:
+            return "lost";
+    }
+    return "unknown";
+}
+
+Eigen::Isometry3d PoseRecord::transform() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = rotation.normalized().toRotationMatrix();
+    T.translation() = translation;
+    return T;
+}
+
+void PoseRecord::setTransform(const Eigen::Isometry3d& T_anchor_target) {
+    translation = T_anchor_target.translation();
+    rotation = Eigen::Quaterniond(T_anchor_target.linear()).normalized();
+    // One hemisphere for q and -q, so equal poses encode to equal bytes.
+    if (rotation.w() < 0)
+        rotation.coeffs() = -rotation.coeffs();
+}
+
+Status validate(const PoseRecord& r) {
+    const auto bad = [](const std::string& what) {
+        return Status(ErrorCode::kInvalidArgument, "pose record: " + what);
+    };
+    if (r.anchor.empty() || r.anchor.size() > kPoseAnchorMaxChars)
+        return bad("anchor must have 1 to " + std::to_string(kPoseAnchorMaxChars) +
+                   " characters, got " + std::to_string(r.anchor.size()));
+    for (char c : r.anchor)
+        if (c < 0x21 || c > 0x7e)
+            return bad("anchor '" + r.anchor + "' holds a character that is not printable ASCII");
+    if (static_cast<uint8_t>(r.status) > static_cast<uint8_t>(PoseStatus::kLost))
+        return bad("status " + std::to_string(static_cast<int>(r.status)) + " is out of range");
+    if (!r.translation.allFinite() || !r.rotation.coeffs().allFinite())
+        return bad("the transform is not finite");
+    if (std::abs(r.rotation.norm() - 1.0) > 1e-6)
+        return bad("the rotation quaternion is not unit (norm " +
+                   std::to_string(r.rotation.norm()) + ")");
+    if (!std::isfinite(r.error) || r.error < -1)
+        return bad("error must be finite and >= -1");
+    return Status::ok();
+}
+
+Result<std::array<uint8_t, kPoseRecordBytes>> encodePoseRecord(const PoseRecord& r) {
+    MIXRAY_RETURN_IF_ERROR(validate(r));
+    std::array<uint8_t, kPoseRecordBytes> out{};
+    putLe(out.data(), kMagic, 4);
+    putLe(out.data() + kOffVersion, kPoseRecordVersion, 2);
+    out[kOffStatus] = static_cast<uint8_t>(r.status);
+    out[kOffReserved0] = 0;
+    putLe(out.data() + kOffSequence, r.frame_sequence, 8);
+    putLe(out.data() + kOffStamp, static_cast<uint64_t>(r.frame_device_stamp_ns), 8);
+    putLe(out.data() + kOffMarker, static_cast<uint32_t>(r.marker_id), 4);
+    putF32(out.data() + kOffError, r.error);
+    for (int i = 0; i < 3; ++i)
+        putF64(out.data() + kOffTranslation + 8 * i, r.translation[i]);
+    const double q[4] = {r.rotation.x(), r.rotation.y(), r.rotation.z(), r.rotation.w()};
+    for (int i = 0; i < 4; ++i)
+        putF64(out.data() + kOffRotation + 8 * i, q[i]);
+    std::memcpy(out.data() + kOffAnchor, r.anchor.data(), r.anchor.size());
+    putLe(out.data() + kOffCrc, ffmpeg::crc32(out.data(), kOffCrc), 4);
+    return out;
+}
+
+Result<PoseRecord> decodePoseRecord(const uint8_t* data, size_t size) {
+    const auto corrupt = [](const std::string& what) {
+        return Status(ErrorCode::kCorruptData, "pose record: " + what);
+    };
+    if (data == nullptr || size != kPoseRecordBytes)
+        return corrupt("expected " + std::to_string(kPoseRecordBytes) + " bytes, got " +
+                       std::to_string(data == nullptr ? 0 : size));
+    if (getLe(data, 4) != kMagic)
+        return corrupt("bad magic (not a mixray pose record)");
+    if (getLe(data + kOffCrc, 4) != ffmpeg::crc32(data, kOffCrc))
+        return corrupt("CRC mismatch (the record is damaged)");
+    const auto version = static_cast<uint16_t>(getLe(data + kOffVersion, 2));
+    if (version != kPoseRecordVersion)
+        return corrupt("unsupported version " + std::to_string(version));
+    if (data[kOffReserved0] != 0 || getLe(data + kOffReserved1, 4) != 0)
+        return corrupt("reserved bytes are not zero");
+    PoseRecord r;
+    if (data[kOffStatus] > static_cast<uint8_t>(PoseStatus::kLost))
+        return corrupt("status " + std::to_string(data[kOffStatus]) + " is out of range");
+    r.status = static_cast<PoseStatus>(data[kOffStatus]);
+    r.frame_sequence = getLe(data + kOffSequence, 8);
+    r.frame_device_stamp_ns = static_cast<int64_t>(getLe(data + kOffStamp, 8));
+    r.marker_id = static_cast<int32_t>(static_cast<uint32_t>(getLe(data + kOffMarker, 4)));
+    r.error = getF32(data + kOffError);
+    for (int i = 0; i < 3; ++i)
+        r.translation[i] = getF64(data + kOffTranslation + 8 * i);
+    r.rotation =
+        Eigen::Quaterniond(getF64(data + kOffRotation + 24), getF64(data + kOffRotation),
+                           getF64(data + kOffRotation + 8), getF64(data + kOffRotation + 16));
+    const auto* anchor = reinterpret_cast<const char*>(data + kOffAnchor);
+    const size_t length = strnlen(anchor, kAnchorField);
+    if (length == kAnchorField)
+        return corrupt("anchor is not NUL-terminated");
+    for (size_t i = length; i < kAnchorField; ++i)
+        if (anchor[i] != 0)
+            return corrupt("anchor padding is not zero");
+    r.anchor.assign(anchor, length);
+    if (Status s = validate(r); !s)
+        return Status(ErrorCode::kCorruptData, s.message());
+    return r;
+}
+
+StreamInfo makePoseStreamInfo(const std::string& name, const std::string& pose_of, double fps,
+                              bool ground_truth) {
+    StreamInfo info;
+    info.name = name;
+    info.device = name.substr(0, name.find('/'));
+    info.kind = StreamKind::kPose;
+    info.format = ImageDesc::packed(PixelFormat::kBinary, static_cast<int>(kPoseRecordBytes), 1);
+    info.nominal_fps = fps;
+    info.tags["pose_of"] = pose_of;
+    info.tags["pose_record"] = "mixray-pose-1";
+    if (ground_truth)
+        info.tags["ground_truth"] = "true";
+    return info;
+}
+
+}  // namespace mixray

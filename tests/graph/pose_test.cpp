@@ -1,0 +1,191 @@
+// Pose records (mixray/graph/pose.h): round trips, and damaged or truncated records refused.
+#include "mixray/graph/pose.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+
+namespace mixray {
+namespace {
+
+PoseRecord samplePose() {
+    PoseRecord r;
+    r.frame_sequence = 0x0123456789abcdefULL;
+    r.frame_device_stamp_ns = -1234567890123LL;
+    r.status = PoseStatus::kStale;
+    r.marker_id = 17;
+    r.anchor = "marker:17";
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).matrix();
+    T.translation() = Eigen::Vector3d(0.125, -0.75, 1.5e-3);
+    r.setTransform(T);
+    r.error = 0.35f;
+    return r;
+}
+
+TEST(PoseRecord, RoundTripIsExact) {
+    const PoseRecord in = samplePose();
+    auto bytes = encodePoseRecord(in);
+    ASSERT_TRUE(bytes) << bytes.status().toString();
+    auto out = decodePoseRecord(bytes->data(), bytes->size());
+    ASSERT_TRUE(out) << out.status().toString();
+    EXPECT_EQ(out->frame_sequence, in.frame_sequence);
+    EXPECT_EQ(out->frame_device_stamp_ns, in.frame_device_stamp_ns);
+    EXPECT_EQ(out->status, PoseStatus::kStale);
+    EXPECT_EQ(out->marker_id, 17);
+    EXPECT_EQ(out->anchor, "marker:17");
+    EXPECT_EQ(out->error, 0.35f);
+    EXPECT_EQ(out->translation, in.translation);  // doubles stored bit for bit
+    EXPECT_EQ(out->rotation.coeffs(), in.rotation.coeffs());
+    EXPECT_TRUE(out->transform().isApprox(in.transform(), 1e-15));
+}
+
+TEST(PoseRecord, LayoutIsLittleEndianAtDocumentedOffsets) {
+    PoseRecord r;
+    r.frame_sequence = 0x0807060504030201ULL;
+    r.anchor = "world";
+    r.translation = Eigen::Vector3d(1.0, 0, 0);
+    auto bytes = encodePoseRecord(r);
+    ASSERT_TRUE(bytes);
+    const auto& b = *bytes;
+    EXPECT_EQ(b.size(), 128u);
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(b.data()), 4), "MXPO");
+    EXPECT_EQ(b[4], 1);  // version
+    EXPECT_EQ(b[5], 0);
+    for (int i = 0; i < 8; ++i)
+        EXPECT_EQ(b[8 + i], i + 1) << "sequence byte " << i;
+    EXPECT_EQ(b[24], 0xff);  // marker id -1
+    // tx = 1.0 as an IEEE double, little-endian: 00 .. 00 f0 3f.
+    EXPECT_EQ(b[32 + 6], 0xf0);
+    EXPECT_EQ(b[32 + 7], 0x3f);
+    // qw = 1.0 at offset 56 + 24.
+    EXPECT_EQ(b[80 + 7], 0x3f);
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(b.data() + 88)), "world");
+}
+
+TEST(PoseRecord, TruncatedOrLongPayloadsAreRefused) {
+    auto bytes = encodePoseRecord(samplePose());
+    ASSERT_TRUE(bytes);
+    for (size_t size : {size_t{0}, size_t{1}, size_t{64}, size_t{127}}) {
+        auto out = decodePoseRecord(bytes->data(), size);
+        ASSERT_FALSE(out) << size;
+        EXPECT_EQ(out.status().code(), ErrorCode::kCorruptData);
+    }
+    std::vector<uint8_t> longer(bytes->begin(), bytes->end());
+    longer.push_back(0);
+    EXPECT_FALSE(decodePoseRecord(longer.data(), longer.size()));
+    EXPECT_FALSE(decodePoseRecord(nullptr, 128));
+}
+
+TEST(PoseRecord, EveryFlippedBitIsCaught) {
+    auto bytes = encodePoseRecord(samplePose());
+    ASSERT_TRUE(bytes);
+    for (size_t bit = 0; bit < 8 * kPoseRecordBytes; ++bit) {
+        auto damaged = *bytes;
+        damaged[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
+        auto out = decodePoseRecord(damaged.data(), damaged.size());
+        ASSERT_FALSE(out) << "bit " << bit;
+        EXPECT_EQ(out.status().code(), ErrorCode::kCorruptData);
+    }
+}
+
+// The IEEE CRC-32 (zlib's), bit by bit: the documented check value of a record.
+uint32_t referenceCrc32(const uint8_t* data, size_t size) {
+    uint32_t crc = 0xffffffffu;
+    for (size_t i = 0; i < size; ++i) {
+        crc ^= data[i];
+        for (int k = 0; k < 8; ++k)
+            crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    return ~crc;
+}
+
+void resealCrc(std::array<uint8_t, kPoseRecordBytes>& b) {
+    const uint32_t crc = referenceCrc32(b.data(), 124);
+    for (int i = 0; i < 4; ++i)
+        b[124 + i] = static_cast<uint8_t>(crc >> (8 * i));
+}
+
+TEST(PoseRecord, CrcIsTheIeeeCrcOfTheFirst124Bytes) {
+    auto bytes = encodePoseRecord(samplePose());
+    ASSERT_TRUE(bytes);
+    auto resealed = *bytes;
+    resealCrc(resealed);
+    EXPECT_EQ(resealed, *bytes);
+}
+
+TEST(PoseRecord, WellFormedButInvalidContentIsRefused) {
+    // Records with a correct CRC but content a buggy writer could produce.
+    auto bytes = encodePoseRecord(samplePose());
+    ASSERT_TRUE(bytes);
+    const auto refused = [](std::array<uint8_t, kPoseRecordBytes> b) {
+        resealCrc(b);
+        auto out = decodePoseRecord(b.data(), b.size());
+        return !out && out.status().code() == ErrorCode::kCorruptData;
+    };
+    auto b = *bytes;
+    b[80 + 7] = 0x40;  // qw's exponent: |q| far from 1
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[6] = 3;  // status out of range
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[4] = 2;  // version 2
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[7] = 1;  // reserved
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[120] = 1;  // reserved
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    for (int i = 88; i < 120; ++i)
+        b[i] = 'a';  // anchor without its NUL
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[88 + 20] = 'x';  // garbage after the anchor's NUL
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    b[88] = 0;  // empty anchor
+    EXPECT_TRUE(refused(b));
+    b = *bytes;
+    EXPECT_FALSE(refused(b));  // the untouched record, resealed, still decodes
+}
+
+TEST(PoseRecord, EncodeRefusesInvalidRecords) {
+    PoseRecord r = samplePose();
+    r.rotation = Eigen::Quaterniond(1, 1, 0, 0);
+    EXPECT_EQ(encodePoseRecord(r).status().code(), ErrorCode::kInvalidArgument);
+    r = samplePose();
+    r.translation.x() = std::nan("");
+    EXPECT_FALSE(encodePoseRecord(r));
+    r = samplePose();
+    r.anchor = "";
+    EXPECT_FALSE(encodePoseRecord(r));
+    r.anchor = std::string(32, 'a');
+    EXPECT_FALSE(encodePoseRecord(r));
+    r.anchor = "with space";
+    EXPECT_FALSE(encodePoseRecord(r));
+    r = samplePose();
+    r.error = -2;
+    EXPECT_FALSE(encodePoseRecord(r));
+    r = samplePose();
+    r.anchor = std::string(31, 'a');
+    EXPECT_TRUE(encodePoseRecord(r));
+}
+
+TEST(PoseRecord, StreamInfoIsABinaryPoseStream) {
+    const StreamInfo info = makePoseStreamInfo("truth/pose", "kinect/color", 30, true);
+    EXPECT_EQ(info.device, "truth");
+    EXPECT_EQ(info.kind, StreamKind::kPose);
+    EXPECT_EQ(info.format.format, PixelFormat::kBinary);
+    EXPECT_EQ(info.format.width, 128);
+    EXPECT_EQ(info.tags.at("pose_of"), "kinect/color");
+    EXPECT_EQ(info.tags.at("ground_truth"), "true");
+    EXPECT_FALSE(makePoseStreamInfo("t/p", "c/c", 30, false).tags.count("ground_truth"));
+}
+
+}  // namespace
+}  // namespace mixray
