@@ -1,5 +1,6 @@
 // mixray render: composites a scene's virtual objects into every colour frame of a recording.
 #include <algorithm>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -12,6 +13,7 @@
 #include "mixray/render/output.h"
 #include "mixray/render/renderer.h"
 #include "mixray/render/scene_file.h"
+#include "mixray/replay/depth_units.h"
 #include "mixray/replay/open_recording.h"
 #include "pose_track.h"
 
@@ -83,14 +85,64 @@ Result<Streams> pickStreams(const RecordingReader& reader) {
     for (StreamId i = 0; i < streams.size(); ++i) {
         if (streams[i].kind == StreamKind::kDepth &&
             streams[i].format.format == PixelFormat::kDepth16 &&
-            streams[i].format.width == c.width && streams[i].format.height == c.height &&
-            !streams[i].tags.count("depth_scale_per_m")) {
+            streams[i].format.width == c.width && streams[i].format.height == c.height) {
             s.depth = i;
             break;
         }
     }
     return s;
 }
+
+// The two newest depth maps of the occluding stream, in millimetres (TUM folders store 5000
+// units per metre; see mixray/replay/depth_units.h), so a colour frame takes the nearer one.
+class DepthFrames {
+public:
+    static Result<DepthFrames> create(const std::vector<StreamInfo>& streams, StreamId depth) {
+        DepthFrames frames;
+        if (depth == kInvalidStream)
+            return frames;
+        auto scale = replay::depthScalePerMetre(streams[depth]);
+        if (!scale)
+            return scale.status();
+        frames.units_per_m_ = *scale;
+        return frames;
+    }
+
+    Status push(const FrameRef& frame) {
+        std::swap(older_, newer_);
+        newer_.stamp_ns = frame.meta().host_stamp_ns;
+        newer_.frame = frame;
+        if (units_per_m_ == replay::kMillimetresPerMetre)
+            return Status::ok();
+        const ImageDesc mm = ImageDesc::packed(PixelFormat::kDepth16, frame.image().desc.width,
+                                               frame.image().desc.height);
+        if (!(newer_.converted.desc() == mm))
+            newer_.converted = Image(mm);
+        return replay::rescaleDepth(frame.image(), units_per_m_, newer_.converted.mutableView(),
+                                    replay::kMillimetresPerMetre);
+    }
+
+    std::optional<ImageView> closestTo(int64_t stamp_ns) const {
+        const Entry* best = nullptr;
+        for (const Entry* e : {&newer_, &older_})
+            if (e->frame && (!best || std::llabs(e->stamp_ns - stamp_ns) <
+                                          std::llabs(best->stamp_ns - stamp_ns)))
+                best = e;
+        if (!best)
+            return std::nullopt;
+        return units_per_m_ == replay::kMillimetresPerMetre ? best->frame.image()
+                                                            : best->converted.view();
+    }
+
+private:
+    struct Entry {
+        int64_t stamp_ns = 0;
+        FrameRef frame;
+        Image converted;  // in mm, when the stream's units are not
+    };
+    int units_per_m_ = replay::kMillimetresPerMetre;
+    Entry newer_, older_;
+};
 
 int runRender(const RenderCommandOptions& options) {
     setFfmpegLogging(false);
@@ -173,43 +225,29 @@ int runRender(const RenderCommandOptions& options) {
 
     InterruptFlag interrupt;
     StatusLine status;
-    FrameRef depth;
+    auto depths = DepthFrames::create((*reader)->streams(), streams->depth);
+    if (!depths)
+        return fail("render", depths.status().withContext(options.session));
     uint64_t frames = 0;
     uint64_t frames_without_pose = 0;
     double render_seconds = 0;
     double worst_seconds = 0;
     render::RenderLayers layers;
     Status result;
-    while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                result = frame.status();
-            break;
-        }
-        if (frame->meta().stream == streams->depth) {
-            depth = *frame;  // the newest depth map occludes the next colour frames
-            continue;
-        }
-        if (frame->meta().stream != streams->color)
-            continue;
-
+    // Composites one colour frame; false (with `result` set) on an error.
+    const auto composite = [&](const FrameRef& colour) -> bool {
         render::RenderInputs inputs;
-        inputs.camera_image = frame->image();
-        if (depth)
-            inputs.depth_mm = depth.image();
+        inputs.camera_image = colour.image();
+        if (auto depth = depths->closestTo(colour.meta().host_stamp_ns))
+            inputs.depth_mm = *depth;
         inputs.camera = camera;
         inputs.T_world_cam = scene->camera->T_world_cam;
         if (poses) {
             const auto T_world_cam =
-                poses->poseFor(color_info.name, frame->meta(), static_cast<int64_t>(0.5e9 / fps));
+                poses->poseFor(color_info.name, colour.meta(), static_cast<int64_t>(0.5e9 / fps));
             if (!T_world_cam) {
                 ++frames_without_pose;
-                continue;
+                return true;
             }
             inputs.T_world_cam = *T_world_cam;
         }
@@ -217,10 +255,10 @@ int runRender(const RenderCommandOptions& options) {
         render::RenderStats stats;
         result = (*renderer)->render(inputs, layers, &stats);
         if (!result)
-            break;
-        result = (*video)->write(layers.composite.view(), frame->meta().host_stamp_ns);
+            return false;
+        result = (*video)->write(layers.composite.view(), colour.meta().host_stamp_ns);
         if (!result)
-            break;
+            return false;
         if (!options.png_dir.empty() && frames % static_cast<uint64_t>(options.png_every) == 0) {
             char name[64];
             std::snprintf(name, sizeof name, "frame_%06llu",
@@ -235,7 +273,7 @@ int runRender(const RenderCommandOptions& options) {
                     result = render::writeExr(layers.mask, base.string() + "_mask.exr");
             }
             if (!result)
-                break;
+                return false;
         }
         ++frames;
         render_seconds += stats.seconds;
@@ -247,7 +285,37 @@ int runRender(const RenderCommandOptions& options) {
             stats.seconds > 0 ? static_cast<double>(stats.rays()) / stats.seconds / 1e6 : 0,
             static_cast<unsigned long long>(stats.pixels_traced));
         status.update(line);
+        return true;
+    };
+    // A colour frame waits for the next frame so that a depth map stamped with it (or nearer
+    // to it than the previous one) but stored after it still occludes it.
+    FrameRef pending;
+    while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kUnavailable) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                continue;
+            }
+            if (frame.status().code() != ErrorCode::kEndOfStream)
+                result = frame.status();
+            break;
+        }
+        if (frame->meta().stream == streams->depth) {
+            result = depths->push(*frame);
+            if (!result)
+                break;
+            continue;
+        }
+        if (frame->meta().stream != streams->color)
+            continue;
+        if (pending && !composite(pending))
+            break;
+        pending = *frame;
     }
+    if (pending && result && !interrupt.raised() &&
+        (options.max_frames == 0 || frames < options.max_frames))
+        composite(pending);
     status.finish();
     Status closed = (*video)->close();
     if (!result)

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 
 #include "test_data.h"
@@ -176,6 +178,80 @@ TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
     auto a = nlohmann::json::parse(mixray("info --json " + q(tum)).output);
     auto b = nlohmann::json::parse(mixray("info --json " + q(dir / "back")).output);
     EXPECT_EQ(a["streams"], b["streams"]);
+}
+
+// A red wall 2.95 m in front of a camera at the origin, composited into a real Kinect frame:
+// visible exactly where the recorded depth is missing or farther, the camera image elsewhere.
+// Depth in TUM units (5000 per metre) and a depth map stored after its colour image (PCL TIFF)
+// both reach the renderer. (--depth-rays none: with the light behind the camera, real surfaces
+// would rightly shadow parts of the wall in the other modes.)
+void expectHiddenWhereTheDepthIsNearer(const fs::path& dir, const fs::path& session,
+                                       const fs::path& color_file, const fs::path& depth_file,
+                                       double depth_units_per_m) {
+    fs::create_directories(dir);
+    std::ofstream(dir / "wall.yaml") << R"(materials:
+  red: { type: diffuse, albedo: [0.8, 0, 0] }
+objects:
+  - name: wall
+    shape: { box: { size: [10, 10, 0.1] } }
+    material: red
+    pose: { translation: [0, 0, 3.0] }
+lights:
+  - { name: sun, type: directional, direction: [0, 0, 1], irradiance: 3 }
+camera:
+  pose: { translation: [0, 0, 0] }
+  model: { width: 640, height: 480, fx: 525, fy: 525, cx: 319.5, cy: 239.5 }
+)";
+    CliRun run = mixray("render " + q(session) + " --scene " + q(dir / "wall.yaml") + " -o " +
+                        q(dir / "out.mkv") + " --png-dir " + q(dir / "png") +
+                        " --max-frames 1 --depth-rays none");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const cv::Mat out = cv::imread((dir / "png" / "frame_000000.png").string());
+    const cv::Mat camera = cv::imread(color_file.string());
+    const cv::Mat depth = cv::imread(depth_file.string(), cv::IMREAD_ANYDEPTH);
+    ASSERT_FALSE(out.empty() || camera.empty() || depth.empty());
+    ASSERT_EQ(depth.type(), CV_16UC1);
+    int hidden = 0, shown = 0;
+    for (int y = 0; y < out.rows; ++y)
+        for (int x = 0; x < out.cols; ++x) {
+            const double z = depth.at<uint16_t>(y, x) / depth_units_per_m;
+            const cv::Vec3b o = out.at<cv::Vec3b>(y, x);
+            if (z > 0 && z < 2.94) {
+                ++hidden;
+                ASSERT_EQ(o, camera.at<cv::Vec3b>(y, x)) << x << "," << y;
+            } else if (z == 0 || z > 2.96) {
+                ++shown;
+                ASSERT_TRUE(o[0] == 0 && o[1] == 0 && o[2] > 0) << x << "," << y;
+            }
+        }
+    EXPECT_GT(hidden, 10000);
+    EXPECT_GT(shown, 1000);
+}
+
+TEST(Cli, RenderHidesVirtualObjectsBehindRealKinectDepth) {
+    const fs::path tum_src = test::sharedDataDir() / "02_rgbd_single_frames_open3d";
+    const fs::path pcl = test::sharedDataDir() / "02_rgbd_pcl_openni_tiff";
+    MIXRAY_REQUIRE_SHARED_DATA(tum_src / "TUM_depth.png");
+    MIXRAY_REQUIRE_SHARED_DATA(pcl / "frame_20121214T142255.814212_depth.tiff");
+    const fs::path dir = test::tempDir();
+    const fs::path tum = dir / "tum";
+    fs::create_directories(tum / "rgb");
+    fs::create_directories(tum / "depth");
+    fs::copy_file(tum_src / "TUM_color.png", tum / "rgb" / "1305031102.175304.png");
+    fs::copy_file(tum_src / "TUM_depth.png", tum / "depth" / "1305031102.160407.png");
+    std::ofstream(tum / "rgb.txt") << "1305031102.175304 rgb/1305031102.175304.png\n";
+    std::ofstream(tum / "depth.txt") << "1305031102.160407 depth/1305031102.160407.png\n";
+    {
+        SCOPED_TRACE("TUM");
+        expectHiddenWhereTheDepthIsNearer(dir / "tum_out", tum, tum_src / "TUM_color.png",
+                                          tum_src / "TUM_depth.png", 5000);
+    }
+    {
+        SCOPED_TRACE("PCL TIFF");
+        expectHiddenWhereTheDepthIsNearer(dir / "pcl_out", pcl,
+                                          pcl / "frame_20121214T142255.814212_rgb.tiff",
+                                          pcl / "frame_20121214T142255.814212_depth.tiff", 1000);
+    }
 }
 
 TEST(Cli, RenderCompositesTheSceneIntoEveryFrame) {
