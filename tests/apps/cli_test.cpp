@@ -1,6 +1,5 @@
 // The mixray command line end to end: exit codes, messages, and the bundled session.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
@@ -12,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
+#include "cli_runner.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -19,30 +19,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-    int exit_code = -1;
-    std::string output;  // stdout and stderr together
-};
-
-// Runs the mixray binary with `args` (already shell-quoted where needed).
-CliRun mixray(const std::string& args) {
-    const std::string command = std::string(MIXRAY_CLI_PATH) + " " + args + " 2>&1";
-    CliRun run;
-    FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe)
-        return run;
-    std::array<char, 4096> buffer;
-    size_t n;
-    while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-        run.output.append(buffer.data(), n);
-    const int status = pclose(pipe);
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-}
-
-std::string q(const fs::path& path) {
-    return "'" + path.string() + "'";
-}
+using test::CliRun;
+using test::mixray;
+using test::q;
 
 const fs::path kSession = test::fixturesDir() / "sessions" / "pattern_rgbd.mkv";
 

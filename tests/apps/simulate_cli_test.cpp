@@ -1,7 +1,6 @@
 // mixray simulate, and mixray info / render on the committed simulated sessions (the render
 // camera following the recording's ground-truth pose stream).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <Eigen/Geometry>
 #include <array>
@@ -13,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "cli_runner.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -20,29 +20,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-    int exit_code = -1;
-    std::string output;  // stdout and stderr together
-};
-
-CliRun mixray(const std::string& args) {
-    const std::string command = std::string(MIXRAY_CLI_PATH) + " " + args + " 2>&1";
-    CliRun run;
-    FILE* pipe = popen(command.c_str(), "r");
-    if (!pipe)
-        return run;
-    std::array<char, 4096> buffer;
-    size_t n;
-    while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-        run.output.append(buffer.data(), n);
-    const int status = pclose(pipe);
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-}
-
-std::string q(const fs::path& path) {
-    return "'" + path.string() + "'";
-}
+using test::CliRun;
+using test::mixray;
+using test::q;
 
 const fs::path kSessions = test::fixturesDir() / "sessions";
 
