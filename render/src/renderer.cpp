@@ -3,7 +3,6 @@
 #include "mixray/render/renderer.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -265,7 +264,8 @@ private:
     DepthMesher mesher_;
     PixelBuffers buffers_;
     std::vector<uint8_t> tile_mask_;
-    tbb::enumerable_thread_specific<TileScratch> scratch_;
+    // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
+    std::vector<TileScratch> scratch_;
 };
 
 Surface EmbreeRenderer::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
@@ -1184,7 +1184,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         RayList* log = tile_logs.empty() ? nullptr : &tile_logs[static_cast<size_t>(tile)];
         const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
         const int x1 = std::min(w, x0 + ts), y1 = std::min(h, y0 + ts);
-        TileScratch& scratch = scratch_.local();
+        TileScratch& scratch =
+            scratch_[static_cast<size_t>(tbb::this_task_arena::current_thread_index())];
         scratch.surfaces.resize(static_cast<size_t>(spp));
         scratch.have_surface.resize(static_cast<size_t>(spp));
         primaryHits(f, x0, y0, x1, y1, scratch, log);
@@ -1307,6 +1308,9 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     };
 
     tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    arena.initialize();
+    if (scratch_.size() < static_cast<size_t>(arena.max_concurrency()))
+        scratch_.resize(static_cast<size_t>(arena.max_concurrency()));
     arena.execute([&] {
         if (use_mask)
             detail::footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts,
