@@ -12,16 +12,9 @@ namespace {
 // "MXPO" read as a little-endian u32: a record that starts elsewhere is caught at once.
 constexpr uint32_t kMagic = 0x4f50584d;
 
-void putLe(uint8_t* out, uint64_t value, int bytes) {
-    for (int i = 0; i < bytes; ++i)
-        out[i] = static_cast<uint8_t>(value >> (8 * i));
-}
-uint64_t getLe(const uint8_t* in, int bytes) {
-    uint64_t value = 0;
-    for (int i = 0; i < bytes; ++i)
-        value |= static_cast<uint64_t>(in[i]) << (8 * i);
-    return value;
-}
+using ffmpeg::getLe;
+using ffmpeg::putLe;
+
 void putF64(uint8_t* out, double v) {
     uint64_t bits;
     std::memcpy(&bits, &v, sizeof bits);
