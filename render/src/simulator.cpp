@@ -3,8 +3,12 @@
 // and Kinect-like depth traced through the same geometry.
 #include "mixray/render/simulator.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <opencv2/aruco.hpp>
 #include <opencv2/aruco/charuco.hpp>
@@ -36,19 +40,23 @@ Isometry3d pose(const Eigen::Matrix3d& R, const Vector3d& t) {
     return T;
 }
 
+// The rotation whose z axis is `z` (unit) and whose x axis is along `x_hint` (perpendicular to
+// z; world x when it vanishes), turned about z by `roll` (rad).
+Eigen::Matrix3d frameAboutZ(const Vector3d& z, Vector3d x_hint, double roll) {
+    if (x_hint.norm() < 1e-6)
+        x_hint = Vector3d::UnitX();
+    const Vector3d x = x_hint.normalized();
+    Eigen::Matrix3d R;
+    R.col(0) = x;
+    R.col(1) = z.cross(x);
+    R.col(2) = z;
+    return R * Eigen::AngleAxisd(roll, Vector3d::UnitZ()).toRotationMatrix();
+}
+
 // A camera at `eye` looking at `target`, image up towards world +z, rolled by `roll` (rad).
 Isometry3d lookAt(const Vector3d& eye, const Vector3d& target, double roll = 0) {
     const Vector3d z = (target - eye).normalized();
-    Vector3d x = z.cross(Vector3d::UnitZ());
-    if (x.norm() < 1e-6)
-        x = Vector3d::UnitX();
-    x.normalize();
-    const Vector3d y = z.cross(x);
-    Eigen::Matrix3d R;
-    R.col(0) = x;
-    R.col(1) = y;
-    R.col(2) = z;
-    return pose(R * Eigen::AngleAxisd(roll, Vector3d::UnitZ()).toRotationMatrix(), eye);
+    return pose(frameAboutZ(z, z.cross(Vector3d::UnitZ()), roll), eye);
 }
 
 // Intrinsics defined at 640x480 (Kinect v1), scaled to the chosen size about the pixel-centre
@@ -74,14 +82,35 @@ void toPrintedGreys(cv::Mat& image) {
     image.convertTo(image, CV_8U, (235.0 - 18.0) / 255.0, 18.0);
 }
 
-Status writeImage(const fs::path& path, const cv::Mat& image) {
-    try {
-        if (!cv::imwrite(path.string(), image))
-            return {ErrorCode::kIoError, path.string() + ": cannot write the texture"};
-    } catch (const cv::Exception& e) {
-        return {ErrorCode::kIoError, path.string() + ": " + e.what()};
+// Writes an asset through `write(temporary path)` and renames it into place: two simulators
+// sharing an asset folder (parallel tests, a user's scripts) never read a half-written file.
+// The temporary name keeps the extension, which picks the format.
+Status writeAtomically(const fs::path& path, const std::function<Status(const fs::path&)>& write) {
+    static std::atomic<uint64_t> counter{0};
+    const fs::path temporary =
+        path.parent_path() / (path.stem().string() + ".partial-" + std::to_string(getpid()) + "-" +
+                              std::to_string(counter++) + path.extension().string());
+    Status written = write(temporary);
+    std::error_code ec;
+    if (written)
+        fs::rename(temporary, path, ec);
+    if (!written || ec) {
+        fs::remove(temporary, ec);
+        return written ? Status(ErrorCode::kIoError, path.string() + ": " + ec.message()) : written;
     }
     return Status::ok();
+}
+
+Status writeImage(const fs::path& path, const cv::Mat& image) {
+    return writeAtomically(path, [&](const fs::path& file) -> Status {
+        try {
+            if (!cv::imwrite(file.string(), image))
+                return {ErrorCode::kIoError, path.string() + ": cannot write the texture"};
+        } catch (const cv::Exception& e) {
+            return {ErrorCode::kIoError, path.string() + ": " + e.what()};
+        }
+        return Status::ok();
+    });
 }
 
 // The marker with a one-cell white quiet zone, 32 px per cell.
@@ -220,17 +249,8 @@ Isometry3d T_plane_board(const SimBoard& b) {
 Isometry3d boardFacing(const SimBoard& b, const Vector3d& centre, const Vector3d& facing,
                        double spin) {
     // Plane frame: z = facing; x horizontal-ish.
-    Vector3d x = Vector3d::UnitZ().cross(facing);
-    if (x.norm() < 1e-6)
-        x = Vector3d::UnitX();
-    x.normalize();
-    const Vector3d y = facing.cross(x);
-    Eigen::Matrix3d R;
-    R.col(0) = x;
-    R.col(1) = y;
-    R.col(2) = facing;
-    R = R * Eigen::AngleAxisd(spin, Vector3d::UnitZ()).toRotationMatrix();
-    return pose(R, centre) * T_plane_board(b);
+    return pose(frameAboutZ(facing, Vector3d::UnitZ().cross(facing), spin), centre) *
+           T_plane_board(b);
 }
 
 Vector3d tilted(const Vector3d& v, double angle, double azimuth) {
@@ -500,7 +520,8 @@ Result<SimSetup> buildScenario(const SimulatorOptions& options, const fs::path& 
         for (int x = 0; x < exr.width; ++x)
             for (int c = 0; c < 3; ++c)
                 exr.pixels.push_back(map.texture().texel(x, y)[c]);
-    MIXRAY_RETURN_IF_ERROR(writeExr(exr, t.environment_map));
+    MIXRAY_RETURN_IF_ERROR(writeAtomically(
+        t.environment_map, [&](const fs::path& file) { return writeExr(exr, file); }));
     s.environment = map;
     Light environment;
     environment.name = "room";
