@@ -16,19 +16,7 @@
 
 namespace mixray::render {
 
-// A float image of linear values, row-major, `channels` per pixel. Plain value.
-struct FloatImage {
-    int width = 0;
-    int height = 0;
-    int channels = 3;
-    std::vector<float> pixels;
-    float* at(int x, int y) {
-        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
-    }
-    const float* at(int x, int y) const {
-        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
-    }
-};
+using ::mixray::FloatImage;
 
 enum class SoftShadowMethod : uint8_t {
     kHard,      // one shadow ray to each light's centre

@@ -104,4 +104,19 @@ private:
 // True when both views have the same layout and identical pixel bytes (rows only, not padding).
 bool sameImage(const ImageView& a, const ImageView& b);
 
+// A float image of linear values (renders, environment maps), row-major, `channels` per
+// pixel. Plain value.
+struct FloatImage {
+    int width = 0;
+    int height = 0;
+    int channels = 3;
+    std::vector<float> pixels;
+    float* at(int x, int y) {
+        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
+    }
+    const float* at(int x, int y) const {
+        return pixels.data() + (static_cast<size_t>(y) * width + x) * channels;
+    }
+};
+
 }  // namespace mixray

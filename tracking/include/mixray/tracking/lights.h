@@ -1,0 +1,139 @@
+// Real light estimation: from a light-probe sphere in the camera image (de Castro, de
+// Figueiredo, Velho 2012, "Realistic Shadows for Mobile AR", §3), from the fish-eye environment
+// camera (Kán & Kaufmann 2012, §5), and an equirectangular environment map from the fish-eye
+// image. Directions are in the world (marker) frame.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mixray/calibration/camera_model.h"
+#include "mixray/graph/image.h"
+#include "mixray/graph/result.h"
+#include "mixray/tracking/estimate.h"
+
+namespace mixray::tracking {
+
+enum class ProbeMaterial : uint8_t { kMirror, kDiffuse };
+
+// A light-probe sphere of known radius at a known place in the world (marker) frame. Plain
+// value.
+struct LightProbe {
+    std::string name;
+    ProbeMaterial material = ProbeMaterial::kMirror;
+    double radius_m = 0.04;
+    Eigen::Vector3d centre_world{0, 0, 0.04};
+
+    Status validate() const;
+};
+
+// Where the probe's image is sampled (the paper's two variants).
+enum class ProbeDomain : uint8_t {
+    kImage,   // every image pixel inside the probe's projected outline
+    kSphere,  // a fixed (u,v) grid over the visible half of the sphere: cost independent of
+              // how big the probe appears
+};
+
+// Every field has a working default.
+struct ProbeOptions {
+    ProbeDomain domain = ProbeDomain::kImage;
+    int sphere_samples = 128;  // kSphere: samples along u and along v
+    int max_lights = 2;        // the n most representative lights returned
+    // Luminance counted as the maximum: 8-bit images clip, and a highlight's plateau is a few
+    // codes wide after demosaicing and compression.
+    double max_luminance_tolerance = 0.02;  // fraction of the full scale
+    double min_visible_fraction = 0.6;      // of the outline inside the image, else "out of view"
+
+    Status validate() const;
+};
+
+// The probe's outline in the image, for overlays. Plain value.
+struct ProbeOutline {
+    Eigen::Vector2d centre_px{0, 0};
+    double radius_px = 0;
+};
+
+struct ProbeResult {
+    std::vector<EstimatedLight> lights;  // most representative first
+    ProbeOutline outline;
+};
+
+// Lights from one colour image of the probe, given the camera's pose. kNotFound with the reason
+// when the probe is out of view, too small or shows no highlight (a black or flat image);
+// kInvalidArgument for a bad probe, options or pixel format (kRGB8, kBGR8, kMono8). Reentrant.
+Result<ProbeResult> estimateProbeLights(const ImageView& color,
+                                        const calibration::CameraModel& camera,
+                                        const Eigen::Isometry3d& T_world_camera,
+                                        const LightProbe& probe, const ProbeOptions& options = {});
+
+// The fish-eye environment camera and where it sits. Plain value.
+struct EnvironmentCamera {
+    calibration::CameraModel model;  // usually LensModel::kFisheye
+    Eigen::Isometry3d T_world_env = Eigen::Isometry3d::Identity();
+    // Lights are placed this far from the environment camera (Kán & Kaufmann: the room's
+    // size); 0: directional lights only.
+    double room_radius_m = 0;
+    // The image's response: linear radiance = (sRGB-decoded value) * exposure_scale.
+    double exposure_scale = 1;
+
+    Status validate() const;
+};
+
+// Every field has a working default.
+struct EnvironmentLightOptions {
+    double threshold = 0.9;  // blob threshold, fraction of the full scale (after decoding)
+    int max_lights = 4;      // biggest blobs kept
+    double min_area_px = 4;  // smaller blobs are noise
+    double max_saturated_fraction = 0.25;  // more of the image clipped: over-exposed
+    double min_mean = 0.01;                // mean below this (fraction of full scale): black
+
+    Status validate() const;
+};
+
+// Lights from one environment image. kNotFound with the reason for an over-exposed, black or
+// featureless image; kInvalidArgument for bad inputs. Reentrant.
+Result<std::vector<EstimatedLight>> estimateEnvironmentLights(
+    const ImageView& env, const EnvironmentCamera& camera,
+    const EnvironmentLightOptions& options = {});
+
+// An equirectangular environment map (linear RGB, `width` x width/2, the renderer's
+// convention: docs/conventions.md) in the world frame from one fish-eye image; directions the
+// fish-eye does not see below the horizon are filled by mirroring the upper hemisphere.
+// kInvalidArgument for bad inputs. Reentrant.
+Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const EnvironmentCamera& camera,
+                                             int width = 512);
+
+// Everything estimated from one environment frame.
+struct EnvironmentEstimate {
+    std::vector<EstimatedLight> lights;
+    FloatImage environment_map;
+};
+
+// Runs environment estimation on its own thread: submit() hands over the newest image without
+// waiting (a newer one replaces one not yet started), latest() returns the newest estimate at
+// once. Thread-safe.
+class AsyncEnvironmentEstimator {
+public:
+    AsyncEnvironmentEstimator(EnvironmentCamera camera, EnvironmentLightOptions options = {},
+                              int map_width = 512);
+    ~AsyncEnvironmentEstimator();
+    AsyncEnvironmentEstimator(const AsyncEnvironmentEstimator&) = delete;
+    AsyncEnvironmentEstimator& operator=(const AsyncEnvironmentEstimator&) = delete;
+
+    // Copies the image; returns at once.
+    void submit(const ImageView& env, int64_t stamp_ns);
+    // The newest estimate (stale with the reason when the newest image gave none).
+    Estimate<EnvironmentEstimate> latest() const;
+    // Blocks until every submitted image has been processed (tests, offline runs).
+    void drain();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mixray::tracking
