@@ -7,12 +7,12 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <numbers>
 #include <optional>
 #include <string>
 #include <system_error>
 #include <vector>
 
+#include "mixray/calibration/camera_model_yaml.h"
 #include "mixray/graph/yaml_reader.h"
 
 namespace mixray::render {
@@ -28,7 +28,6 @@ constexpr double kMaxScale = 1e6;      // mesh scale factor
 constexpr double kMaxIntensity = 1e9;  // light intensity / irradiance
 constexpr double kMaxShininess = 1e6;  // Blinn-Phong exponent
 constexpr double kMaxIor = 10;         // no real dielectric comes close
-constexpr int64_t kMaxImageSide = 65535;
 constexpr int64_t kMaxMarkerId = 1 << 20;
 constexpr size_t kMaxEntries = 10000;  // objects, lights, materials
 
@@ -63,10 +62,6 @@ std::optional<std::string> canonicalAnchor(std::string_view anchor) {
 
 constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like marker:3)";
 
-double radians(double degrees) {
-    return degrees * std::numbers::pi / 180.0;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Schema
 
@@ -79,7 +74,6 @@ constexpr std::array<std::string_view, 10> kMaterialKeys = {
 constexpr std::array<std::string_view, 6> kObjectKeys = {"name",     "role",   "shape",
                                                          "material", "anchor", "pose"};
 constexpr std::array<std::string_view, 5> kShapeKeys = {"sphere", "box", "plane", "disk", "mesh"};
-constexpr std::array<std::string_view, 3> kPoseKeys = {"translation", "rotation_deg", "quaternion"};
 constexpr std::array<std::string_view, 2> kRotationKeys = {"rotation_deg", "quaternion"};
 constexpr std::array<std::string_view, 12> kLightKeys = {"name",
                                                          "type",
@@ -94,8 +88,6 @@ constexpr std::array<std::string_view, 12> kLightKeys = {"name",
                                                          "mirror_lower_hemisphere",
                                                          "rotation"};
 constexpr std::array<std::string_view, 2> kCameraKeys = {"pose", "model"};
-constexpr std::array<std::string_view, 8> kModelKeys = {"lens", "width", "height", "fx",
-                                                        "fy",   "cx",    "cy",     "distortion"};
 
 struct TypeKeys {
     std::string_view type;
@@ -150,9 +142,11 @@ private:
     Result<float> scalar(const Item& item, double min, double max, bool min_exclusive);
     // A linear RGB colour: a number (grey) or [r, g, b], each in [min, max].
     Result<Rgb> colour(const Item& item, double min, double max);
-    Result<Eigen::Vector3d> vector3(const Item& item, double limit);
-    Result<Eigen::Quaterniond> rotation(const Fields& fields);
-    Result<Eigen::Isometry3d> pose(const Item& item);
+    Result<Eigen::Vector3d> vector3(const Item& item, double limit) {
+        return r_.vector3(item, limit);
+    }
+    Result<Eigen::Quaterniond> rotation(const Fields& fields) { return r_.rotation(fields); }
+    Result<Eigen::Isometry3d> pose(const Item& item) { return r_.pose(item, kMaxLength); }
     Result<std::filesystem::path> path(const Item& item);
 
     yaml::Reader r_;
@@ -198,79 +192,6 @@ Result<Rgb> SceneParser::colour(const Item& item, double min, double max) {
         c[i] = *v;
     }
     return c;
-}
-
-Result<Eigen::Vector3d> SceneParser::vector3(const Item& item, double limit) {
-    auto elements = r_.readList(item, 3, 3, "[x, y, z]");
-    if (!elements)
-        return elements.status();
-    Eigen::Vector3d v;
-    for (int i = 0; i < 3; ++i) {
-        auto x = r_.number((*elements)[i], -limit, limit, false);
-        if (!x)
-            return x.status();
-        v[i] = *x;
-    }
-    return v;
-}
-
-Result<Eigen::Quaterniond> SceneParser::rotation(const Fields& fields) {
-    const Item* degrees = find(fields, "rotation_deg");
-    const Item* quaternion = find(fields, "quaternion");
-    if (degrees && quaternion) {
-        return r_.fail(*quaternion, "give one of rotation_deg and quaternion; " + degrees->path +
-                                        " is already given");
-    }
-    if (degrees) {
-        auto angles = vector3(*degrees, 1e4);
-        if (!angles)
-            return angles.status();
-        // Extrinsic x, then y, then z (fixed axes): R = Rz * Ry * Rx.
-        const Eigen::Quaterniond q =
-            Eigen::AngleAxisd(radians((*angles)[2]), Eigen::Vector3d::UnitZ()) *
-            Eigen::AngleAxisd(radians((*angles)[1]), Eigen::Vector3d::UnitY()) *
-            Eigen::AngleAxisd(radians((*angles)[0]), Eigen::Vector3d::UnitX());
-        return q;
-    }
-    if (quaternion) {
-        auto elements = r_.readList(*quaternion, 4, 4, "a unit quaternion [w, x, y, z]");
-        if (!elements)
-            return elements.status();
-        std::array<double, 4> wxyz{};
-        for (size_t i = 0; i < 4; ++i) {
-            auto v = r_.number((*elements)[i], -1.01, 1.01, false);
-            if (!v)
-                return v.status();
-            wxyz[i] = *v;
-        }
-        Eigen::Quaterniond q(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
-        if (std::abs(q.norm() - 1.0) > 1e-3) {
-            return r_.fail(*quaternion, "not a unit quaternion (norm " + std::to_string(q.norm()) +
-                                            "); expected [w, x, y, z]");
-        }
-        q.normalize();
-        return q;
-    }
-    return Eigen::Quaterniond::Identity();
-}
-
-Result<Eigen::Isometry3d> SceneParser::pose(const Item& item) {
-    auto fields = r_.readMap(item, kPoseKeys,
-                             "a pose mapping with translation: and rotation_deg: or quaternion:");
-    if (!fields)
-        return fields.status();
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    if (const Item* t = find(*fields, "translation")) {
-        auto translation = vector3(*t, kMaxLength);
-        if (!translation)
-            return translation.status();
-        T.translation() = *translation;
-    }
-    auto q = rotation(*fields);
-    if (!q)
-        return q.status();
-    T.linear() = q->toRotationMatrix();
-    return T;
 }
 
 Result<std::filesystem::path> SceneParser::path(const Item& item) {
@@ -623,61 +544,10 @@ Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {
         camera.T_world_cam = *T;
     }
     if (const Item* m = find(*fields, "model")) {
-        auto model_fields = r_.readMap(*m, kModelKeys,
-                                       "a camera model mapping with lens:, width:, height:, "
-                                       "fx:, fy:, cx: and cy:");
-        if (!model_fields)
-            return model_fields.status();
-        for (std::string_view key : {"width", "height", "fx", "fy", "cx", "cy"})
-            MIXRAY_RETURN_IF_ERROR(r_.require(*model_fields, *m, key));
-        calibration::CameraModel& model = camera.model.emplace();
-        if (const Item* lens = find(*model_fields, "lens")) {
-            auto parsed = lens->node.IsScalar()
-                              ? calibration::lensModelFromString(lens->node.Scalar())
-                              : std::nullopt;
-            if (!parsed)
-                return r_.expected(*lens, "pinhole or fisheye");
-            model.lens = *parsed;
-        }
-        for (auto [key, out] :
-             {std::pair{"width", &model.width}, std::pair{"height", &model.height}}) {
-            auto v = r_.integer(*find(*model_fields, key), 1, kMaxImageSide);
-            if (!v)
-                return v.status();
-            *out = static_cast<int>(*v);
-        }
-        for (auto [key, out] : {std::pair{"fx", &model.fx}, std::pair{"fy", &model.fy}}) {
-            auto v = r_.number(*find(*model_fields, key), 0, 1e6, true);
-            if (!v)
-                return v.status();
-            *out = *v;
-        }
-        for (auto [key, out] : {std::pair{"cx", &model.cx}, std::pair{"cy", &model.cy}}) {
-            auto v = r_.number(*find(*model_fields, key), -1e6, 1e6, false);
-            if (!v)
-                return v.status();
-            *out = *v;
-        }
-        if (const Item* d = find(*model_fields, "distortion")) {
-            const bool fisheye = model.lens == calibration::LensModel::kFisheye;
-            const size_t n = d->node.IsSequence() ? d->node.size() : 0;
-            const bool count_ok =
-                fisheye ? (n == 0 || n == 4) : (n == 0 || n == 4 || n == 5 || n == 8);
-            if (!d->node.IsSequence() || !count_ok) {
-                return r_.expected(*d, fisheye ? "a list of 4 coefficients k1 k2 k3 k4"
-                                               : "a list of 4, 5 or 8 coefficients k1 k2 p1 p2 "
-                                                 "[k3 [k4 k5 k6]]");
-            }
-            auto elements = r_.readList(*d, 0, 8, "a list of coefficients");
-            if (!elements)
-                return elements.status();
-            for (const Item& e : *elements) {
-                auto v = r_.number(e, -1e6, 1e6, false);
-                if (!v)
-                    return v.status();
-                model.distortion.push_back(*v);
-            }
-        }
+        auto model = calibration::readCameraModel(r_, *m);
+        if (!model)
+            return model.status();
+        camera.model = std::move(model).value();
     }
     return Status::ok();
 }

@@ -293,6 +293,8 @@ Status SimulatorOptions::validate() const {
         return bad("env_map_width must be even, 16 to 8192");
     if (asset_prefix.empty() || asset_prefix.find('/') != std::string::npos)
         return bad("asset_prefix must be a non-empty file name");
+    if (!inserted.lights.empty())
+        return bad("inserted objects bring no lights (the scenario's light them)");
     return Status::ok();
 }
 
@@ -571,8 +573,11 @@ namespace {
 
 // The scene for one frame: the board (calibration) at its pose, all objects virtual so the
 // renderer shades every one of them over the background image.
-SceneDescription frameScene(const SimTruth& t, const SimFrameTruth& f) {
+SceneDescription frameScene(const SimTruth& t, const SimFrameTruth& f,
+                            const SceneDescription& inserted) {
     SceneDescription scene = t.scene;
+    scene.objects.insert(scene.objects.end(), inserted.objects.begin(), inserted.objects.end());
+    scene.materials.insert(inserted.materials.begin(), inserted.materials.end());
     if (t.board && f.T_world_board) {
         const SimBoard& b = *t.board;
         const Isometry3d T_world_plane = *f.T_world_board * T_plane_board(b).inverse();
@@ -643,6 +648,16 @@ public:
         return out;
     }
 
+    Result<Image> renderColor(int index) override {
+        const SimTruth& t = setup_.truth;
+        if (index < 0 || index >= frameCount())
+            return Status(ErrorCode::kInvalidArgument, "simulator: frame " + std::to_string(index) +
+                                                           " of " + std::to_string(frameCount()));
+        const SimFrameTruth& f = t.frames[static_cast<size_t>(index)];
+        MIXRAY_RETURN_IF_ERROR(prepare(f));
+        return renderCamera(0, t.color, f.T_world_color);
+    }
+
     Status init() {
         const SimTruth& t = setup_.truth;
         color_rays_ = detail::pixelRays(t.color);
@@ -661,7 +676,7 @@ private:
         const bool moving = setup_.truth.board.has_value();
         if (!renderers_.empty() && !moving)
             return Status::ok();
-        const SceneDescription scene = frameScene(setup_.truth, f);
+        const SceneDescription scene = frameScene(setup_.truth, f, options_.inserted);
         RenderOptions ro;
         ro.samples_per_pixel = options_.samples_per_pixel;
         ro.max_depth = 3;
@@ -728,6 +743,24 @@ Result<std::unique_ptr<Simulator>> Simulator::create(const SimulatorOptions& opt
         if (!temp.empty())
             fs::remove_all(temp, ec);
         return setup.status();
+    }
+    const SceneDescription& real = setup->truth.scene;
+    for (const auto& [name, material] : options.inserted.materials) {
+        if (real.materials.count(name)) {
+            if (!temp.empty())
+                fs::remove_all(temp, ec);
+            return Status(ErrorCode::kInvalidArgument, "simulator: inserted material \"" + name +
+                                                           "\" clashes with the scenario's");
+        }
+    }
+    for (const SceneObject& o : options.inserted.objects) {
+        if (std::any_of(real.objects.begin(), real.objects.end(),
+                        [&](const SceneObject& r) { return r.name == o.name; })) {
+            if (!temp.empty())
+                fs::remove_all(temp, ec);
+            return Status(ErrorCode::kInvalidArgument, "simulator: inserted object \"" + o.name +
+                                                           "\" clashes with the scenario's");
+        }
     }
     auto sim = std::make_unique<SimulatorImpl>(options, std::move(setup).value(), temp);
     MIXRAY_RETURN_IF_ERROR(sim->init());

@@ -1,12 +1,17 @@
 // Writing a simulated session: the Matroska recording, its truth file, TUM trajectory and the
 // real scene as a scene file (docs/simulation.md).
+#include <array>
 #include <charconv>
 #include <chrono>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
+#include "mixray/calibration/camera_model_yaml.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
+#include "mixray/graph/yaml_reader.h"
+#include "mixray/tracking/setup.h"
 #include "simulator_internal.h"
 
 namespace mixray::render {
@@ -16,31 +21,15 @@ namespace fs = std::filesystem;
 using Eigen::Isometry3d;
 using Eigen::Vector3d;
 
-// Shortest text that reads back as the same number (floats as floats, so 0.9f is "0.9"):
-// truth files stay exact. Exponents get a mantissa with a point ("6.0e-04"), which YAML 1.1
-// readers need to see a float.
 template <typename T>
 std::string num(T v) {
-    char buf[40];
-    const auto r = std::to_chars(buf, buf + sizeof buf, v);
-    std::string s(buf, r.ptr);
-    const size_t e = s.find('e');
-    if (e != std::string::npos && s.find('.') == std::string::npos)
-        s.insert(e, ".0");
-    return s;
+    return yaml::shortest(v);
 }
 
 template <typename V>
 std::string list(const V& v) {
     std::string s = "[";
     for (int i = 0; i < static_cast<int>(v.size()); ++i)
-        s += (i ? ", " : "") + num(v[i]);
-    return s + "]";
-}
-
-std::string list(const std::vector<double>& v) {
-    std::string s = "[";
-    for (size_t i = 0; i < v.size(); ++i)
         s += (i ? ", " : "") + num(v[i]);
     return s + "]";
 }
@@ -58,14 +47,6 @@ std::string poseText(const Isometry3d& T) {
     const Eigen::Quaterniond q = quaternion(T);
     return "{translation: " + list(Vector3d(T.translation())) + ", quaternion: [" + num(q.w()) +
            ", " + num(q.x()) + ", " + num(q.y()) + ", " + num(q.z()) + "]}";
-}
-
-// As scene files write camera models.
-std::string modelText(const calibration::CameraModel& m) {
-    return "{lens: " + std::string(calibration::toString(m.lens)) +
-           ", width: " + std::to_string(m.width) + ", height: " + std::to_string(m.height) +
-           ", fx: " + num(m.fx) + ", fy: " + num(m.fy) + ", cx: " + num(m.cx) +
-           ", cy: " + num(m.cy) + ", distortion: " + list(m.distortion) + "}";
 }
 
 std::string materialTypeName(MaterialType t) {
@@ -134,7 +115,36 @@ std::string sceneText(const SimTruth& t) {
     return o.str();
 }
 
-std::string truthText(const SimTruth& t, const std::string& stem, int env_every) {
+// What a user of this rig would write to track it: the true calibration, the marker, the
+// probes and the environment camera (docs/tracking.md#setup-files).
+tracking::TrackingSetup trackingSetup(const SimTruth& t) {
+    tracking::TrackingSetup s;
+    s.camera.stream = "kinect/color";
+    s.camera.model = t.color;
+    tracking::MarkerTarget& marker = s.targets.emplace_back();
+    marker.name = "marker";
+    marker.kind = tracking::TargetKind::kMarker;
+    marker.dictionary = t.marker_dictionary;
+    marker.id = t.marker_id;
+    marker.size_m = t.marker_size_m;
+    marker.T_world_target = t.T_world_marker;
+    for (const SimProbe& p : t.probes) {
+        tracking::LightProbe& probe = s.probes.emplace_back();
+        probe.name = p.name;
+        probe.material = p.material == MaterialType::kMirror ? tracking::ProbeMaterial::kMirror
+                                                             : tracking::ProbeMaterial::kDiffuse;
+        probe.radius_m = p.radius_m;
+        probe.centre_world = p.centre_world;
+    }
+    tracking::EnvironmentStream& env = s.environment.emplace();
+    env.stream = "env/color";
+    env.camera.model = t.env;
+    env.camera.T_world_env = t.T_world_env;
+    return s;
+}
+
+std::string truthText(const SimTruth& t, const SimulatorOptions& options, const std::string& stem,
+                      int env_every) {
     const bool calib = t.scenario == SimScenario::kCalibration;
     std::ostringstream o;
     o << "# Ground truth of a simulated mixray session (docs/simulation.md). Metres, radians\n"
@@ -145,17 +155,22 @@ std::string truthText(const SimTruth& t, const std::string& stem, int env_every)
     o << "scenario: " << toString(t.scenario) << "\n";
     o << "seed: " << t.seed << "\n";
     o << "recording: " << stem << ".mkv\n";
+    o << "# Simulator::create(readSimulationOptions(this file)) renders the session again.\n"
+      << "simulation: {scenario: " << toString(t.scenario) << ", frames: " << t.frames.size()
+      << ", seed: " << t.seed << ", width: " << t.color.width << ", height: " << t.color.height
+      << ", samples_per_pixel: " << options.samples_per_pixel << ", env_every: " << env_every
+      << ", env_map_width: " << options.env_map_width << "}\n";
     o << "frames: " << t.frames.size() << "\n";
     o << "fps: " << num(t.fps) << "\n";
     o << "cameras:\n";
-    o << "  kinect/color:\n    model: " << modelText(t.color)
+    o << "  kinect/color:\n    model: " << calibration::cameraModelYaml(t.color)
       << "\n    pose: per frame (frames[].T_world_color, " << stem << ".tum, truth/pose)\n";
-    o << "  kinect/depth:\n    registered_to: kinect/color\n    model: " << modelText(t.color)
-      << "\n";
-    o << "  kinect/ir:\n    model: " << modelText(t.ir)
+    o << "  kinect/depth:\n    registered_to: kinect/color\n    model: "
+      << calibration::cameraModelYaml(t.color) << "\n";
+    o << "  kinect/ir:\n    model: " << calibration::cameraModelYaml(t.ir)
       << "\n    T_color_ir: " << poseText(t.T_color_ir)
       << "\n    recorded: " << (calib ? "true" : "false") << "\n";
-    o << "  env/color:\n    model: " << modelText(t.env)
+    o << "  env/color:\n    model: " << calibration::cameraModelYaml(t.env)
       << "\n    T_world_env: " << poseText(t.T_world_env)
       << "\n    T_marker_env: " << poseText(t.T_world_marker.inverse() * t.T_world_env)
       << "\n    every_nth_frame: " << env_every << "\n";
@@ -268,6 +283,68 @@ StreamInfo imageStream(const std::string& name, StreamKind kind, PixelFormat for
 
 }  // namespace
 
+Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
+                                               std::string_view source_name) {
+    static constexpr std::array<std::string_view, 8> kKeys = {
+        "scenario",          "frames",    "seed",         "width", "height",
+        "samples_per_pixel", "env_every", "env_map_width"};
+    try {
+        yaml::Reader r{std::string(source_name)};
+        auto root = r.load(truth_text, 64 << 20, 64, "a truth file");
+        if (!root)
+            return root.status();
+        auto fields = r.readMap(*root, {}, "a truth file mapping");
+        if (!fields)
+            return fields.status();
+        const yaml::Item* section = yaml::find(*fields, "simulation");
+        if (!section)
+            return r.fail(*root,
+                          "no simulation: section (written by mixray simulate since the "
+                          "truth file's options were recorded)");
+        auto sim = r.readMap(*section, kKeys, "a mapping of simulator options");
+        if (!sim)
+            return sim.status();
+        for (std::string_view key : kKeys)
+            MIXRAY_RETURN_IF_ERROR(r.require(*sim, *section, key));
+        const auto integer = [&](std::string_view key, int64_t lo, int64_t hi) {
+            return r.integer(*yaml::find(*sim, key), lo, hi);
+        };
+        SimulatorOptions o;
+        const yaml::Item& scenario = *yaml::find(*sim, "scenario");
+        auto name = r.text(scenario);
+        if (!name)
+            return name.status();
+        auto parsed = simScenarioFromString(*name);
+        if (!parsed)
+            return r.expected(scenario, "tabletop or calibration");
+        o.scenario = *parsed;
+        struct IntField {
+            std::string_view key;
+            int* out;
+            int64_t lo, hi;
+        };
+        for (const IntField& f :
+             {IntField{"frames", &o.frames, 1, 100000}, IntField{"width", &o.width, 16, 4096},
+              IntField{"height", &o.height, 16, 4096},
+              IntField{"samples_per_pixel", &o.samples_per_pixel, 1, 4096},
+              IntField{"env_every", &o.env_every, 1, 100000},
+              IntField{"env_map_width", &o.env_map_width, 16, 8192}}) {
+            auto v = integer(f.key, f.lo, f.hi);
+            if (!v)
+                return v.status();
+            *f.out = static_cast<int>(*v);
+        }
+        auto seed = integer("seed", 0, std::numeric_limits<int64_t>::max());
+        if (!seed)
+            return seed.status();
+        o.seed = static_cast<uint64_t>(*seed);
+        MIXRAY_RETURN_IF_ERROR(o.validate());
+        return o;
+    } catch (const YAML::Exception& e) {
+        return Status(ErrorCode::kCorruptData, std::string(source_name) + ": " + e.what());
+    }
+}
+
 Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
                                           const fs::path& recording,
                                           const std::function<void(int, int)>& progress) {
@@ -296,12 +373,15 @@ Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
     const fs::path truth_path = dir / (stem + ".truth.yaml");
     const fs::path tum_path = dir / (stem + ".tum");
     const fs::path scene_path = dir / (stem + ".scene.yaml");
-    const std::string truth = truthText(t, stem, env_every);
+    const std::string truth = truthText(t, options, stem, env_every);
     MIXRAY_RETURN_IF_ERROR(writeText(truth_path, truth));
     MIXRAY_RETURN_IF_ERROR(writeText(tum_path, tumText(t)));
     MIXRAY_RETURN_IF_ERROR(writeText(scene_path, sceneText(t)));
+    const fs::path tracking_path = dir / (stem + ".tracking.yaml");
+    const std::string tracking = tracking::trackingSetupYaml(trackingSetup(t));
+    MIXRAY_RETURN_IF_ERROR(writeText(tracking_path, tracking));
     summary.files.insert(summary.files.end(),
-                         {truth_path, tum_path, scene_path, t.environment_map});
+                         {truth_path, tum_path, scene_path, tracking_path, t.environment_map});
     for (const auto& [name, m] : t.scene.materials)
         if (!m.albedo_texture.empty())
             summary.files.push_back(m.albedo_texture);
@@ -328,6 +408,8 @@ Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
     }
     header.attachments.push_back(
         {"truth.yaml", "application/x-yaml", std::vector<uint8_t>(truth.begin(), truth.end())});
+    header.attachments.push_back({"tracking.yaml", "application/x-yaml",
+                                  std::vector<uint8_t>(tracking.begin(), tracking.end())});
     header.tags["simulator"] = "mixray simulate";
     header.tags["scenario"] = std::string(toString(t.scenario));
     header.tags["seed"] = std::to_string(t.seed);

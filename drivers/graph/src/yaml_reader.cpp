@@ -4,13 +4,22 @@
 #include <yaml-cpp/eventhandler.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 namespace mixray::yaml {
 namespace {
+
+constexpr std::array<std::string_view, 3> kPoseKeys = {"translation", "rotation_deg", "quaternion"};
+
+double degreesToRadians(double degrees) {
+    return degrees * std::numbers::pi / 180.0;
+}
 
 bool isKeyChar(char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
@@ -159,7 +168,26 @@ Status prescan(std::string_view text, const std::string& file, size_t max_bytes,
     return Status::ok();
 }
 
+template <typename T>
+std::string shortestText(T value) {
+    char buf[40];
+    const auto r = std::to_chars(buf, buf + sizeof buf, value);
+    std::string s(buf, r.ptr);
+    const size_t e = s.find('e');
+    if (e != std::string::npos && s.find('.') == std::string::npos)
+        s.insert(e, ".0");
+    return s;
+}
+
 }  // namespace
+
+std::string shortest(double value) {
+    return shortestText(value);
+}
+
+std::string shortest(float value) {
+    return shortestText(value);
+}
 
 const Item* find(const Fields& fields, std::string_view key) {
     for (const auto& f : fields) {
@@ -290,6 +318,79 @@ Result<bool> Reader::boolean(const Item& item) const {
             return false;
     }
     return expected(item, "true or false");
+}
+
+Result<Eigen::Vector3d> Reader::vector3(const Item& item, double limit) const {
+    auto elements = readList(item, 3, 3, "[x, y, z]");
+    if (!elements)
+        return elements.status();
+    Eigen::Vector3d v;
+    for (int i = 0; i < 3; ++i) {
+        auto x = number((*elements)[i], -limit, limit, false);
+        if (!x)
+            return x.status();
+        v[i] = *x;
+    }
+    return v;
+}
+
+Result<Eigen::Quaterniond> Reader::rotation(const Fields& fields) const {
+    const Item* degrees = find(fields, "rotation_deg");
+    const Item* quaternion = find(fields, "quaternion");
+    if (degrees && quaternion) {
+        return fail(*quaternion, "give one of rotation_deg and quaternion; " + degrees->path +
+                                     " is already given");
+    }
+    if (degrees) {
+        auto angles = vector3(*degrees, 1e4);
+        if (!angles)
+            return angles.status();
+        // Extrinsic x, then y, then z (fixed axes): R = Rz * Ry * Rx.
+        const Eigen::Quaterniond q =
+            Eigen::AngleAxisd(degreesToRadians((*angles)[2]), Eigen::Vector3d::UnitZ()) *
+            Eigen::AngleAxisd(degreesToRadians((*angles)[1]), Eigen::Vector3d::UnitY()) *
+            Eigen::AngleAxisd(degreesToRadians((*angles)[0]), Eigen::Vector3d::UnitX());
+        return q;
+    }
+    if (quaternion) {
+        auto elements = readList(*quaternion, 4, 4, "a unit quaternion [w, x, y, z]");
+        if (!elements)
+            return elements.status();
+        std::array<double, 4> wxyz{};
+        for (size_t i = 0; i < 4; ++i) {
+            auto v = number((*elements)[i], -1.01, 1.01, false);
+            if (!v)
+                return v.status();
+            wxyz[i] = *v;
+        }
+        Eigen::Quaterniond q(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+        if (std::abs(q.norm() - 1.0) > 1e-3) {
+            return fail(*quaternion, "not a unit quaternion (norm " + std::to_string(q.norm()) +
+                                         "); expected [w, x, y, z]");
+        }
+        q.normalize();
+        return q;
+    }
+    return Eigen::Quaterniond::Identity();
+}
+
+Result<Eigen::Isometry3d> Reader::pose(const Item& item, double max_translation) const {
+    auto fields = readMap(item, kPoseKeys,
+                          "a pose mapping with translation: and rotation_deg: or quaternion:");
+    if (!fields)
+        return fields.status();
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    if (const Item* t = find(*fields, "translation")) {
+        auto translation = vector3(*t, max_translation);
+        if (!translation)
+            return translation.status();
+        T.translation() = *translation;
+    }
+    auto q = rotation(*fields);
+    if (!q)
+        return q.status();
+    T.linear() = q->toRotationMatrix();
+    return T;
 }
 
 }  // namespace mixray::yaml

@@ -43,6 +43,10 @@ struct SimulatorOptions {
     // removed with the Simulator.
     std::filesystem::path asset_dir;
     std::string asset_prefix = "sim";  // file name prefix of those assets
+    // Objects (with their materials) placed in the real scene, world frame: rendering with
+    // them gives the ground truth a compositor aims for (the virtual objects as if they were
+    // real). Their names must not clash with the scenario's; lights are not taken.
+    SceneDescription inserted;
 
     Status validate() const;
 };
@@ -146,7 +150,15 @@ public:
     virtual int frameCount() const = 0;
     // Renders frame `index` (0 ≤ index < frameCount()); deterministic for the seed.
     virtual Result<SimFrame> render(int index) = 0;
+    // Only the colour image of frame `index` (as render(index).color).
+    virtual Result<Image> renderColor(int index) = 0;
 };
+
+// The options a truth file's `simulation:` section records (scenario, frames, seed, size,
+// samples, env_every, env_map_width): Simulator::create() with them renders the session again.
+// kCorruptData naming the field for a bad or missing section.
+Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
+                                               std::string_view source_name);
 
 struct SimulationSummary {
     int frames = 0;

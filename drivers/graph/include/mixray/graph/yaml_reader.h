@@ -6,6 +6,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <charconv>
 #include <cstddef>
@@ -67,6 +69,12 @@ inline bool parseWhole(std::string_view text, T& value) {
 }
 
 const Item* find(const Fields& fields, std::string_view key);
+
+// The shortest text that reads back as the same number (floats as floats, so 0.9f is "0.9"),
+// for files written to be read again exactly. Exponents get a mantissa with a point
+// ("6.0e-04"), which YAML 1.1 readers need to see a float.
+std::string shortest(double value);
+std::string shortest(float value);
 std::string keyPath(const std::string& path, std::string_view key);
 
 // Typed, located access to one file's YAML. Thread-bound: one reader per parse. Methods may
@@ -108,6 +116,15 @@ public:
     // A finite decimal number in [min, max] (above min when min_exclusive).
     Result<double> number(const Item& item, double min, double max, bool min_exclusive) const;
     Result<bool> boolean(const Item& item) const;
+    // [x, y, z], each finite and within ±limit.
+    Result<Eigen::Vector3d> vector3(const Item& item, double limit) const;
+    // The rotation of a pose mapping's fields: `rotation_deg: [x, y, z]` (extrinsic x, then y,
+    // then z: R = Rz·Ry·Rx) or `quaternion: [w, x, y, z]` (unit), not both; identity when
+    // neither is given.
+    Result<Eigen::Quaterniond> rotation(const Fields& fields) const;
+    // A pose mapping {translation: [x, y, z], rotation_deg: ... | quaternion: ...}; translation
+    // within ±max_translation.
+    Result<Eigen::Isometry3d> pose(const Item& item, double max_translation) const;
 
 private:
     std::string file_;
