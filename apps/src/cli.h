@@ -35,9 +35,11 @@ using Commands = std::vector<Command>;
 // One per subcommand, each in its own <name>_command.cpp.
 void registerBenchCommand(CLI::App& app, Commands& commands);
 void registerConvertCommand(CLI::App& app, Commands& commands);
+void registerDemoCommand(CLI::App& app, Commands& commands);
 void registerDevicesCommand(CLI::App& app, Commands& commands);
 void registerInfoCommand(CLI::App& app, Commands& commands);
 void registerPlayCommand(CLI::App& app, Commands& commands);
+void registerTrackCommand(CLI::App& app, Commands& commands);
 void registerRecordCommand(CLI::App& app, Commands& commands);
 void registerRenderCommand(CLI::App& app, Commands& commands);
 void registerSimulateCommand(CLI::App& app, Commands& commands);

@@ -18,7 +18,9 @@ int main(int argc, char** argv) {
     registerPlayCommand(app, commands);
     registerConvertCommand(app, commands);
     registerRenderCommand(app, commands);
+    registerTrackCommand(app, commands);
     registerSimulateCommand(app, commands);
+    registerDemoCommand(app, commands);
     registerBenchCommand(app, commands);
 
     try {

@@ -1,7 +1,7 @@
 // mixray render: composites a scene's virtual objects into every colour frame of a recording.
 #include <algorithm>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <optional>

@@ -199,14 +199,30 @@ struct TileScratch {
     std::vector<uint8_t> have_surface;
 };
 
+Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
+                                          const std::vector<Light>& scene_lights);
+
 class EmbreeRenderer final : public Renderer {
 public:
     EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
-                   std::vector<ObjectData> objects, std::vector<LightData> lights)
+                   std::vector<ObjectData> objects, std::vector<LightData> lights,
+                   std::filesystem::path scene_source)
         : options_(options),
           materials_(std::move(materials)),
           objects_(std::move(objects)),
-          lights_(std::move(lights)) {}
+          lights_(std::move(lights)),
+          scene_source_(std::move(scene_source)) {}
+
+    Status setLights(const std::vector<Light>& lights) override {
+        SceneDescription check;  // the scene's own checks, on the lights alone
+        check.lights = lights;
+        MIXRAY_RETURN_IF_ERROR(check.validate());
+        auto loaded = loadLights(scene_source_, lights);
+        if (!loaded)
+            return loaded.status();
+        lights_ = std::move(loaded).value();
+        return Status::ok();
+    }
 
     Status init() {
         auto built = EmbreeScene::build(objects_);
@@ -258,6 +274,7 @@ private:
     std::vector<MaterialData> materials_;
     std::vector<ObjectData> objects_;
     std::vector<LightData> lights_;
+    std::filesystem::path scene_source_;  // the scene file: light files resolve against it
     std::unique_ptr<EmbreeScene> scene_;
     RayCache rays_;
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
@@ -1384,6 +1401,42 @@ void boundMeshes(ObjectData& object) {
             object.bound_radius = std::max(object.bound_radius, (p - object.bound_centre).norm());
 }
 
+// The lights' render data: environment maps loaded (files resolved against the scene file's
+// folder) or taken from memory.
+Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
+                                          const std::vector<Light>& scene_lights) {
+    std::vector<LightData> lights;
+    for (const Light& light : scene_lights) {
+        LightData data;
+        data.light = light;
+        if (light.type == LightType::kEnvironment) {
+            if (light.environment_image) {
+                const FloatImage& image = *light.environment_image;
+                std::vector<Rgb> texels(static_cast<size_t>(image.width) * image.height);
+                for (int y = 0; y < image.height; ++y)
+                    for (int x = 0; x < image.width; ++x) {
+                        const float* p = image.at(x, y);
+                        texels[static_cast<size_t>(y) * image.width + x] = Rgb(p[0], p[1], p[2]);
+                    }
+                data.environment = EnvironmentMap(Texture(image.width, image.height, texels));
+                data.light.environment_image.reset();  // the texture holds it now
+            } else {
+                SceneDescription where;
+                where.source_path = scene_source;
+                auto map = EnvironmentMap::load(resolve(where, light.environment));
+                if (!map)
+                    return map.status().withContext("light '" + light.name + "' (" +
+                                                    light.where.toString() + ")");
+                data.environment = std::move(map).value();
+            }
+            if (light.mirror_lower_hemisphere)
+                data.environment.mirrorUpperIntoLower();
+        }
+        lights.push_back(std::move(data));
+    }
+    return lights;
+}
+
 }  // namespace
 
 Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene,
@@ -1471,21 +1524,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         objects.push_back(std::move(data));
     }
 
-    std::vector<LightData> lights;
-    for (const Light& light : scene.lights) {
-        LightData data;
-        data.light = light;
-        if (light.type == LightType::kEnvironment) {
-            auto map = EnvironmentMap::load(resolve(scene, light.environment));
-            if (!map)
-                return map.status().withContext("light '" + light.name + "' (" +
-                                                light.where.toString() + ")");
-            data.environment = std::move(map).value();
-            if (light.mirror_lower_hemisphere)
-                data.environment.mirrorUpperIntoLower();
-        }
-        lights.push_back(std::move(data));
-    }
+    auto lights = loadLights(scene.source_path, scene.lights);
+    if (!lights)
+        return lights.status();
 
     std::optional<size_t> depth_object;
     if (options.depth_secondary == DepthSecondaryRays::kMesh) {
@@ -1505,8 +1546,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         objects.push_back(std::move(data));
     }
 
-    auto renderer = std::make_unique<EmbreeRenderer>(options, std::move(materials),
-                                                     std::move(objects), std::move(lights));
+    auto renderer =
+        std::make_unique<EmbreeRenderer>(options, std::move(materials), std::move(objects),
+                                         std::move(lights).value(), scene.source_path);
     renderer->setDepthObject(depth_object);
     MIXRAY_RETURN_IF_ERROR(renderer->init());
     return std::unique_ptr<Renderer>(std::move(renderer));

@@ -122,8 +122,18 @@ Status validateLight(const Light& l, const std::string& path) {
                 return corrupt(l.where, path + ".irradiance", "must be finite and not negative");
             break;
         case LightType::kEnvironment:
-            if (l.environment.empty())
+            if (l.environment.empty() && !l.environment_image)
                 return corrupt(l.where, path + ".file", "empty path");
+            if (l.environment_image &&
+                (l.environment_image->width < 2 || l.environment_image->channels < 3 ||
+                 l.environment_image->height * 2 != l.environment_image->width ||
+                 l.environment_image->pixels.size() !=
+                     static_cast<size_t>(l.environment_image->width) *
+                         static_cast<size_t>(l.environment_image->height) *
+                         static_cast<size_t>(l.environment_image->channels)))
+                return corrupt(l.where, path,
+                               "the environment image is not an equirectangular "
+                               "RGB map of width = 2 x height");
             if (!(std::isfinite(l.environment_scale) && l.environment_scale >= 0))
                 return corrupt(l.where, path + ".scale", "must be finite and not negative");
             if (!isRigid(l.T_world_environment) || !l.T_world_environment.translation().isZero())

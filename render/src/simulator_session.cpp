@@ -135,6 +135,8 @@ tracking::TrackingSetup trackingSetup(const SimTruth& t) {
                                                              : tracking::ProbeMaterial::kDiffuse;
         probe.radius_m = p.radius_m;
         probe.centre_world = p.centre_world;
+        if (p.material == MaterialType::kDiffuse)
+            probe.albedo = t.scene.materials.at("matte").albedo.x();
     }
     tracking::EnvironmentStream& env = s.environment.emplace();
     env.stream = "env/color";

@@ -26,7 +26,8 @@ constexpr std::array<std::string_view, 4> kTrackerKeys = {"max_rms_px", "reacqui
                                                           "refine_corners", "smoothing"};
 constexpr std::array<std::string_view, 4> kSmoothingKeys = {"enabled", "min_cutoff_hz", "beta",
                                                             "d_cutoff_hz"};
-constexpr std::array<std::string_view, 4> kProbeKeys = {"name", "material", "radius_m", "centre"};
+constexpr std::array<std::string_view, 5> kProbeKeys = {"name", "material", "radius_m", "centre",
+                                                        "albedo"};
 constexpr std::array<std::string_view, 3> kProbeOptionKeys = {"domain", "sphere_samples",
                                                               "max_lights"};
 constexpr std::array<std::string_view, 9> kEnvironmentKeys = {
@@ -209,6 +210,7 @@ Status SetupParser::parseProbe(const Item& item, LightProbe& p) {
     }
     MIXRAY_ASSIGN(p.radius_m, number(*fields, "radius_m", 0, 100, 0, true));
     MIXRAY_ASSIGN(p.centre_world, r_.vector3(*find(*fields, "centre"), kMaxLength));
+    MIXRAY_ASSIGN(p.albedo, number(*fields, "albedo", 0, 1, p.albedo, true));
     if (Status s = p.validate(); !s)
         return r_.fail(item, s.message());
     return Status::ok();
@@ -435,7 +437,8 @@ std::string trackingSetupYaml(const TrackingSetup& s) {
         for (const LightProbe& p : s.probes) {
             o << "  - {name: " << p.name
               << ", material: " << (p.material == ProbeMaterial::kMirror ? "mirror" : "diffuse")
-              << ", radius_m: " << num(p.radius_m) << ", centre: " << vec(p.centre_world) << "}\n";
+              << ", radius_m: " << num(p.radius_m) << ", centre: " << vec(p.centre_world)
+              << ", albedo: " << num(p.albedo) << "}\n";
         }
     }
     const ProbeOptions& po = s.probe_options;

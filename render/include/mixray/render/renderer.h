@@ -131,6 +131,11 @@ public:
     virtual Status render(const RenderInputs& inputs, RenderLayers& out,
                           RenderStats* stats = nullptr) = 0;
 
+    // Replaces the scene's lights from the next frame on (estimated light that changes while
+    // the geometry does not); anchors and files as in the scene. kInvalidArgument /
+    // kCorruptData naming a bad light (the old lights stay).
+    virtual Status setLights(const std::vector<Light>& lights) = 0;
+
     virtual const RenderOptions& options() const = 0;
 
     // Traces `log` (from the last render()) with bare Embree on the same BVH and poses, with

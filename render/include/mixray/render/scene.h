@@ -96,7 +96,10 @@ struct Light {
     float radius = 0.05f;                 // kSphere
     Rgb intensity{1, 1, 1};               // point/sphere: intensity; directional: irradiance
     std::filesystem::path environment;    // kEnvironment: .hdr or .exr equirectangular map
-    float environment_scale = 1;          // multiplies the map's radiance
+    // kEnvironment: a map in memory (linear RGB, equirectangular, as EnvironmentMap), used
+    // instead of `environment` when set: maps estimated while running.
+    std::shared_ptr<const FloatImage> environment_image;
+    float environment_scale = 1;  // multiplies the map's radiance
     Eigen::Isometry3d T_world_environment = Eigen::Isometry3d::Identity();
     bool mirror_lower_hemisphere = false;  // fill the lower half from the upper (fish-eye maps)
     SourceLocation where;

@@ -27,6 +27,7 @@ struct LightProbe {
     ProbeMaterial material = ProbeMaterial::kMirror;
     double radius_m = 0.04;
     Eigen::Vector3d centre_world{0, 0, 0.04};
+    double albedo = 0.8;  // kDiffuse: grey diffuse reflectance (gives lights' strengths)
 
     Status validate() const;
 };

@@ -1,0 +1,552 @@
+// mixray demo: the whole pipeline on a bundled recording — replay, track the marker, estimate
+// the real light, composite virtual objects by ray-traced differential rendering — and, for a
+// simulated session, how close poses, lights and the composite come to the ground truth.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <optional>
+#include <thread>
+
+#include "cli.h"
+#include "console.h"
+#include "mixray/graph/mkv.h"
+#include "mixray/render/output.h"
+#include "mixray/render/renderer.h"
+#include "mixray/render/scene_file.h"
+#include "mixray/render/simulator.h"
+#include "mixray/replay/open_recording.h"
+#include "tracking_pipeline.h"
+
+namespace mixray::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Eigen::Isometry3d;
+using Eigen::Vector3d;
+using nlohmann::json;
+
+struct DemoOptions {
+    std::string session = std::string(MIXRAY_SOURCE_DIR) + "/fixtures/sessions/sim_tabletop.mkv";
+    std::string objects =
+        std::string(MIXRAY_SOURCE_DIR) + "/fixtures/scenes/sim_tabletop_demo.yaml";
+    std::string real_scene;  // default: the session's NAME.scene.yaml
+    std::string setup;
+    std::string output = "out/demo";
+    int png_every = 9;
+    int samples = 4;
+    int threads = 0;
+    uint64_t max_frames = 0;
+    bool truth = true;
+    bool depth = true;
+};
+
+double angleDeg(const Vector3d& a, const Vector3d& b) {
+    return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / M_PI;
+}
+
+double median(std::vector<double> v) {
+    if (v.empty())
+        return std::nan("");
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double maximum(const std::vector<double>& v) {
+    return v.empty() ? std::nan("") : *std::max_element(v.begin(), v.end());
+}
+
+double mean(const std::vector<double>& v) {
+    return v.empty() ? std::nan("") : std::accumulate(v.begin(), v.end(), 0.0) / v.size();
+}
+
+// PSNR of two rgb8 images over all pixels, and over the pixels where `truth` differs from
+// `camera` (what the virtual objects change: themselves, their shadows and reflections).
+struct Psnr {
+    double full = 0;
+    double region = 0;
+    size_t region_pixels = 0;
+};
+
+double psnrFrom(double squared, size_t count) {
+    if (count == 0)
+        return std::nan("");
+    const double mse = squared / static_cast<double>(count);
+    return mse <= 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 / mse);
+}
+
+Psnr psnr(const ImageView& ours, const ImageView& truth, const ImageView& camera) {
+    double all = 0, inside = 0;
+    size_t inside_count = 0;
+    const int w = truth.desc.width, h = truth.desc.height;
+    for (int y = 0; y < h; ++y) {
+        const uint8_t* a = ours.row<uint8_t>(y);
+        const uint8_t* b = truth.row<uint8_t>(y);
+        const uint8_t* c = camera.row<uint8_t>(y);
+        for (int x = 0; x < w * 3; x += 3) {
+            double e = 0;
+            bool changed = false;
+            for (int k = 0; k < 3; ++k) {
+                const double d = static_cast<double>(a[x + k]) - b[x + k];
+                e += d * d;
+                changed |= std::abs(static_cast<int>(b[x + k]) - c[x + k]) > 3;
+            }
+            all += e;
+            if (changed) {
+                inside += e;
+                inside_count += 3;
+            }
+        }
+    }
+    return {psnrFrom(all, static_cast<size_t>(w) * h * 3), psnrFrom(inside, inside_count),
+            inside_count / 3};
+}
+
+// |ours − truth| × 4, for looking at where they differ.
+Image differenceImage(const ImageView& ours, const ImageView& truth) {
+    Image out(ImageDesc::packed(PixelFormat::kRGB8, truth.desc.width, truth.desc.height));
+    MutableImageView m = out.mutableView();
+    for (int y = 0; y < truth.desc.height; ++y) {
+        const uint8_t* a = ours.row<uint8_t>(y);
+        const uint8_t* b = truth.row<uint8_t>(y);
+        uint8_t* o = m.data + static_cast<size_t>(y) * m.desc.stride_bytes;
+        for (int x = 0; x < truth.desc.width * 3; ++x)
+            o[x] = static_cast<uint8_t>(std::min(255, 4 * std::abs(a[x] - b[x])));
+    }
+    return out;
+}
+
+// The scene the demo renders: the real scene's objects as ghosts (no lights: those are
+// estimated) and the virtual objects. A mesh whose file is missing becomes a metal sphere of
+// its size, with a message.
+Result<render::SceneDescription> demoScene(const std::string& real_path,
+                                           const std::string& objects_path,
+                                           render::SceneDescription& inserted) {
+    auto real = render::loadScene(real_path);
+    if (!real)
+        return real.status();
+    auto objects = render::loadScene(objects_path);
+    if (!objects)
+        return objects.status();
+    render::SceneDescription scene;
+    scene.source_path = real->source_path;
+    scene.materials = real->materials;
+    for (render::SceneObject o : real->objects) {
+        o.role = render::ObjectRole::kGhost;
+        // Texture and mesh paths resolve against the real scene's file.
+        scene.objects.push_back(std::move(o));
+    }
+    for (auto& [name, m] : real->materials)
+        if (!m.albedo_texture.empty() && m.albedo_texture.is_relative())
+            scene.materials[name].albedo_texture =
+                fs::absolute(real->source_path.parent_path() / m.albedo_texture);
+    inserted = render::SceneDescription{};
+    for (const auto& [name, m] : objects->materials) {
+        if (scene.materials.count(name))
+            return Status(ErrorCode::kInvalidArgument,
+                          objects_path + ": material " + name + " is also the real scene's");
+        scene.materials[name] = m;
+        inserted.materials[name] = m;
+    }
+    for (render::SceneObject o : objects->objects) {
+        o.role = render::ObjectRole::kVirtual;
+        if (o.shape.type == render::ShapeType::kMesh && !o.shape.mesh.empty()) {
+            fs::path file = o.shape.mesh;
+            if (file.is_relative())
+                file = objects->source_path.parent_path() / file;
+            std::error_code ec;
+            if (!fs::exists(file, ec)) {
+                std::fprintf(stderr,
+                             "mixray demo: %s not found (the shared data is not here); a metal "
+                             "sphere stands in for %s\n",
+                             file.string().c_str(), o.name.c_str());
+                o.shape = render::Shape{};
+                o.shape.type = render::ShapeType::kSphere;
+                o.shape.radius = 0.04f;
+                o.T_anchor_object.translation().z() += 0.04;
+            } else {
+                o.shape.mesh = fs::absolute(file);
+            }
+        }
+        inserted.objects.push_back(o);
+        scene.objects.push_back(std::move(o));
+    }
+    MIXRAY_RETURN_IF_ERROR(scene.validate());
+    return scene;
+}
+
+// Errors of one light-estimation method against the true lights, per frame.
+struct LightErrors {
+    std::vector<double> key_deg, fill_deg;
+};
+
+void addLightErrors(LightErrors& errors, const std::vector<tracking::EstimatedLight>& estimated,
+                    const std::vector<render::Light>& truth) {
+    if (estimated.empty() || truth.empty())
+        return;
+    for (size_t k = 0; k < truth.size() && k < 2; ++k) {
+        const Vector3d to_light = -truth[k].direction.normalized();
+        double best = 180;
+        for (const auto& e : estimated)
+            best = std::min(best, angleDeg(e.to_light_world, to_light));
+        (k == 0 ? errors.key_deg : errors.fill_deg).push_back(best);
+    }
+}
+
+json statsJson(const std::vector<double>& v) {
+    return {{"median", median(v)}, {"mean", mean(v)}, {"max", maximum(v)}, {"count", v.size()}};
+}
+
+int runDemo(const DemoOptions& options) {
+    setFfmpegLogging(false);
+    const auto started = std::chrono::steady_clock::now();
+    auto reader = replay::openRecording(options.session);
+    if (!reader)
+        return fail("demo", reader.status());
+    auto setup = findTrackingSetup(options.session, **reader, options.setup);
+    if (!setup)
+        return fail("demo", setup.status());
+    auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams());
+    if (!pipeline)
+        return fail("demo", pipeline.status().withContext(options.session));
+    const StreamInfo color_info = (*reader)->streams()[(*pipeline)->colorStream()];
+    StreamId depth_stream = kInvalidStream;
+    for (StreamId i = 0; i < (*reader)->streams().size(); ++i) {
+        const StreamInfo& s = (*reader)->streams()[i];
+        if (options.depth && s.kind == StreamKind::kDepth &&
+            s.format.format == PixelFormat::kDepth16 && s.format.width == color_info.format.width &&
+            s.format.height == color_info.format.height)
+            depth_stream = i;
+    }
+
+    fs::path real_scene = options.real_scene;
+    if (real_scene.empty()) {
+        real_scene = options.session;
+        real_scene.replace_extension(".scene.yaml");
+    }
+    render::SceneDescription inserted;
+    auto scene = demoScene(real_scene.string(), options.objects, inserted);
+    if (!scene)
+        return fail("demo", scene.status());
+    render::RenderOptions ro;
+    ro.samples_per_pixel = options.samples;
+    ro.max_depth = 3;
+    ro.soft_shadows = render::SoftShadowMethod::kAdaptive;
+    ro.depth_secondary = render::DepthSecondaryRays::kNone;
+    ro.threads = options.threads;
+    auto renderer = render::Renderer::create(*scene, ro);
+    if (!renderer)
+        return fail("demo", renderer.status());
+
+    // Ground truth: the simulator renders the session again with the virtual objects real.
+    std::unique_ptr<render::Simulator> truth_sim;
+    if (options.truth) {
+        for (const Attachment& a : (*reader)->attachments()) {
+            if (a.name != "truth.yaml")
+                continue;
+            auto sim_options = render::readSimulationOptions(
+                std::string(a.data.begin(), a.data.end()), options.session + ":truth.yaml");
+            if (!sim_options)
+                return fail("demo", sim_options.status());
+            sim_options->inserted = inserted;
+            sim_options->threads = options.threads;
+            auto sim = render::Simulator::create(*sim_options);
+            if (!sim)
+                return fail("demo", sim.status().withContext("ground truth"));
+            truth_sim = std::move(sim).value();
+        }
+        if (!truth_sim)
+            std::fprintf(stderr,
+                         "mixray demo: %s carries no simulator truth: no accuracy "
+                         "summary, only the composite\n",
+                         options.session.c_str());
+    }
+
+    const fs::path out = options.output;
+    std::error_code ec;
+    fs::create_directories(out / "frames", ec);
+    if (ec)
+        return fail("demo", {ErrorCode::kIoError, "cannot create " + out.string()});
+    const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30;
+    auto video = render::VideoWriter::create(out / "composite.mp4", color_info.format.width,
+                                             color_info.format.height, fps);
+    if (!video)
+        return fail("demo", video.status());
+
+    std::vector<double> t_err_mm, r_err_deg, marker_t_err_mm, psnr_full, psnr_region;
+    std::vector<double> track_ms, light_ms, render_ms, truth_ms;
+    std::map<std::string, LightErrors> light_errors;
+    std::vector<double> key_irradiance_ratio;
+    uint64_t frames = 0, stale_frames = 0, no_pose = 0;
+    std::string last_lights_key;
+    render::RenderLayers layers;
+    StatusLine status;
+    InterruptFlag interrupt;
+    Status result;
+    FrameRef depth;  // the newest depth map
+
+    const auto process = [&](const TrackedFrame& f) -> Status {
+        const auto light_start = std::chrono::steady_clock::now();
+        const std::vector<render::Light> lights = (*pipeline)->lights(f);
+        // The renderer rebuilds light data only when the estimates changed.
+        const std::string key = std::to_string(f.environment.good_stamp_ns) + "/" +
+                                std::to_string(f.intensities.good_stamp_ns) + "/" +
+                                std::to_string(lights.size());
+        if (key != last_lights_key) {
+            MIXRAY_RETURN_IF_ERROR((*renderer)->setLights(lights));
+            last_lights_key = key;
+        }
+        light_ms.push_back(f.probe_ms + std::chrono::duration<double, std::milli>(
+                                            std::chrono::steady_clock::now() - light_start)
+                                            .count());
+        track_ms.push_back(f.track_ms);
+        const ImageView camera_image = f.color.image();
+        ImageView composite = camera_image;
+        if (f.track.pose.value) {
+            if (f.track.pose.stale)
+                ++stale_frames;
+            render::RenderInputs in;
+            in.camera_image = camera_image;
+            in.camera = setup->camera.model;
+            in.T_world_cam = *f.track.pose.value;
+            if (depth && depth.meta().host_stamp_ns == f.color.meta().host_stamp_ns)
+                in.depth_mm = depth.image();
+            render::RenderStats stats;
+            MIXRAY_RETURN_IF_ERROR((*renderer)->render(in, layers, &stats));
+            render_ms.push_back(stats.seconds * 1e3);
+            composite = layers.composite.view();
+        } else {
+            ++no_pose;
+        }
+        MIXRAY_RETURN_IF_ERROR((*video)->write(composite, f.color.meta().host_stamp_ns));
+        const bool png = frames % static_cast<uint64_t>(options.png_every) == 0;
+        char name[64];
+        std::snprintf(name, sizeof name, "frame_%04llu", static_cast<unsigned long long>(frames));
+        if (png)
+            MIXRAY_RETURN_IF_ERROR(
+                render::writePng(composite, out / "frames" / (std::string(name) + ".png")));
+
+        if (truth_sim) {
+            const int index = static_cast<int>(f.color.meta().sequence);
+            const render::SimTruth& t = truth_sim->truth();
+            if (index < 0 || index >= truth_sim->frameCount())
+                return Status(ErrorCode::kCorruptData,
+                              "colour frame " + std::to_string(index) + " has no truth");
+            const Isometry3d& T_true = t.frames[static_cast<size_t>(index)].T_world_color;
+            if (f.track.pose.value && !f.track.pose.stale) {
+                const Isometry3d& T = *f.track.pose.value;
+                t_err_mm.push_back((T.translation() - T_true.translation()).norm() * 1e3);
+                r_err_deg.push_back(
+                    Eigen::AngleAxisd(T.linear().transpose() * T_true.linear()).angle() * 180 /
+                    M_PI);
+                marker_t_err_mm.push_back(((T.inverse() * t.T_world_marker).translation() -
+                                           (T_true.inverse() * t.T_world_marker).translation())
+                                              .norm() *
+                                          1e3);
+            }
+            for (size_t i = 0; i < f.probes.size(); ++i)
+                if (f.probes[i].value && !f.probes[i].stale)
+                    addLightErrors(light_errors[setup->probes[i].name], f.probes[i].value->lights,
+                                   t.lights);
+            if (f.environment.value && !f.environment.stale && f.environment.good_stamp_ns > 0)
+                addLightErrors(light_errors["environment"], f.environment.value->lights, t.lights);
+            if (f.intensities.value && !f.intensities.value->irradiance.empty() &&
+                !t.lights.empty()) {
+                // The fitted light nearest the key light, against the key's irradiance.
+                const auto directions = f.environment.value
+                                            ? f.environment.value->lights
+                                            : std::vector<tracking::EstimatedLight>{};
+                const Vector3d key_to_light = -t.lights[0].direction.normalized();
+                double best = 180;
+                size_t best_i = 0;
+                for (size_t i = 0;
+                     i < directions.size() && i < f.intensities.value->irradiance.size(); ++i) {
+                    const double a = angleDeg(directions[i].to_light_world, key_to_light);
+                    if (a < best) {
+                        best = a;
+                        best_i = i;
+                    }
+                }
+                if (best < 10)
+                    key_irradiance_ratio.push_back(f.intensities.value->irradiance[best_i].mean() /
+                                                   t.lights[0].intensity.cast<double>().mean());
+            }
+            const auto truth_start = std::chrono::steady_clock::now();
+            auto truth_image = truth_sim->renderColor(index);
+            if (!truth_image)
+                return truth_image.status();
+            truth_ms.push_back(std::chrono::duration<double, std::milli>(
+                                   std::chrono::steady_clock::now() - truth_start)
+                                   .count());
+            const Psnr p = psnr(composite, truth_image->view(), camera_image);
+            psnr_full.push_back(p.full);
+            if (p.region_pixels > 0)
+                psnr_region.push_back(p.region);
+            if (png) {
+                MIXRAY_RETURN_IF_ERROR(render::writePng(
+                    truth_image->view(), out / "frames" / (std::string(name) + "_truth.png")));
+                MIXRAY_RETURN_IF_ERROR(
+                    render::writePng(differenceImage(composite, truth_image->view()).view(),
+                                     out / "frames" / (std::string(name) + "_diff4x.png")));
+            }
+        }
+        ++frames;
+        char line[200];
+        std::snprintf(
+            line, sizeof line, "frame %llu: %s, %.1f ms track, %.1f ms render%s",
+            static_cast<unsigned long long>(frames),
+            std::string(tracking::toString(f.track.state)).c_str(), f.track_ms,
+            render_ms.empty() ? 0.0 : render_ms.back(),
+            psnr_full.empty()
+                ? ""
+                : (", PSNR " + std::to_string(psnr_full.back()).substr(0, 5) + " dB").c_str());
+        status.update(line);
+        return Status::ok();
+    };
+
+    // A colour frame waits for the depth map stored after it with the same stamp.
+    std::optional<TrackedFrame> pending;
+    while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kUnavailable) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                continue;
+            }
+            if (frame.status().code() != ErrorCode::kEndOfStream)
+                result = frame.status();
+            break;
+        }
+        if (frame->meta().stream == depth_stream) {
+            depth = *frame;
+            if (pending && depth.meta().host_stamp_ns == pending->color.meta().host_stamp_ns) {
+                if (!(result = process(*pending)))
+                    break;
+                pending.reset();
+            }
+            continue;
+        }
+        auto pushed = (*pipeline)->push(*frame);
+        if (!pushed) {
+            result = pushed.status();
+            break;
+        }
+        if (!*pushed)
+            continue;
+        if (pending && !(result = process(*pending)))
+            break;
+        pending = std::move(**pushed);
+    }
+    if (result && pending && !interrupt.raised() &&
+        (options.max_frames == 0 || frames < options.max_frames))
+        result = process(*pending);
+    status.finish();
+    Status closed = (*video)->close();
+    if (result)
+        result = closed;
+    if (!result)
+        return fail("demo", result);
+
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    json summary = {{"session", options.session},
+                    {"objects", options.objects},
+                    {"frames", frames},
+                    {"frames_with_stale_pose", stale_frames},
+                    {"frames_without_pose", no_pose},
+                    {"ms_per_frame",
+                     {{"tracking", statsJson(track_ms)},
+                      {"light_estimation", statsJson(light_ms)},
+                      {"render", statsJson(render_ms)}}},
+                    {"seconds", seconds}};
+    std::printf("\n== mixray demo: %llu frames of %s\n", static_cast<unsigned long long>(frames),
+                options.session.c_str());
+    std::printf(
+        "   per frame: tracking %.1f ms, light estimation %.1f ms, rendering %.1f ms "
+        "(median; %d samples/pixel, %dx%d)\n",
+        median(track_ms), median(light_ms), median(render_ms), options.samples,
+        color_info.format.width, color_info.format.height);
+    if (stale_frames || no_pose)
+        std::printf("   %llu frames used a stale pose, %llu had none (see overlay/track)\n",
+                    static_cast<unsigned long long>(stale_frames),
+                    static_cast<unsigned long long>(no_pose));
+    if (truth_sim) {
+        json accuracy;
+        accuracy["camera_position_error_mm"] = statsJson(t_err_mm);
+        accuracy["camera_rotation_error_deg"] = statsJson(r_err_deg);
+        accuracy["marker_position_in_camera_error_mm"] = statsJson(marker_t_err_mm);
+        std::printf(
+            "   pose vs truth: camera position %.2f mm median (max %.2f), rotation %.3f° "
+            "median (max %.3f); marker in camera %.2f mm median\n",
+            median(t_err_mm), maximum(t_err_mm), median(r_err_deg), maximum(r_err_deg),
+            median(marker_t_err_mm));
+        json lights;
+        for (const auto& [method, e] : light_errors) {
+            lights[method] = {{"key_light_error_deg", statsJson(e.key_deg)},
+                              {"fill_light_error_deg", statsJson(e.fill_deg)}};
+            std::printf("   light direction (%s): key %.2f° median (max %.2f), fill %.2f° median\n",
+                        method.c_str(), median(e.key_deg), maximum(e.key_deg), median(e.fill_deg));
+        }
+        accuracy["light_direction"] = lights;
+        if (!key_irradiance_ratio.empty()) {
+            accuracy["key_irradiance_ratio"] = statsJson(key_irradiance_ratio);
+            std::printf("   key light irradiance: %.3f x the truth (median)\n",
+                        median(key_irradiance_ratio));
+        }
+        accuracy["psnr_db"] = statsJson(psnr_full);
+        accuracy["psnr_changed_region_db"] = statsJson(psnr_region);
+        std::printf(
+            "   composite vs ground truth: PSNR %.2f dB mean (min %.2f); %.2f dB where the "
+            "virtual objects change the image\n",
+            mean(psnr_full),
+            psnr_full.empty() ? std::nan("")
+                              : *std::min_element(psnr_full.begin(), psnr_full.end()),
+            mean(psnr_region));
+        summary["accuracy"] = accuracy;
+        summary["ms_per_frame"]["ground_truth_render"] = statsJson(truth_ms);
+    }
+    std::ofstream(out / "summary.json") << summary.dump(2) << "\n";
+    std::printf("   wrote %s/composite.mp4, %s/frames/*.png%s, %s/summary.json (%.1f s)\n",
+                out.string().c_str(), out.string().c_str(),
+                truth_sim ? " (with _truth and _diff4x)" : "", out.string().c_str(), seconds);
+    return interrupt.raised() ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace
+
+void registerDemoCommand(CLI::App& app, Commands& commands) {
+    auto* sub = app.add_subcommand(
+        "demo",
+        "The main job on the bundled simulated session: replay, track the marker, estimate the "
+        "real light (probes, fish-eye), composite a glass sphere, a metal teapot and a clay box, "
+        "and measure poses, lights and the composite against the simulator's ground truth");
+    auto o = std::make_shared<DemoOptions>();
+    sub->add_option("--session", o->session, "Recording")->capture_default_str();
+    sub->add_option("--objects", o->objects, "Scene file with the virtual objects")
+        ->capture_default_str();
+    sub->add_option("--real-scene", o->real_scene,
+                    "Scene file modelling the real scene (ghosts); default: SESSION's "
+                    "NAME.scene.yaml");
+    sub->add_option("--setup", o->setup,
+                    "Tracking setup; default: the recording's tracking.yaml attachment");
+    sub->add_option("-o,--output", o->output, "Folder for the results")->capture_default_str();
+    sub->add_option("--png-every", o->png_every, "Frames between PNGs")
+        ->check(CLI::Range(1, 1000000))
+        ->capture_default_str();
+    sub->add_option("--samples", o->samples, "Samples per pixel (a square number)")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
+        ->check(CLI::Range(0, 1024));
+    sub->add_option("--max-frames", o->max_frames, "Stop after this many frames (0: all)");
+    sub->add_flag("!--no-truth", o->truth, "Skip the ground-truth comparison");
+    sub->add_flag("!--no-depth", o->depth, "Do not hide virtual objects behind Kinect depth");
+    commands.push_back({sub, [o] { return runDemo(*o); }});
+}
+
+}  // namespace mixray::cli

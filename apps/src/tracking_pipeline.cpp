@@ -1,0 +1,222 @@
+// The tracking half of the AR pipeline (tracking_pipeline.h).
+#include "tracking_pipeline.h"
+
+#include <chrono>
+#include <cmath>
+
+namespace mixray::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using tracking::EstimatedLight;
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+        .count();
+}
+
+StreamId findStream(const std::vector<StreamInfo>& streams, const std::string& name) {
+    for (StreamId i = 0; i < streams.size(); ++i)
+        if (streams[i].name == name)
+            return i;
+    return kInvalidStream;
+}
+
+std::string streamList(const std::vector<StreamInfo>& streams) {
+    std::string names;
+    for (const StreamInfo& s : streams)
+        names += (names.empty() ? "" : ", ") + s.name;
+    return names.empty() ? "none" : names;
+}
+
+}  // namespace
+
+Result<tracking::TrackingSetup> findTrackingSetup(const fs::path& recording,
+                                                  const RecordingReader& reader,
+                                                  const std::string& explicit_path) {
+    if (!explicit_path.empty())
+        return tracking::loadTrackingSetup(explicit_path);
+    for (const Attachment& a : reader.attachments()) {
+        if (a.name == "tracking.yaml") {
+            const std::string text(a.data.begin(), a.data.end());
+            return tracking::parseTrackingSetup(text, recording.string() + ":tracking.yaml");
+        }
+    }
+    fs::path beside = recording;
+    beside.replace_extension(".tracking.yaml");
+    std::error_code ec;
+    if (fs::exists(beside, ec))
+        return tracking::loadTrackingSetup(beside);
+    return Status(ErrorCode::kNotFound,
+                  "no tracking setup: give --setup FILE (docs/tracking.md#setup-files); the "
+                  "recording has no tracking.yaml attachment and " +
+                      beside.string() + " does not exist");
+}
+
+TrackingPipeline::~TrackingPipeline() = default;
+
+Result<std::unique_ptr<TrackingPipeline>> TrackingPipeline::create(
+    tracking::TrackingSetup setup, const std::vector<StreamInfo>& streams,
+    const PipelineOptions& options) {
+    MIXRAY_RETURN_IF_ERROR(setup.validate());
+    std::unique_ptr<TrackingPipeline> p(new TrackingPipeline);
+    p->options_ = options;
+    p->color_ = findStream(streams, setup.camera.stream);
+    if (p->color_ == kInvalidStream)
+        return Status(ErrorCode::kNotFound, "the recording has no stream " + setup.camera.stream +
+                                                " to track (it has: " + streamList(streams) + ")");
+    const ImageDesc& c = streams[p->color_].format;
+    if (c.width != setup.camera.model.width || c.height != setup.camera.model.height) {
+        return Status(ErrorCode::kInvalidArgument,
+                      setup.camera.stream + " is " + std::to_string(c.width) + "x" +
+                          std::to_string(c.height) + " but the setup's camera model is " +
+                          std::to_string(setup.camera.model.width) + "x" +
+                          std::to_string(setup.camera.model.height));
+    }
+    auto tracker =
+        tracking::MarkerTracker::create(setup.camera.model, setup.targets, setup.tracker);
+    if (!tracker)
+        return tracker.status();
+    p->tracker_ = std::move(tracker).value();
+    if (options.environment && setup.environment) {
+        p->environment_ = findStream(streams, setup.environment->stream);
+        if (p->environment_ != kInvalidStream) {
+            p->environment_estimator_ = std::make_unique<tracking::AsyncEnvironmentEstimator>(
+                setup.environment->camera, setup.environment->lights, setup.environment->map_width);
+        }
+    }
+    p->probes_.resize(options.probes ? setup.probes.size() : 0);
+    p->setup_ = std::move(setup);
+    return p;
+}
+
+Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame) {
+    const StreamId stream = frame.meta().stream;
+    const int64_t stamp = frame.meta().host_stamp_ns;
+    if (environment_estimator_ && stream == environment_) {
+        environment_estimator_->submit(frame.image(), stamp);
+        if (options_.wait_for_environment)
+            environment_estimator_->drain();
+        return std::optional<TrackedFrame>();
+    }
+    if (stream != color_)
+        return std::optional<TrackedFrame>();
+
+    TrackedFrame out;
+    out.index = frames_++;
+    out.color = frame;
+    auto start = std::chrono::steady_clock::now();
+    auto track = tracker_->track(frame.image(), stamp);
+    if (!track)
+        return track.status().withContext(setup_.camera.stream + " frame " +
+                                          std::to_string(frame.meta().sequence));
+    out.track = std::move(track).value();
+    out.track_ms = millisecondsSince(start);
+
+    const bool fresh_pose =
+        out.track.state == tracking::TrackState::kTracking && out.track.pose.value.has_value();
+    start = std::chrono::steady_clock::now();
+    for (size_t i = 0; i < probes_.size(); ++i) {
+        const tracking::LightProbe& probe = setup_.probes[i];
+        if (!fresh_pose) {
+            probes_[i].keep("no fresh camera pose (" + out.track.pose.reason + ")", stamp);
+            continue;
+        }
+        auto lights = tracking::estimateProbeLights(
+            frame.image(), setup_.camera.model, *out.track.pose.value, probe, setup_.probe_options);
+        if (lights)
+            probes_[i].update(std::move(lights).value(), stamp);
+        else
+            probes_[i].keep(probe.name + ": " + lights.status().message(), stamp);
+    }
+    out.probe_ms = millisecondsSince(start);
+    out.probes = probes_;
+    if (environment_estimator_)
+        out.environment = environment_estimator_->latest();
+    else if (setup_.environment)
+        out.environment.keep("the recording has no stream " + setup_.environment->stream, stamp);
+
+    // Strengths of the lights whose directions are known, from a diffuse probe.
+    const std::vector<EstimatedLight> directions = lightDirections(out);
+    const tracking::LightProbe* diffuse = nullptr;
+    for (size_t i = 0; i < probes_.size(); ++i)
+        if (setup_.probes[i].material == tracking::ProbeMaterial::kDiffuse)
+            diffuse = &setup_.probes[i];
+    if (diffuse && fresh_pose && !directions.empty()) {
+        std::vector<Eigen::Vector3d> to_light;
+        for (const EstimatedLight& l : directions)
+            to_light.push_back(l.to_light_world);
+        tracking::IntensityFitOptions fit_options;
+        fit_options.albedo = diffuse->albedo;
+        auto fit =
+            tracking::fitLightIntensities(frame.image(), setup_.camera.model, *out.track.pose.value,
+                                          *diffuse, to_light, fit_options);
+        if (fit)
+            intensities_.update(std::move(fit).value(), stamp);
+        else
+            intensities_.keep(fit.status().message(), stamp);
+    } else if (diffuse) {
+        intensities_.keep(fresh_pose ? "no light directions yet" : "no fresh camera pose", stamp);
+    }
+    out.intensities = intensities_;
+    return std::optional<TrackedFrame>(std::move(out));
+}
+
+std::vector<EstimatedLight> TrackingPipeline::lightDirections(const TrackedFrame& frame) const {
+    if (frame.environment.value && !frame.environment.value->lights.empty())
+        return frame.environment.value->lights;
+    // Without the fish-eye: a mirror probe's highlights (sharp), else a diffuse probe's.
+    for (tracking::ProbeMaterial material :
+         {tracking::ProbeMaterial::kMirror, tracking::ProbeMaterial::kDiffuse}) {
+        for (size_t i = 0; i < frame.probes.size(); ++i)
+            if (setup_.probes[i].material == material && frame.probes[i].value &&
+                !frame.probes[i].value->lights.empty())
+                return frame.probes[i].value->lights;
+    }
+    return {};
+}
+
+std::vector<render::Light> TrackingPipeline::lights(const TrackedFrame& frame) const {
+    std::vector<render::Light> out;
+    const std::vector<EstimatedLight> directions = lightDirections(frame);
+    const bool fitted =
+        frame.intensities.value && frame.intensities.value->irradiance.size() == directions.size();
+    for (size_t i = 0; i < directions.size(); ++i) {
+        const EstimatedLight& e = directions[i];
+        const Eigen::Vector3d irradiance =
+            fitted ? frame.intensities.value->irradiance[i] : e.intensity;
+        if (irradiance.maxCoeff() <= 0)
+            continue;
+        render::Light l;
+        l.name = "estimated_" + std::to_string(i);
+        const auto rgb = [](const Eigen::Vector3d& v) {
+            return render::Rgb(static_cast<float>(v.x()), static_cast<float>(v.y()),
+                               static_cast<float>(v.z()));
+        };
+        if (e.position_world && e.angular_radius_rad > 0) {
+            // A sphere the light's apparent size at its distance: soft shadows as the real
+            // light casts them; intensity I = E·d² gives the same irradiance at the scene.
+            const double d = e.position_world->norm();
+            l.type = render::LightType::kSphere;
+            l.position = *e.position_world;
+            l.radius = static_cast<float>(d * std::tan(e.angular_radius_rad));
+            l.intensity = rgb(irradiance * d * d);
+        } else {
+            l.type = render::LightType::kDirectional;
+            l.direction = -e.to_light_world.normalized();
+            l.intensity = rgb(irradiance);
+        }
+        out.push_back(std::move(l));
+    }
+    if (frame.environment.value && !frame.environment.value->environment_map.pixels.empty()) {
+        render::Light env;
+        env.name = "estimated_environment";
+        env.type = render::LightType::kEnvironment;
+        env.environment_image =
+            std::make_shared<const FloatImage>(frame.environment.value->environment_map);
+        out.push_back(std::move(env));
+    }
+    return out;
+}
+
+}  // namespace mixray::cli
