@@ -16,6 +16,7 @@
 #include "alloc_counter.h"
 #include "backends.h"
 #include "bench_render.h"
+#include "bench_track.h"
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/graph.h"
@@ -440,6 +441,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
                       "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({graph, [options] { return runBenchGraph(*options); }});
     registerBenchRender(*bench, commands);
+    registerBenchTrack(*bench, commands);
 }
 
 }  // namespace mixray::cli
