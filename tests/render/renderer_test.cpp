@@ -1,5 +1,6 @@
 // The Renderer against geometry and the differential-rendering equation: exact copies without
 // virtual content, shadow positions and widths, mirrors, glass energy, footprint and errors.
+#include "mixray/render/assets.h"
 #include "mixray/render/renderer.h"
 
 #include <gtest/gtest.h>
@@ -782,6 +783,82 @@ TEST(Renderer, ShadowsCanBeSwitchedOff) {
     const int x = static_cast<int>(std::lround(shadow->x())),
               y = static_cast<int>(std::lround(shadow->y()));
     EXPECT_EQ(pixelBytes(out.composite, x, y)[0], optics::encodeSrgb8(lit));
+}
+
+}  // namespace
+}  // namespace mixray::render::test
+
+namespace mixray::render::test {
+namespace {
+
+// Estimated light changes while the geometry does not: setLights() renders exactly what a
+// renderer built with those lights renders, and environment maps from memory are the file's.
+TEST(Renderer, ReplacedLightsRenderAsIfBuiltWithThem) {
+    const Eigen::Vector3d first(1, 0, -2), second(-1, 0.5, -2);
+    RenderOptions options;
+    options.soft_shadows = SoftShadowMethod::kHard;
+    auto changed = makeRenderer(shadowScene(first, 2, 1), options);
+    auto built = makeRenderer(shadowScene(second, 2, 1), options);
+    ASSERT_TRUE(changed && built);
+    Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(120));
+    RenderLayers before, after, reference;
+    ASSERT_TRUE(changed->render(frame.inputs, before));
+    ASSERT_TRUE(changed->setLights(shadowScene(second, 2, 1).lights));
+    ASSERT_TRUE(changed->render(frame.inputs, after));
+    ASSERT_TRUE(built->render(frame.inputs, reference));
+    EXPECT_TRUE(sameImage(after.composite.view(), reference.composite.view()));
+    EXPECT_FALSE(sameImage(before.composite.view(), after.composite.view()));
+
+    // A bad light is refused and the old ones stay.
+    Light bad = directionalLight("bad", {0, 0, -1}, 1);
+    bad.direction = Eigen::Vector3d::Zero();
+    EXPECT_FALSE(changed->setLights({bad}));
+    RenderLayers still;
+    ASSERT_TRUE(changed->render(frame.inputs, still));
+    EXPECT_TRUE(sameImage(still.composite.view(), reference.composite.view()));
+
+    // An environment map in memory is the same map as from its file.
+    const auto radiance = [](int x, int y) {
+        return Eigen::Vector3f(0.2f + 0.01f * static_cast<float>(x), 0.5f,
+                               0.1f + 0.02f * static_cast<float>(y));
+    };
+    const Light from_file = environmentLight(writeEnvironment("gradient", 32, 16, radiance));
+    // The file's own texels (RGBE rounds the values written).
+    auto texture = Texture::load(from_file.environment);
+    ASSERT_TRUE(texture) << texture.status().toString();
+    auto image = std::make_shared<FloatImage>();
+    image->width = texture->width();
+    image->height = texture->height();
+    for (int y = 0; y < image->height; ++y)
+        for (int x = 0; x < image->width; ++x)
+            for (int c = 0; c < 3; ++c)
+                image->pixels.push_back(texture->texel(x, y)[c]);
+    Light in_memory = from_file;
+    in_memory.environment.clear();
+    in_memory.environment_image = image;
+    SceneDescription scene;
+    Material chrome = material(MaterialType::kMirror, "chrome");
+    chrome.reflectance = 1;
+    scene.materials["chrome"] = chrome;
+    SceneObject ball =
+        object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "chrome", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    scene.lights = {from_file};
+    auto file_renderer = makeRenderer(scene, options);
+    scene.lights = {in_memory};
+    auto memory_renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(file_renderer && memory_renderer);
+    RenderLayers a, b;
+    ASSERT_TRUE(file_renderer->render(frame.inputs, a));
+    ASSERT_TRUE(memory_renderer->render(frame.inputs, b));
+    EXPECT_TRUE(sameImage(a.composite.view(), b.composite.view()));
+    // A map of the wrong shape is refused.
+    auto square = std::make_shared<FloatImage>(*image);
+    square->height = 32;
+    square->pixels.resize(32 * 32 * 3, 0.f);
+    in_memory.environment_image = square;
+    EXPECT_FALSE(file_renderer->setLights({in_memory}));
 }
 
 }  // namespace

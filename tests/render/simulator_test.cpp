@@ -20,6 +20,7 @@
 #include "mixray/graph/pose.h"
 #include "mixray/render/renderer.h"
 #include "mixray/render/scene_file.h"
+#include "mixray/tracking/setup.h"
 #include "test_data.h"
 
 namespace mixray::render {
@@ -621,7 +622,7 @@ TEST(Simulator, SessionIsAnOrdinaryRecordingWithTruthBesideIt) {
     EXPECT_EQ(summary->env_frames, 2);
     EXPECT_EQ(progress_calls, 3);
     for (const char* name : {"clip.mkv", "clip.truth.yaml", "clip.tum", "clip.scene.yaml",
-                             "clip.env.exr", "clip.marker.png"})
+                             "clip.tracking.yaml", "clip.env.exr", "clip.marker.png"})
         EXPECT_TRUE(fs::exists(dir / name)) << name;
 
     // The same simulation in memory: what the file must hold.
@@ -715,8 +716,98 @@ TEST(Simulator, SessionIsAnOrdinaryRecordingWithTruthBesideIt) {
           "to_light_world", "environment:", "trajectory:", "frames:"})
         EXPECT_NE(truth.find(key), std::string::npos) << key;
 
+    // The truth file records the options that render the session again.
+    auto again = readSimulationOptions(truth, "clip.truth.yaml");
+    ASSERT_TRUE(again) << again.status().toString();
+    EXPECT_EQ(again->scenario, o.scenario);
+    EXPECT_EQ(again->frames, 3);
+    EXPECT_EQ(again->seed, o.seed);
+    EXPECT_EQ(again->width, 160);
+    EXPECT_EQ(again->height, 120);
+    EXPECT_EQ(again->samples_per_pixel, o.samples_per_pixel);
+    EXPECT_EQ(again->env_every, 2);
+    EXPECT_EQ(again->env_map_width, o.env_map_width);
+    EXPECT_FALSE(readSimulationOptions("version: 1\n", "x.yaml"));
+    EXPECT_FALSE(readSimulationOptions("simulation: {scenario: moon}\n", "x.yaml"));
+
+    // The tracking setup a user of this rig would write: the true camera, marker, probes and
+    // environment camera.
+    auto setup = tracking::loadTrackingSetup(dir / "clip.tracking.yaml");
+    ASSERT_TRUE(setup) << setup.status().toString();
+    EXPECT_EQ(setup->camera.stream, "kinect/color");
+    EXPECT_EQ(setup->camera.model.fx, t.color.fx);
+    ASSERT_EQ(setup->targets.size(), 1u);
+    EXPECT_EQ(setup->targets[0].id, t.marker_id);
+    EXPECT_EQ(setup->targets[0].size_m, t.marker_size_m);
+    ASSERT_EQ(setup->probes.size(), t.probes.size());
+    EXPECT_EQ(setup->probes[0].centre_world, t.probes[0].centre_world);
+    ASSERT_TRUE(setup->environment);
+    EXPECT_TRUE(setup->environment->camera.T_world_env.isApprox(t.T_world_env, 1e-15));
+    const auto& attachments = (*reader)->attachments();
+    EXPECT_TRUE(std::any_of(attachments.begin(), attachments.end(),
+                            [](const Attachment& a) { return a.name == "tracking.yaml"; }));
+
     // A file that is not .mkv is refused before anything is written.
     EXPECT_EQ(simulateSession(o, dir / "clip.avi").status().code(), ErrorCode::kInvalidArgument);
+}
+
+// Objects inserted into the scenario render as real ones (the ground truth of a composite):
+// they change the image where they stand, and nowhere far from them.
+TEST(Simulator, InsertedObjectsAreRenderedAsReal) {
+    SimulatorOptions o;
+    o.frames = 1;
+    o.width = 160;
+    o.height = 120;
+    o.samples_per_pixel = 1;
+    auto plain = Simulator::create(o);
+    ASSERT_TRUE(plain);
+    SceneObject ball;
+    ball.name = "inserted_ball";
+    ball.shape.type = ShapeType::kSphere;
+    ball.shape.radius = 0.03f;
+    ball.material = "inserted_red";
+    ball.T_anchor_object.translation() = Vector3d(0, 0.12, 0.03);
+    Material red;
+    red.name = "inserted_red";
+    red.albedo = Rgb(0.9f, 0.05f, 0.05f);
+    o.inserted.objects.push_back(ball);
+    o.inserted.materials["inserted_red"] = red;
+    auto with = Simulator::create(o);
+    ASSERT_TRUE(with) << with.status().toString();
+    auto a = (*plain)->renderColor(0);
+    auto b = (*with)->renderColor(0);
+    ASSERT_TRUE(a && b);
+    const SimTruth& t = (*with)->truth();
+    const auto centre = projectWorld(t.color, t.frames[0].T_world_color, Vector3d(0, 0.12, 0.03));
+    ASSERT_TRUE(centre);
+    int changed_near = 0, changed_far = 0;
+    for (int y = 0; y < o.height; ++y) {
+        for (int x = 0; x < o.width; ++x) {
+            const uint8_t* pa = a->view().row<uint8_t>(y) + 3 * x;
+            const uint8_t* pb = b->view().row<uint8_t>(y) + 3 * x;
+            if (std::abs(pa[0] - pb[0]) + std::abs(pa[1] - pb[1]) + std::abs(pa[2] - pb[2]) < 6)
+                continue;
+            // Within the ball's disc and its shadow, cast away from the key light.
+            ((Vector2d(x, y) - *centre).norm() < 40 ? changed_near : changed_far)++;
+        }
+    }
+    EXPECT_GT(changed_near, 50);
+    EXPECT_EQ(changed_far, 0);
+    // renderColor is render()'s colour image.
+    auto full = (*with)->render(0);
+    ASSERT_TRUE(full);
+    EXPECT_TRUE(sameImage(full->color.view(), b->view()));
+
+    // Names that clash with the scenario's, and lights, are refused.
+    SimulatorOptions clash = o;
+    clash.inserted.objects[0].name = "table";
+    EXPECT_EQ(Simulator::create(clash).status().code(), ErrorCode::kInvalidArgument);
+    clash = o;
+    clash.inserted.materials["table"] = red;
+    EXPECT_EQ(Simulator::create(clash).status().code(), ErrorCode::kInvalidArgument);
+    clash = o;
+    clash.inserted.lights.push_back(Light{});
+    EXPECT_EQ(Simulator::create(clash).status().code(), ErrorCode::kInvalidArgument);
 }
 
 TEST(Simulator, CommittedTabletopSessionIsWhatTheSimulatorMakes) {
@@ -738,6 +829,12 @@ TEST(Simulator, CommittedTabletopSessionIsWhatTheSimulatorMakes) {
                             std::istreambuf_iterator<char>());
     const auto& attached = (*reader)->attachments()[0].data;
     EXPECT_EQ(std::string(attached.begin(), attached.end()), truth);
+    auto recorded = readSimulationOptions(truth, "sim_tabletop.truth.yaml");
+    ASSERT_TRUE(recorded) << recorded.status().toString();
+    EXPECT_EQ(recorded->frames, 36);
+    EXPECT_EQ(recorded->seed, 1u);
+    EXPECT_EQ(recorded->width, 640);
+    EXPECT_EQ(recorded->height, 480);
     int poses = 0;
     while (true) {
         auto frame = (*reader)->next();

@@ -79,6 +79,9 @@ Result<IntensityFit> fitLightIntensities(const ImageView& color,
     const PixelFormat format = color.desc.format;
     if (format != PixelFormat::kRGB8 && format != PixelFormat::kBGR8)
         return Status(ErrorCode::kInvalidArgument, "intensity fit: needs an rgb8 or bgr8 image");
+    if (!color.data || color.size_bytes < static_cast<size_t>(color.desc.stride_bytes) *
+                                              static_cast<size_t>(color.desc.height))
+        return Status(ErrorCode::kInvalidArgument, "intensity fit: an empty or truncated image");
     if (color.desc.width != camera.width || color.desc.height != camera.height)
         return Status(ErrorCode::kInvalidArgument,
                       "intensity fit: the image size differs from the camera model's");
