@@ -116,6 +116,10 @@ Result<Eigen::Vector3d> sunDirectionWorld(const RigSite& site, int64_t utc_ns,
                 "site: orientation is not a unit quaternion (norm " + std::to_string(norm) + ")");
         }
     }
+    if (!std::isfinite(site.heading_deg)) {
+        return Status(ErrorCode::kInvalidArgument,
+                      "site: heading_deg must be finite, got " + std::to_string(site.heading_deg));
+    }
     SunQuery query;
     query.latitude_deg = site.latitude_deg;
     query.longitude_deg = site.longitude_deg;
