@@ -73,4 +73,6 @@ if(MIXRAY_BUILD_TESTS)
     mixray_require(GTest_FOUND "GoogleTest" "libgtest-dev libgmock-dev")
     find_package(benchmark QUIET)
     mixray_require(benchmark_FOUND "Google Benchmark" libbenchmark-dev)
+    # ERFA (the IAU SOFA routines): an independent reference for the sun's position tests.
+    mixray_pkg(ERFA erfa liberfa-dev)
 endif()

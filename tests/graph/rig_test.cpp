@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -374,6 +376,31 @@ std::vector<BadRig> badRigs() {
          "rig.yaml:5:7", "site.longitude_deg: missing required field"},
         {"nan", "rig: a\n" + ok_devices + "site: { latitude_deg: .nan, longitude_deg: 0 }\n",
          "rig.yaml:5:23", "expected a finite number, got \".nan\""},
+        {"site heading and orientation",
+         "rig: a\n" + ok_devices +
+             "site: { latitude_deg: 1, longitude_deg: 0, heading_deg: 5,\n"
+             "        orientation: { quaternion: [1, 0, 0, 0] } }\n",
+         "rig.yaml:5:57", "site.heading_deg: give either heading_deg or orientation, not both"},
+        {"site orientation not unit",
+         "rig: a\n" + ok_devices +
+             "site: { latitude_deg: 1, longitude_deg: 0, orientation: { quaternion: [0.5, 0.5, 0, "
+             "0] } }\n",
+         "rig.yaml:5:71", "site.orientation.quaternion: expected a unit quaternion"},
+        {"site orientation three numbers",
+         "rig: a\n" + ok_devices +
+             "site: { latitude_deg: 1, longitude_deg: 0, orientation: { quaternion: [1, 0, 0] } "
+             "}\n",
+         "rig.yaml:5:71", "site.orientation.quaternion: expected a list of 4 numbers"},
+        {"site orientation nan",
+         "rig: a\n" + ok_devices +
+             "site: { latitude_deg: 1, longitude_deg: 0, orientation: { quaternion: [.nan, 0, 0, "
+             "0] } }\n",
+         "rig.yaml:5:72", "site.orientation.quaternion[0]: expected a finite number"},
+        {"site orientation unknown key",
+         "rig: a\n" + ok_devices +
+             "site: { latitude_deg: 1, longitude_deg: 0, orientation: { quaternon: [1, 0, 0, 0] } "
+             "}\n",
+         "rig.yaml:5:", "quaternon"},
         {"tab indentation", "rig: a\ndevices:\n\t- name: a\n", "rig.yaml:3:1",
          "tab in indentation"},
         {"control character", std::string("rig: a\ndevices: \x01\n"), "rig.yaml:2:10",
@@ -524,6 +551,34 @@ TEST(Rig, ValidateChecksRigsBuiltInCode) {
     EXPECT_TRUE(rig.validate().isOk());
     rig.devices[0].streams.push_back({});
     EXPECT_NE(rig.validate().message().find("invalid stream name"), std::string::npos);
+}
+
+// The device orientation (R_enu_world as w, x, y, z) comes back as written, and validate()
+// refuses one that is not a unit quaternion.
+TEST(Rig, SiteOrientation) {
+    const std::string text =
+        "rig: a\n"
+        "devices:\n"
+        "  - { name: cam, driver: pattern }\n"
+        "site:\n"
+        "  latitude_deg: 39.742476\n"
+        "  longitude_deg: -105.1786\n"
+        "  orientation: { quaternion: [0.9238795, 0, 0, -0.3826834] }\n";
+    auto rig = parseRig(text, "rig.yaml");
+    ASSERT_TRUE(rig.isOk()) << rig.status().toString();
+    ASSERT_TRUE(rig->site.has_value());
+    ASSERT_TRUE(rig->site->orientation_wxyz.has_value());
+    EXPECT_EQ(*rig->site->orientation_wxyz, (std::array<double, 4>{0.9238795, 0, 0, -0.3826834}));
+    EXPECT_DOUBLE_EQ(rig->site->heading_deg, 0);
+    EXPECT_TRUE(rig->validate().isOk());
+
+    RigDescription bad = *rig;
+    bad.site->orientation_wxyz = std::array<double, 4>{1, 1, 0, 0};
+    Status status = bad.validate();
+    EXPECT_EQ(status.code(), ErrorCode::kCorruptData);
+    EXPECT_NE(status.message().find("site.orientation"), std::string::npos) << status.message();
+    bad.site->orientation_wxyz = std::array<double, 4>{std::nan(""), 0, 0, 0};
+    EXPECT_FALSE(bad.validate().isOk());
 }
 
 TEST(Rig, SourceLocationText) {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <set>
@@ -25,6 +26,20 @@ constexpr int kMaxImageSide = 65535;
 constexpr double kMaxFps = 10000;
 constexpr double kMaxSkewMs = 10000;
 constexpr std::string_view kModeSyntax = "WIDTHxHEIGHT@FPS like 640x480@30";
+// Quaternions written by hand or printed by an IMU carry a few digits; a norm this close to 1
+// is a rotation, anything further off is a mistake.
+constexpr double kUnitQuaternionTolerance = 1e-3;
+
+bool isUnitNorm(double norm) {
+    return std::abs(norm - 1) <= kUnitQuaternionTolerance;
+}
+
+// Six significant digits, no trailing zeros: "0.001", "0.707107".
+std::string formatNumber(double value) {
+    std::array<char, 32> text{};
+    std::snprintf(text.data(), text.size(), "%g", value);
+    return text.data();
+}
 
 // ---------------------------------------------------------------------------------------------
 // Messages
@@ -596,8 +611,8 @@ Status RigParser::parseSync(const Item& item, RigDescription& rig) {
 }
 
 Status RigParser::parseSite(const Item& item, RigDescription& rig) {
-    static constexpr std::array<std::string_view, 4> kSiteKeys = {"latitude_deg", "longitude_deg",
-                                                                  "heading_deg", "altitude_m"};
+    static constexpr std::array<std::string_view, 5> kSiteKeys = {
+        "latitude_deg", "longitude_deg", "heading_deg", "altitude_m", "orientation"};
     auto fields = readMap(item, kSiteKeys, "a mapping with latitude_deg: and longitude_deg:");
     if (!fields)
         return fields.status();
@@ -620,6 +635,34 @@ Status RigParser::parseSite(const Item& item, RigDescription& rig) {
                 return value.status();
             site.*r.field = *value;
         }
+    }
+    if (const Item* orientation = find(*fields, "orientation")) {
+        if (const Item* heading = find(*fields, "heading_deg"))
+            return fail(*heading, "give either heading_deg or orientation, not both");
+        static constexpr std::array<std::string_view, 1> kOrientationKeys = {"quaternion"};
+        auto entries = readMap(*orientation, kOrientationKeys, "a mapping with quaternion:");
+        if (!entries)
+            return entries.status();
+        MIXRAY_RETURN_IF_ERROR(require(*entries, *orientation, "quaternion"));
+        const Item& quaternion = *find(*entries, "quaternion");
+        auto elements = readList(quaternion, 4, 4, "a list of 4 numbers [w, x, y, z]");
+        if (!elements)
+            return elements.status();
+        std::array<double, 4> wxyz{};
+        for (size_t i = 0; i < wxyz.size(); ++i) {
+            auto value = number((*elements)[i], -1, 1, false);
+            if (!value)
+                return value.status();
+            wxyz[i] = *value;
+        }
+        const double norm = std::sqrt(wxyz[0] * wxyz[0] + wxyz[1] * wxyz[1] + wxyz[2] * wxyz[2] +
+                                      wxyz[3] * wxyz[3]);
+        if (!isUnitNorm(norm)) {
+            return fail(quaternion, "expected a unit quaternion (norm within " +
+                                        formatNumber(kUnitQuaternionTolerance) +
+                                        " of 1), got norm " + formatNumber(norm));
+        }
+        site.orientation_wxyz = wxyz;
     }
     rig.site = site;
     return Status::ok();
@@ -835,6 +878,14 @@ Status RigDescription::validate() const {
             !(site->heading_deg >= 0 && site->heading_deg <= 360) ||
             !std::isfinite(site->altitude_m)) {
             return corrupt(site->where, "site", "coordinates out of range");
+        }
+        if (const auto& q = site->orientation_wxyz) {
+            const double norm = std::sqrt(q->at(0) * q->at(0) + q->at(1) * q->at(1) +
+                                          q->at(2) * q->at(2) + q->at(3) * q->at(3));
+            if (!isUnitNorm(norm)) {
+                return corrupt(site->where, "site.orientation",
+                               "not a finite unit quaternion (w, x, y, z)");
+            }
         }
     }
     return Status::ok();

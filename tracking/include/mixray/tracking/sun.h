@@ -1,6 +1,8 @@
 // The sun's position from place and time: the PSA algorithm (Blanco-Muriel et al. 2001, the one
-// "Realistic Shadows for Mobile AR" uses) and NREL's SPA (Reda & Andreas 2004, the reference),
-// and the sun's direction in the world (marker) frame from the rig's site.
+// "Realistic Shadows for Mobile AR" uses, with the coefficients of Blanco, Milidonis & Bonanos
+// 2020 or the original ones) and NREL's SPA (Reda & Andreas 2004, the reference), and the sun's
+// direction in the world (marker) frame from the rig's site. docs/tracking.md ("Sun") lists the
+// accuracy measured against ERFA.
 #pragma once
 
 #include <Eigen/Core>
@@ -15,8 +17,9 @@
 namespace mixray::tracking {
 
 enum class SunAlgorithm : uint8_t {
-    kPsa,  // Plataforma Solar de Almería: fast, ~0.01° over its fitted range
+    kPsa,  // Plataforma Solar de Almería, 2020 coefficients (fitted 2020–2050): fast, ≤ 0.01°
     kSpa,  // NREL Solar Position Algorithm: ±0.0003° over -2000..6000
+    kPsa2001,  // PSA with the 2001 coefficients the paper used (fitted 1999–2015)
 };
 
 std::string_view toString(SunAlgorithm algorithm);
@@ -26,9 +29,10 @@ struct SunQuery {
     double latitude_deg = 0;   // north positive
     double longitude_deg = 0;  // east positive
     double altitude_m = 0;
-    int64_t utc_ns = 0;       // since the Unix epoch, UTC
-    double delta_t_s = 69.2;  // TT − UT1 (SPA's ΔT); PSA ignores it
-    // Atmospheric refraction (SPA's model); set both ≤ 0 for the geometric position.
+    int64_t utc_ns = 0;       // since the Unix epoch, UTC (taken as UT1: |UT1 − UTC| < 0.9 s)
+    double delta_t_s = 69.2;  // TT − UT1 (SPA's ΔT), -8000..8000; PSA ignores it
+    // Atmospheric refraction (SPA's model, both algorithms); pressure 0 for the geometric
+    // position. Pressure 0..5000 mbar, temperature -273..6000 °C (SPA's limits).
     double pressure_mbar = 1013.25;
     double temperature_c = 15;
 
@@ -44,7 +48,8 @@ struct SunPosition {
     Eigen::Vector3d toSunEnu() const;
 };
 
-// kInvalidArgument naming the field for a bad query. Reentrant.
+// kInvalidArgument naming the field for a bad query (latitude -90..90, longitude -180..180,
+// altitude above -6 500 km, SPA's limits). Reentrant.
 Result<SunPosition> sunPosition(const SunQuery& query, SunAlgorithm algorithm = SunAlgorithm::kSpa);
 
 // The rotation from the world (marker) frame to east-north-up at the site: from the site's
@@ -52,7 +57,10 @@ Result<SunPosition> sunPosition(const SunQuery& query, SunAlgorithm algorithm = 
 // the site gives one, the device orientation. Reentrant.
 Eigen::Matrix3d enuFromWorld(const RigSite& site);
 
-// The sun's direction (towards the sun, unit) in the world frame at `utc_ns`. Reentrant.
+// The sun's direction (towards the sun, unit) in the world frame at `utc_ns`, refracted for the
+// standard atmosphere at the site's altitude (15 °C, 1013.25 mbar at sea level) and ΔT = 69.2 s.
+// kInvalidArgument for a site out of range or an orientation that is no unit quaternion.
+// Reentrant.
 Result<Eigen::Vector3d> sunDirectionWorld(const RigSite& site, int64_t utc_ns,
                                           SunAlgorithm algorithm = SunAlgorithm::kSpa);
 

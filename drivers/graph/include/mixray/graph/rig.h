@@ -2,6 +2,7 @@
 // and where each camera's calibration lives. Parsed into plain structs (docs/rig-format.md).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -101,14 +102,18 @@ struct RigCalibrationFile {
     bool operator==(const RigCalibrationFile&) const = default;
 };
 
-// Where on Earth the rig stands, for the sun's direction.
+// Where on Earth the rig stands, and how the world (marker) frame lies there, for the sun's
+// direction. The world frame's +z is up.
 struct RigSite {
     double latitude_deg = 0;   // north positive, -90..90
     double longitude_deg = 0;  // east positive, -180..180
-    // Compass bearing of the rig's reference direction, clockwise from true north, 0..360
-    // (the reference direction itself is defined by the calibration's rig frame).
+    // Compass bearing of the world frame's +y axis, clockwise from true north, 0..360.
     double heading_deg = 0;
     double altitude_m = 0;  // above sea level
+    // Device orientation (from an IMU and compass): the rotation R_enu_world from the world
+    // frame to east-north-up as a unit quaternion w, x, y, z. When given it replaces heading_deg
+    // (the file may not give both) and the world's +z need not be up.
+    std::optional<std::array<double, 4>> orientation_wxyz;
     SourceLocation where;
 };
 
