@@ -127,8 +127,9 @@ struct TrackerOptions {
     DetectorOptions detector;
     SmoothingOptions smoothing;
     double max_rms_px = 2.0;  // target poses fitting worse than this are rejected
-    // After this long without a good pose the tracker is lost and re-acquires from scratch
-    // (the smoothing restarts instead of sliding from the old pose).
+    // A frame without a good pose makes the tracker kLost. When a pose comes back after a gap
+    // longer than this, the smoothing restarts (the pose jumps to the fresh one instead of
+    // sliding from the old); shorter gaps (a missed detection) keep filtering.
     int64_t reacquire_after_ns = 200'000'000;
 
     Status validate() const;
