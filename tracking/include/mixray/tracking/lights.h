@@ -59,7 +59,10 @@ struct ProbeOutline {
 };
 
 struct ProbeResult {
-    std::vector<EstimatedLight> lights;  // most representative first
+    // Most representative first: strongest fitted light (diffuse), largest highlight (mirror,
+    // whose clipped highlights leave size as the only measure of strength). Intensities are
+    // relative, the first light's luminance 1.
+    std::vector<EstimatedLight> lights;
     ProbeOutline outline;
 };
 
@@ -102,9 +105,11 @@ Result<std::vector<EstimatedLight>> estimateEnvironmentLights(
     const EnvironmentLightOptions& options = {});
 
 // An equirectangular environment map (linear RGB, `width` x width/2, the renderer's
-// convention: docs/conventions.md) in the world frame from one fish-eye image; directions the
-// fish-eye does not see below the horizon are filled by mirroring the upper hemisphere.
-// kInvalidArgument for bad inputs. Reentrant.
+// convention: render::EnvironmentMap, u = 0.5 − atan2(d.y, d.x)/2π, v = acos(d.z)/π) in the
+// world frame from one fish-eye image. The lower hemisphere is the mirror image of the upper
+// (row y equals row height−1−y, as EnvironmentMap::mirrorUpperIntoLower() makes it); upper
+// directions outside the lens's view take the nearest seen value in their column.
+// kInvalidArgument for bad inputs (width: even, 16 to 8192). Reentrant.
 Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const EnvironmentCamera& camera,
                                              int width = 512);
 

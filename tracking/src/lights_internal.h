@@ -1,0 +1,57 @@
+// Shared by the light estimators: reading 8-bit colour pixels as sRGB-decoded linear values, and
+// the per-pixel geometry of a fish-eye environment camera (computed once, reused per frame).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "mixray/graph/image.h"
+#include "mixray/graph/result.h"
+#include "mixray/tracking/lights.h"
+
+namespace mixray::tracking::detail {
+
+// sRGB code value (0..255) to linear [0, 1] (IEC 61966-2-1).
+const std::array<float, 256>& srgbToLinearTable();
+
+// kInvalidArgument unless `image` is kRGB8, kBGR8 or kMono8 with data for its size.
+Status checkColorImage(const ImageView& image, const char* what);
+
+// The pixel's three code values as R, G, B (mono repeated).
+inline std::array<uint8_t, 3> codesAt(const ImageView& image, int x, int y) {
+    const uint8_t* row = image.row<uint8_t>(y);
+    switch (image.desc.format) {
+        case PixelFormat::kBGR8:
+            return {row[3 * x + 2], row[3 * x + 1], row[3 * x]};
+        case PixelFormat::kMono8:
+            return {row[x], row[x], row[x]};
+        default:
+            return {row[3 * x], row[3 * x + 1], row[3 * x + 2]};
+    }
+}
+
+// Rec. 709 luminance weights, applied to linear RGB.
+inline double luminance(const Eigen::Vector3d& rgb) {
+    return 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
+}
+
+// Where every pixel of the environment camera looks (world frame) and the solid angle it covers.
+struct FisheyeGeometry {
+    int width = 0;
+    int height = 0;
+    std::vector<Eigen::Vector3f> to_world;  // unit; NaN where the lens model has no ray
+    std::vector<float> solid_angle_sr;      // 0 where there is no ray
+
+    static Result<FisheyeGeometry> build(const EnvironmentCamera& camera);
+    bool valid(size_t i) const { return solid_angle_sr[i] > 0; }
+};
+
+Result<std::vector<EstimatedLight>> environmentLights(const ImageView& env,
+                                                      const EnvironmentCamera& camera,
+                                                      const FisheyeGeometry& geometry,
+                                                      const EnvironmentLightOptions& options);
+
+}  // namespace mixray::tracking::detail
