@@ -113,6 +113,7 @@ EnvironmentCamera envCamera() {
 struct ProbeErrors {
     std::vector<double> key, fill;
     int found = 0;
+    double min_radius_px = INFINITY, max_radius_px = 0;
 };
 
 ProbeErrors probeErrors(render::MaterialType material, ProbeDomain domain) {
@@ -133,6 +134,8 @@ ProbeErrors probeErrors(render::MaterialType material, ProbeDomain domain) {
         EXPECT_FALSE(r->lights.empty());
         EXPECT_LE(r->lights.size(), 2u);
         EXPECT_GT(r->outline.radius_px, 10);
+        e.min_radius_px = std::min(e.min_radius_px, r->outline.radius_px);
+        e.max_radius_px = std::max(e.max_radius_px, r->outline.radius_px);
         e.key.push_back(nearestDeg(r->lights, toLight(t.lights[0])));
         e.fill.push_back(nearestDeg(r->lights, toLight(t.lights[1])));
     }
@@ -143,7 +146,8 @@ void expectProbeAccuracy(render::MaterialType material, ProbeDomain domain, cons
     const ProbeErrors e = probeErrors(material, domain);
     std::cout << what << ": " << e.found << " frames, key median " << median(e.key) << " deg (max "
               << *std::max_element(e.key.begin(), e.key.end()) << "), fill median "
-              << median(e.fill) << " deg\n";
+              << median(e.fill) << " deg; probe radius " << e.min_radius_px << " to "
+              << e.max_radius_px << " px\n";
     EXPECT_GE(e.found, 15) << "of 18 frames";
     EXPECT_LT(median(e.key), 3.0) << what;
     EXPECT_LT(median(e.fill), 3.0) << what;
