@@ -33,6 +33,8 @@ Status RenderOptions::validate() const {
         return bad("samples_per_pixel must be a square number in [1, 256]");
     if (shadow_samples < 1 || shadow_samples > 1024)
         return bad("shadow_samples must be in [1, 1024]");
+    if (!(depth_ghost_agreement >= 0 && depth_ghost_agreement < 0.5f))
+        return bad("depth_ghost_agreement must be in [0, 0.5)");
     if (!std::isfinite(depth_thickness_m) || depth_thickness_m <= 0)
         return bad("depth_thickness_m must be positive and finite");
     if (threads < 0)
@@ -663,7 +665,9 @@ bool EmbreeRenderer::depthMapShadows(const Frame& f, const Vec3& origin, const V
 // depth map: a real surface the depth camera measured in front hides what was hit.
 Hit EmbreeRenderer::finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
                                      std::optional<float> depth_limit) const {
-    const bool hidden = hit.valid && depth_limit && *depth_limit < hit.t;
+    const bool ghost = hit.valid && objects_[hit.object].role != ObjectRole::kVirtual;
+    const bool hidden = hit.valid && depth_limit &&
+                        *depth_limit < hit.t * (ghost ? 1 - options_.depth_ghost_agreement : 1.0f);
     if (!f.depth_mesh)
         return hidden ? Hit{} : hit;
     if (hit.valid && !hidden && objects_[hit.object].role == ObjectRole::kVirtual)

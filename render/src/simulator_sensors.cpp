@@ -55,8 +55,15 @@ Result<std::unique_ptr<SimGeometry>> SimGeometry::build(const SceneDescription& 
             d.sphere_radius = o.shape.radius;
             d.bound_radius = o.shape.radius;
         } else if (o.shape.type == ShapeType::kMesh) {
-            return Status(ErrorCode::kInternal,
-                          "simulator: mesh objects are not simulated ('" + o.name + "')");
+            if (o.shape.mesh_data) {
+                d.meshes.push_back(*o.shape.mesh_data);
+            } else {
+                auto loaded = loadMeshFile(o.shape.mesh, o.shape.scale);
+                if (!loaded)
+                    return loaded.status().withContext("simulator: object '" + o.name + "'");
+                for (LoadedMesh& m : *loaded)
+                    d.meshes.push_back(std::move(m.mesh));
+            }
         } else {
             d.meshes.push_back(makeShapeMesh(o.shape));
         }

@@ -136,7 +136,8 @@ tracking::TrackingSetup trackingSetup(const SimTruth& t) {
         probe.radius_m = p.radius_m;
         probe.centre_world = p.centre_world;
         if (p.material == MaterialType::kDiffuse)
-            probe.albedo = t.scene.materials.at("matte").albedo.x();
+            // Through its shortest text: the float albedo as the decimal it was written as.
+            probe.albedo = std::stod(yaml::shortest(t.scene.materials.at("matte").albedo.x()));
     }
     tracking::EnvironmentStream& env = s.environment.emplace();
     env.stream = "env/color";
@@ -162,7 +163,7 @@ std::string truthText(const SimTruth& t, const SimulatorOptions& options, const 
       << ", seed: " << t.seed << ", width: " << t.color.width << ", height: " << t.color.height
       << ", samples_per_pixel: " << options.samples_per_pixel << ", env_every: " << env_every
       << ", env_map_width: " << options.env_map_width << "}\n";
-    o << "frames: " << t.frames.size() << "\n";
+    o << "frame_count: " << t.frames.size() << "\n";
     o << "fps: " << num(t.fps) << "\n";
     o << "cameras:\n";
     o << "  kinect/color:\n    model: " << calibration::cameraModelYaml(t.color)

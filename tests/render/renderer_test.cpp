@@ -1,12 +1,12 @@
 // The Renderer against geometry and the differential-rendering equation: exact copies without
 // virtual content, shadow positions and widths, mirrors, glass energy, footprint and errors.
-#include "mixray/render/assets.h"
 #include "mixray/render/renderer.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "mixray/render/assets.h"
 #include "renderer_test_util.h"
 
 namespace mixray::render::test {
@@ -540,6 +540,36 @@ TEST(Renderer, DepthHidesVirtualObjectsBehindTheMeasuredSurface) {
     for (int y = 0; y < kH; ++y)
         for (int x = 0; x < kW / 2; ++x)
             ASSERT_EQ(pixelBytes(out.composite, x, y)[0], 30) << x << "," << y;
+}
+
+// A ghost floor that the noisy depth map also measures: where the two agree (±2 % noise, less
+// than depth_ghost_agreement), the floor is the ghost and receives the virtual shadow exactly as
+// without depth; a measurement clearly nearer (a real object the scene does not model) hides it.
+TEST(Renderer, DepthThatAgreesWithAGhostKeepsItsVirtualShadow) {
+    SceneDescription scene = shadowScene({1, 0, -2}, 2, 1);
+    RenderOptions options;
+    options.soft_shadows = SoftShadowMethod::kHard;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 3}), greyImage(140));
+    RenderLayers without, noisy, nearer;
+    ASSERT_TRUE(renderer->render(frame.inputs, without));
+    Image depth(ImageDesc::packed(PixelFormat::kDepth16, kW, kH));
+    auto* mm = reinterpret_cast<uint16_t*>(depth.bytes().data());
+    for (int i = 0; i < kW * kH; ++i)  // the floor 3 m below, ±2 % in a fixed pattern
+        mm[i] = static_cast<uint16_t>(3000 + ((i * 7919) % 121) - 60);
+    frame.inputs.depth_mm = depth.view();
+    ASSERT_TRUE(renderer->render(frame.inputs, noisy));
+    EXPECT_TRUE(sameImage(noisy.composite.view(), without.composite.view()));
+    // A real object 10 % nearer than the floor everywhere hides the floor's shadow, not the ball
+    // (2.5 m away, nearer still).
+    for (int i = 0; i < kW * kH; ++i)
+        mm[i] = 2700;
+    ASSERT_TRUE(renderer->render(frame.inputs, nearer));
+    const int shadow_x = static_cast<int>((kW - 1) / 2.0 + 0.25 * 200 / 3.0);
+    EXPECT_LT(pixelBytes(without.composite, shadow_x, kH / 2)[0], 130);
+    EXPECT_EQ(pixelBytes(nearer.composite, shadow_x, kH / 2)[0], 140);
+    EXPECT_NE(pixelBytes(nearer.composite, kW / 2, kH / 2)[0], 140);  // the ball
 }
 
 TEST(Renderer, DepthRaysSeeTheMeasuredSurfaceThroughGlass) {

@@ -40,6 +40,11 @@ struct RenderOptions {
     int shadow_samples = 20;         // rays per spherical light for kUniform / penumbra pixels
     bool shadow_mean_filter = true;  // smooth adaptive penumbrae (RT²AR)
     DepthSecondaryRays depth_secondary = DepthSecondaryRays::kScreenSpace;
+    // A ghost (modelled real surface) and the depth map describe the same surface where they
+    // agree to this fraction of the distance (Kinect noise and disparity steps): the ghost is
+    // shaded there (virtual shadows land on it); only a clearly nearer measurement hides it.
+    // Virtual objects are hidden by any nearer measurement (RT²AR).
+    float depth_ghost_agreement = 0.03f;
     float depth_thickness_m = 0.05f;  // how thick a depth sample is taken to be for rays
     // Trace only pixels whose rays can touch virtual content (the screen footprint of virtual
     // objects, their shadows and reflections on ghosts); the rest is the camera image as is.
