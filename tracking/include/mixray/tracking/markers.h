@@ -97,7 +97,7 @@ struct TargetObservation {
 struct SmoothingOptions {
     bool enabled = true;
     double min_cutoff_hz = 1.0;  // cutoff at rest: lower removes more jitter
-    double beta = 2.0;           // cutoff increase per unit speed (m/s, rad/s): higher lags less
+    double beta = 100.0;         // cutoff increase per unit speed (m/s, rad/s): higher lags less
     double d_cutoff_hz = 1.0;    // cutoff of the speed estimate
 
     Status validate() const;
