@@ -1,6 +1,7 @@
 // The camera tracker: every target seen votes for T_world_camera in one reprojection fit;
 // One-Euro smoothing; searching, tracking and lost with the last good pose kept.
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <string>

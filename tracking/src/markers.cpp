@@ -117,7 +117,7 @@ const std::array<float, 256>& linearLut() {
 // Bilinear sample of a float image; NaN outside.
 double sampleAt(const cv::Mat& f, const Vector2d& p) {
     const double x = p.x(), y = p.y();
-    if (!(x >= 0 && y >= 0 && x <= f.cols - 1 && y <= f.rows - 1))
+    if (f.cols < 2 || f.rows < 2 || !(x >= 0 && y >= 0 && x <= f.cols - 1 && y <= f.rows - 1))
         return std::nan("");
     const int x0 = std::min(static_cast<int>(x), f.cols - 2);
     const int y0 = std::min(static_cast<int>(y), f.rows - 2);

@@ -33,7 +33,9 @@ struct MarkerDetection {
 // How markers are found. Every field has a working default.
 struct DetectorOptions {
     // Corner refinement after detection: OpenCV's subpixel refinement alone is off by up to
-    // 0.35 px on small markers; the refinement fits the marker's edges.
+    // 0.9 px on small markers (gamma pulls it inwards); this fits the marker's outer edges in
+    // linear intensity and crosses the lines (≤ 0.13 px on synthetic markers; docs/tracking.md).
+    // Off: OpenCV's subpixel corners, or libapriltag's.
     bool refine_corners = true;
     // AprilTag (libapriltag) settings, as its detector names them.
     float apriltag_quad_decimate = 1.0f;
@@ -97,7 +99,7 @@ struct TargetObservation {
 struct SmoothingOptions {
     bool enabled = true;
     double min_cutoff_hz = 1.0;  // cutoff at rest: lower removes more jitter
-    double beta = 2.0;           // cutoff increase per unit speed (m/s, rad/s): higher lags less
+    double beta = 100.0;         // cutoff increase per unit speed (m/s, rad/s): higher lags less
     double d_cutoff_hz = 1.0;    // cutoff of the speed estimate
 
     Status validate() const;
