@@ -79,7 +79,7 @@ Result<SizeResult> benchSize(const Size& size, const BenchTrackOptions& options)
     so.frames = options.frames;
     so.width = size.width;
     so.height = size.height;
-    so.samples_per_pixel = 1;
+    so.samples_per_pixel = 4;  // antialiased like a camera image (and the fixture)
     so.env_every = 4;
     auto sim = render::Simulator::create(so);
     if (!sim)
@@ -227,7 +227,7 @@ int runBenchTrack(const BenchTrackOptions& options) {
     }
     std::printf(
         "Marker tracking on simulated tabletop frames (one 100 mm DICT_6X6_250 marker), "
-        "best of %d runs, one thread:\n",
+        "best of %d runs:\n",
         options.repeats);
     std::printf("  %-10s %20s %16s %22s %9s\n", "size", "OpenCV detectMarkers", "mixray detect",
                 "mixray track (ratio)", "tracked");

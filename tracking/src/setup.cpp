@@ -381,7 +381,9 @@ Result<TrackingSetup> parseTrackingSetup(std::string_view text, std::string_view
     } catch (const YAML::Exception& e) {
         return Status(ErrorCode::kCorruptData, std::string(source_name) + ": " + e.what());
     }
-    MIXRAY_RETURN_IF_ERROR(setup.validate());
+    // Cross-entry problems are the file's content too.
+    if (Status s = setup.validate(); !s)
+        return Status(ErrorCode::kCorruptData, std::string(source_name) + ": " + s.message());
     return setup;
 }
 
