@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <opencv2/aruco.hpp>
 
 #include "marker_test_util.h"
 #include "mixray/graph/mkv.h"
@@ -321,6 +322,51 @@ TEST(MarkerTracker, TwoMarkersBothVoteForOneCameraPose) {
     EXPECT_NE(bad->pose.reason.find("disagree"), std::string::npos) << bad->pose.reason;
 }
 
+TEST(MarkerTracker, GridBoardPoseFromAllItsCorners) {
+    // A 5x7 GridBoard printed from id 10, as drawn by OpenCV, seen through a distorted lens.
+    auto camera = calibration::CameraModel::pinhole(640, 480, 520, 521, 322.3, 238.1);
+    camera.distortion = {0.05, -0.1, 0.0005, -0.0003, 0.03};
+    MarkerTarget grid;
+    grid.name = "grid";
+    grid.kind = TargetKind::kGridBoard;
+    grid.id = 10;
+    grid.squares_x = 5;
+    grid.squares_y = 7;
+    grid.size_m = 0.04;
+    grid.separation_m = 0.01;
+    auto board = cv::aruco::GridBoard::create(
+        5, 7, 0.04f, 0.01f, cv::aruco::getPredefinedDictionary(cv::aruco::DICT_6X6_250), 10);
+    synth::PrintedPlane plane;
+    cv::Mat drawn;
+    board->draw(cv::Size(240, 340), drawn, 0, 1);            // 1 mm per pixel
+    plane.grey = cv::Mat(380, 280, CV_8U, cv::Scalar(255));  // 2 cm of white paper round it
+    drawn.copyTo(plane.grey(cv::Rect(20, 20, 240, 340)));
+    plane.width_m = 0.28;
+    plane.height_m = 0.38;
+    // The board frame (top-left marker corner, +y down, +z in) in the plane's (centre, +y up).
+    grid.T_world_target.linear() = Vector3d(1, -1, -1).asDiagonal();
+    grid.T_world_target.translation() = Vector3d(-0.12, 0.17, 0);
+    const Isometry3d T_world_camera =
+        synth::lookAt(Vector3d(0.15, -0.35, 0.45), Vector3d(0.01, 0.02, 0));
+    const Image img = synth::renderPlanes(camera, T_world_camera, {plane}, 3);
+    TrackerOptions o;
+    o.smoothing.enabled = false;
+    auto tracker = MarkerTracker::create(camera, {grid}, o);
+    ASSERT_TRUE(tracker) << tracker.status().toString();
+    auto track = (*tracker)->track(img.view(), 1);
+    ASSERT_TRUE(track) << track.status().toString();
+    ASSERT_EQ(track->state, TrackState::kTracking) << track->pose.reason;
+    ASSERT_EQ(track->targets.size(), 1u);
+    const double err_mm =
+        1e3 * (track->pose.value->translation() - T_world_camera.translation()).norm();
+    std::printf("synthetic GridBoard: %d corners, rms %.3f px, camera %.3f mm %.4f deg\n",
+                track->targets[0].points, track->targets[0].rms_px, err_mm,
+                synth::angleDeg(*track->pose.value, T_world_camera));
+    EXPECT_GE(track->targets[0].points, 120);
+    EXPECT_LT(err_mm, 1.0);
+    EXPECT_LT(synth::angleDeg(*track->pose.value, T_world_camera), 0.05);
+}
+
 TEST(MarkerTracker, OptionsAndTargetsAreValidated) {
     const auto camera = calibration::CameraModel::pinhole(640, 480, 500, 500, 319.5, 239.5);
     EXPECT_TRUE(TrackerOptions{}.validate());
@@ -391,6 +437,10 @@ TEST(MarkerTracker, OptionsAndTargetsAreValidated) {
     const auto gp = grid.points();
     ASSERT_EQ(gp.size(), 140u);
     EXPECT_EQ(gp[0].marker_id, 100);
+    // OpenCV 4.6's frame: the first marker's top-left corner at the origin, +y down the board.
+    EXPECT_TRUE(gp[0].p_target.isApprox(Vector3d(0, 0, 0)));
+    EXPECT_TRUE(gp[1].p_target.isApprox(Vector3d(0.04, 0, 0), 1e-6));
+    EXPECT_TRUE(gp[3].p_target.isApprox(Vector3d(0, 0.04, 0), 1e-6));
     grid.separation_m = 0;
     EXPECT_FALSE(grid.validate());
 }

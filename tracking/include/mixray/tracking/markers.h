@@ -58,7 +58,7 @@ Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
 enum class TargetKind : uint8_t {
     kMarker,        // one square marker; its frame: centre, +x right, +y up, +z out
     kCharucoBoard,  // OpenCV CharucoBoard; its frame: top-left corner, +x right, +y down, +z in
-    kGridBoard,     // OpenCV GridBoard; its frame: OpenCV's (bottom-left corner, +z out)
+    kGridBoard,     // OpenCV 4.6 GridBoard; its frame: top-left corner, +x right, +y down, +z in
 };
 
 // Something tracked, placed in the world (marker) frame. Plain value.
