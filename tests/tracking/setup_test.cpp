@@ -5,6 +5,8 @@
 
 #include <string>
 
+#include "test_data.h"
+
 namespace mixray::tracking {
 namespace {
 
@@ -103,6 +105,20 @@ TEST(TrackingSetup, WrittenFileReadsBackToTheSameValues) {
     EXPECT_EQ(again->camera.model.distortion, setup->camera.model.distortion);
     EXPECT_DOUBLE_EQ(again->probes[1].albedo, 0.7);
     EXPECT_EQ(again->environment->map_width, 256);
+
+    // And the setup the simulator wrote for the bundled session (quaternions with every digit).
+    auto simulated =
+        loadTrackingSetup(test::fixturesDir() / "sessions" / "sim_tabletop.tracking.yaml");
+    ASSERT_TRUE(simulated) << simulated.status().message();
+    const std::string written = trackingSetupYaml(*simulated);
+    auto reread = parseTrackingSetup(written, "c.yaml");
+    ASSERT_TRUE(reread) << reread.status().message();
+    // Poses go through a rotation matrix: their quaternions come back to the last bit or two.
+    EXPECT_TRUE(reread->environment->camera.T_world_env.isApprox(
+        simulated->environment->camera.T_world_env, 1e-15));
+    EXPECT_EQ(reread->environment->camera.model.distortion,
+              simulated->environment->camera.model.distortion);
+    EXPECT_EQ(reread->probes[1].albedo, simulated->probes[1].albedo);
 }
 
 // Each bad input names its line and field.
