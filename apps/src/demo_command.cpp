@@ -211,7 +211,16 @@ int runDemo(const DemoOptions& options) {
     auto setup = findTrackingSetup(options.session, **reader, options.setup);
     if (!setup)
         return fail("demo", setup.status());
-    auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams());
+    PipelineOptions pipeline_options;
+    auto site = findRigSite(**reader, "");
+    if (!site)
+        return fail("demo", site.status());
+    pipeline_options.site = *site;
+    auto utc_offset = recordingUtcOffset(**reader);
+    if (!utc_offset)
+        return fail("demo", utc_offset.status());
+    pipeline_options.utc_minus_host_ns = *utc_offset;
+    auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams(), pipeline_options);
     if (!pipeline)
         return fail("demo", pipeline.status().withContext(options.session));
     const StreamInfo color_info = (*reader)->streams()[(*pipeline)->colorStream()];
@@ -409,8 +418,17 @@ int runDemo(const DemoOptions& options) {
         return Status::ok();
     };
 
-    // A colour frame waits for the depth map stored after it with the same stamp.
-    std::optional<TrackedFrame> pending;
+    // A colour frame is tracked and rendered when the next one arrives: by then every frame of
+    // its instant (its depth map and environment frame, stored a few ms later) has been read.
+    FrameRef pending;
+    const auto processPending = [&]() -> Status {
+        auto pushed = (*pipeline)->push(pending);
+        pending = FrameRef();
+        if (!pushed)
+            return pushed.status();
+        return *pushed ? process(**pushed) : Status::ok();
+    };
+    const StreamId color_stream = (*pipeline)->colorStream();
     while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
         auto frame = (*reader)->next();
         if (!frame) {
@@ -424,27 +442,18 @@ int runDemo(const DemoOptions& options) {
         }
         if (frame->meta().stream == depth_stream) {
             depth = *frame;
-            if (pending && depth.meta().host_stamp_ns == pending->color.meta().host_stamp_ns) {
-                if (!(result = process(*pending)))
-                    break;
-                pending.reset();
-            }
-            continue;
-        }
-        auto pushed = (*pipeline)->push(*frame);
-        if (!pushed) {
+        } else if (frame->meta().stream == color_stream) {
+            if (pending && !(result = processPending()))
+                break;
+            pending = *frame;
+        } else if (auto pushed = (*pipeline)->push(*frame); !pushed) {
             result = pushed.status();
             break;
         }
-        if (!*pushed)
-            continue;
-        if (pending && !(result = process(*pending)))
-            break;
-        pending = std::move(**pushed);
     }
     if (result && pending && !interrupt.raised() &&
         (options.max_frames == 0 || frames < options.max_frames))
-        result = process(*pending);
+        result = processPending();
     status.finish();
     Status closed = (*video)->close();
     if (result)

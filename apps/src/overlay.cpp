@@ -102,6 +102,10 @@ Image drawTrackingOverlay(const TrackedFrame& frame, const tracking::TrackingSet
                          kOrange, 2, true);
             }
         }
+        if (frame.sun.value && !frame.sun.stale)
+            line(m, project(camera, T_camera_world, Vector3d::Zero()),
+                 project(camera, T_camera_world, 0.15 * frame.sun.value->to_light_world), kYellow,
+                 3, true);
         if (frame.environment.value) {
             const Vector3d origin = Vector3d::Zero();
             for (const tracking::EstimatedLight& l : frame.environment.value->lights)
@@ -128,6 +132,10 @@ Image drawTrackingOverlay(const TrackedFrame& frame, const tracking::TrackingSet
     int y = 36;
     if (frame.environment.stale && !frame.environment.reason.empty()) {
         text(m, "environment: " + frame.environment.reason, cv::Point(8, y), kRed);
+        y += 18;
+    }
+    if (frame.sun.stale && !frame.sun.reason.empty()) {
+        text(m, "sun: " + frame.sun.reason, cv::Point(8, y), kRed);
         y += 18;
     }
     for (size_t i = 0; i < frame.probes.size(); ++i) {

@@ -1,5 +1,6 @@
 // mixray record: opens a rig's devices and records their streams into one Matroska file.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -136,6 +137,14 @@ int runRecord(const RecordOptions& options) {
     recorder_options.attachments = std::move(*attachments);
     recorder_options.tags["rig"] = rig->name;
     recorder_options.tags["software"] = "mixray 0.1.0";
+    // Host stamps are the monotonic clock; this maps them to UTC (the sun's position needs it).
+    recorder_options.tags[std::string(kUtcMinusHostTag)] =
+        std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::system_clock::now().time_since_epoch())
+                           .count() -
+                       std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::steady_clock::now().time_since_epoch())
+                           .count());
     auto recorder_node = std::make_unique<Recorder>(recorder_options);
     Recorder* recorder = recorder_node.get();
     Status added = graph.addNode(std::move(recorder_node));

@@ -29,6 +29,8 @@ struct TrackCommandOptions {
     bool probes = true;
     bool environment = true;
     uint64_t max_frames = 0;
+    std::string rig;  // empty: the recording's rig.yaml attachment
+    std::string utc;  // the first colour frame's UTC; empty: the recording's tag
 };
 
 json vec(const Eigen::Vector3d& v) {
@@ -117,6 +119,12 @@ json frameJson(const TrackedFrame& f, const tracking::TrackingSetup& setup) {
             e["lights"] = lights;
         }
         j["environment"] = e;
+    }
+    if (f.sun.value || !f.sun.reason.empty()) {
+        json sun = estimateHeader(f.sun);
+        if (f.sun.value)
+            sun["light"] = lightJson(*f.sun.value);
+        j["sun"] = sun;
     }
     if (f.intensities.value || !f.intensities.reason.empty()) {
         json i = estimateHeader(f.intensities);
@@ -221,6 +229,21 @@ int runTrack(const TrackCommandOptions& options) {
     PipelineOptions pipeline_options;
     pipeline_options.probes = options.probes;
     pipeline_options.environment = options.environment;
+    auto site = findRigSite(**reader, options.rig);
+    if (!site)
+        return fail("track", site.status());
+    pipeline_options.site = *site;
+    if (!options.utc.empty()) {
+        auto utc = parseUtc(options.utc);
+        if (!utc)
+            return fail("track", utc.status());
+        pipeline_options.utc_first_frame_ns = *utc;
+    } else {
+        auto offset = recordingUtcOffset(**reader);
+        if (!offset)
+            return fail("track", offset.status());
+        pipeline_options.utc_minus_host_ns = *offset;
+    }
     auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams(), pipeline_options);
     if (!pipeline)
         return fail("track", pipeline.status().withContext(options.session));
@@ -259,27 +282,8 @@ int runTrack(const TrackCommandOptions& options) {
     uint64_t tracked = 0, lost = 0;
     double track_ms = 0, probe_ms = 0;
     Status result;
-    while (!interrupt.raised() && (options.max_frames == 0 || frames.size() < options.max_frames)) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                result = frame.status();
-            break;
-        }
-        if (recorder && !(result = recorder->copy(*frame)))
-            break;
-        auto pushed = (*pipeline)->push(*frame);
-        if (!pushed) {
-            result = pushed.status();
-            break;
-        }
-        if (!*pushed)
-            continue;
-        const TrackedFrame& f = **pushed;
+    // Everything written for one tracked colour frame; false (with `result` set) on an error.
+    const auto handle = [&](const TrackedFrame& f) -> bool {
         frames.push_back(frameJson(f, *setup));
         track_ms += f.track_ms;
         probe_ms += f.probe_ms;
@@ -289,6 +293,8 @@ int runTrack(const TrackCommandOptions& options) {
         const Eigen::Isometry3d T = f.track.pose.value.value_or(Eigen::Isometry3d::Identity());
         Eigen::Quaterniond q(T.linear());
         q.normalize();
+        if (q.w() < 0)
+            q.coeffs() = -q.coeffs();
         std::snprintf(
             row, sizeof row, "%llu,%lld,%s,%d,%d,%zu,%zu,%.4f,%s\n",
             static_cast<unsigned long long>(f.index), static_cast<long long>(stamp),
@@ -323,12 +329,14 @@ int runTrack(const TrackCommandOptions& options) {
                 addLights(setup->probes[i].name, f.probes[i].stale, f.probes[i].value->lights);
         if (f.environment.value)
             addLights(setup->environment->stream, f.environment.stale, f.environment.value->lights);
+        if (f.sun.value)
+            addLights("sun", f.sun.stale, {*f.sun.value});
         if (recorder && !(result = recorder->pose(f)))
-            break;
+            return false;
         if (video) {
             const Image overlay = drawTrackingOverlay(f, *setup);
             if (!(result = video->write(overlay.view(), stamp)))
-                break;
+                return false;
         }
         char line[200];
         std::snprintf(line, sizeof line, "frame %llu: %s, %.1f ms markers, %.1f ms probes",
@@ -336,7 +344,49 @@ int runTrack(const TrackCommandOptions& options) {
                       std::string(tracking::toString(f.track.state)).c_str(), f.track_ms,
                       f.probe_ms);
         status.update(line);
+        return true;
+    };
+    // A colour frame is tracked when the next one arrives: by then every frame of its instant
+    // (its environment frame, stored a few ms later) has been read, so its estimate is current.
+    FrameRef pending;
+    const auto trackPending = [&]() -> bool {
+        auto pushed = (*pipeline)->push(pending);
+        pending = FrameRef();
+        if (!pushed) {
+            result = pushed.status();
+            return false;
+        }
+        return !*pushed || handle(**pushed);
+    };
+    const StreamId color_stream = (*pipeline)->colorStream();
+    while (!interrupt.raised() && (options.max_frames == 0 || frames.size() < options.max_frames)) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kUnavailable) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                continue;
+            }
+            if (frame.status().code() != ErrorCode::kEndOfStream)
+                result = frame.status();
+            break;
+        }
+        if (recorder && !(result = recorder->copy(*frame)))
+            break;
+        if (frame->meta().stream != color_stream) {
+            auto pushed = (*pipeline)->push(*frame);
+            if (!pushed) {
+                result = pushed.status();
+                break;
+            }
+            continue;
+        }
+        if (pending && !trackPending())
+            break;
+        pending = *frame;
     }
+    if (result && pending && !interrupt.raised() &&
+        (options.max_frames == 0 || frames.size() < options.max_frames))
+        trackPending();
     status.finish();
     if (video) {
         Status closed = video->close();
@@ -391,6 +441,12 @@ void registerTrackCommand(CLI::App& app, Commands& commands) {
     sub->add_flag("!--no-environment", o->environment,
                   "Do not estimate lights from the environment camera");
     sub->add_option("--max-frames", o->max_frames, "Stop after this many colour frames (0: all)");
+    sub->add_option("--rig", o->rig,
+                    "Rig file whose site: (latitude, longitude, heading) gives the sun's "
+                    "direction; default: the recording's rig.yaml attachment");
+    sub->add_option("--utc", o->utc,
+                    "UTC of the first colour frame, like 2026-06-21T12:00:00Z; default: the "
+                    "recording's utc_minus_host_ns tag (mixray record sets it)");
     commands.push_back({sub, [o] { return runTrack(*o); }});
 }
 

@@ -1,8 +1,12 @@
 // The tracking half of the AR pipeline (tracking_pipeline.h).
 #include "tracking_pipeline.h"
 
+#include <charconv>
 #include <chrono>
 #include <cmath>
+#include <ctime>
+#include <iomanip>
+#include <sstream>
 
 namespace mixray::cli {
 namespace {
@@ -51,6 +55,64 @@ Result<tracking::TrackingSetup> findTrackingSetup(const fs::path& recording,
                   "no tracking setup: give --setup FILE (docs/tracking.md#setup-files); the "
                   "recording has no tracking.yaml attachment and " +
                       beside.string() + " does not exist");
+}
+
+Result<std::optional<RigSite>> findRigSite(const RecordingReader& reader,
+                                           const std::string& rig_path) {
+    std::optional<RigDescription> rig;
+    if (!rig_path.empty()) {
+        auto loaded = loadRig(rig_path);
+        if (!loaded)
+            return loaded.status();
+        rig = std::move(loaded).value();
+    } else {
+        for (const Attachment& a : reader.attachments()) {
+            if (a.name != "rig.yaml")
+                continue;
+            auto parsed = parseRig(std::string(a.data.begin(), a.data.end()), "rig.yaml");
+            if (!parsed)
+                return parsed.status().withContext("the recording's rig.yaml");
+            rig = std::move(parsed).value();
+        }
+    }
+    if (!rig)
+        return std::optional<RigSite>();
+    return rig->site;
+}
+
+Result<int64_t> parseUtc(const std::string& text) {
+    std::tm tm{};
+    std::istringstream in(text);
+    in >> std::get_time(&tm, "%Y-%m-%dT%H:%M:%S");
+    double fraction = 0;
+    if (!in.fail() && in.peek() == '.') {
+        std::string digits;
+        in.get();
+        while (std::isdigit(in.peek()))
+            digits += static_cast<char>(in.get());
+        fraction = digits.empty() ? 0 : std::stod("0." + digits);
+    }
+    char zone = 0;
+    in >> zone;
+    if (in.fail() || zone != 'Z' || in.peek() != std::char_traits<char>::eof())
+        return Status(ErrorCode::kInvalidArgument,
+                      "--utc " + text +
+                          ": expected UTC as 2026-06-21T12:00:00Z (seconds may have a fraction)");
+    const int64_t seconds = static_cast<int64_t>(timegm(&tm));
+    return seconds * 1'000'000'000 + static_cast<int64_t>(std::llround(fraction * 1e9));
+}
+
+Result<std::optional<int64_t>> recordingUtcOffset(const RecordingReader& reader) {
+    const auto tag = reader.tags().find(std::string(kUtcMinusHostTag));
+    if (tag == reader.tags().end())
+        return std::optional<int64_t>();
+    int64_t offset = 0;
+    const std::string& text = tag->second;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), offset);
+    if (ec != std::errc() || end != text.data() + text.size())
+        return Status(ErrorCode::kCorruptData, "the recording's " + std::string(kUtcMinusHostTag) +
+                                                   " tag is not an integer: " + text);
+    return std::optional<int64_t>(offset);
 }
 
 TrackingPipeline::~TrackingPipeline() = default;
@@ -131,6 +193,30 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
     }
     out.probe_ms = millisecondsSince(start);
     out.probes = probes_;
+    if (options_.site) {
+        if (!options_.utc_minus_host_ns && options_.utc_first_frame_ns)
+            options_.utc_minus_host_ns = *options_.utc_first_frame_ns - stamp;
+        if (!options_.utc_minus_host_ns) {
+            sun_.keep("the time of day is unknown: the recording has no " +
+                          std::string(kUtcMinusHostTag) + " tag (give --utc)",
+                      stamp);
+        } else {
+            auto to_sun =
+                tracking::sunDirectionWorld(*options_.site, stamp + *options_.utc_minus_host_ns);
+            if (!to_sun) {
+                sun_.keep(to_sun.status().message(), stamp);
+            } else if (to_sun->z() <= 0) {
+                sun_.keep("the sun is below the horizon", stamp);
+            } else {
+                EstimatedLight sun;
+                sun.source = tracking::LightSource::kSun;
+                sun.to_light_world = *to_sun;
+                sun.angular_radius_rad = 0.2666 * M_PI / 180;  // the sun's mean apparent radius
+                sun_.update(sun, stamp);
+            }
+        }
+        out.sun = sun_;
+    }
     if (environment_estimator_)
         out.environment = environment_estimator_->latest();
     else if (setup_.environment)
@@ -165,6 +251,8 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
 std::vector<EstimatedLight> TrackingPipeline::lightDirections(const TrackedFrame& frame) const {
     if (frame.environment.value && !frame.environment.value->lights.empty())
         return frame.environment.value->lights;
+    if (frame.sun.value && !frame.sun.stale)
+        return {*frame.sun.value};
     // Without the fish-eye: a mirror probe's highlights (sharp), else a diffuse probe's.
     for (tracking::ProbeMaterial material :
          {tracking::ProbeMaterial::kMirror, tracking::ProbeMaterial::kDiffuse}) {

@@ -15,12 +15,14 @@
 #include "mixray/graph/frame.h"
 #include "mixray/graph/recording.h"
 #include "mixray/graph/result.h"
+#include "mixray/graph/rig.h"
 #include "mixray/render/scene.h"
 #include "mixray/tracking/estimate.h"
 #include "mixray/tracking/light_intensity.h"
 #include "mixray/tracking/lights.h"
 #include "mixray/tracking/markers.h"
 #include "mixray/tracking/setup.h"
+#include "mixray/tracking/sun.h"
 
 namespace mixray::cli {
 
@@ -39,6 +41,8 @@ struct TrackedFrame {
     // One per setup probe, in its order.
     std::vector<tracking::Estimate<tracking::ProbeResult>> probes;
     tracking::Estimate<tracking::EnvironmentEstimate> environment;
+    // The sun (when the rig's site and the frame's UTC are known), for outdoor rigs.
+    tracking::Estimate<tracking::EstimatedLight> sun;
     // Irradiance of the lights (directions from lights()) fitted to a diffuse probe.
     tracking::Estimate<tracking::IntensityFit> intensities;
     double track_ms = 0;  // marker tracking of this frame
@@ -51,7 +55,21 @@ struct PipelineOptions {
     // Offline (recordings): wait for each environment frame's estimate, so a run is
     // reproducible. Live it would not wait.
     bool wait_for_environment = true;
+    // Where the rig stands (its rig file's site:) and UTC minus the host clock: with both, each
+    // colour frame also gets the sun's direction.
+    std::optional<RigSite> site;
+    std::optional<int64_t> utc_minus_host_ns;
+    // Or the UTC of the first colour frame (ns since the Unix epoch), which fixes the offset.
+    std::optional<int64_t> utc_first_frame_ns;
 };
+
+// The site of the recording's rig (its rig.yaml attachment, or `rig_path`), if it has one.
+Result<std::optional<RigSite>> findRigSite(const RecordingReader& reader,
+                                           const std::string& rig_path);
+// The recording's UTC minus host clock tag (kUtcMinusHostTag), if it has one.
+Result<std::optional<int64_t>> recordingUtcOffset(const RecordingReader& reader);
+// "2026-06-21T12:00:00Z" (seconds may have a fraction) as ns since the Unix epoch.
+Result<int64_t> parseUtc(const std::string& text);
 
 // Pulls frames through tracking. Thread-bound.
 class TrackingPipeline {
@@ -68,7 +86,8 @@ public:
     StreamId colorStream() const { return color_; }
     StreamId environmentStream() const { return environment_; }
 
-    // The lights to render with: directions from the fish-eye (else the probes), strengths
+    // The lights to render with: directions from the fish-eye (else the sun, else the
+    // probes), strengths
     // from the diffuse probe's fit (else the estimates' own), as scene lights in the world
     // frame, plus the estimated environment map. Empty when nothing was estimated yet.
     std::vector<render::Light> lights(const TrackedFrame& frame) const;
@@ -85,6 +104,7 @@ private:
     std::unique_ptr<tracking::AsyncEnvironmentEstimator> environment_estimator_;
     std::vector<tracking::Estimate<tracking::ProbeResult>> probes_;
     tracking::Estimate<tracking::IntensityFit> intensities_;
+    tracking::Estimate<tracking::EstimatedLight> sun_;
     uint64_t frames_ = 0;
 };
 

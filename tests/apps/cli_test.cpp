@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -100,6 +101,19 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
     ASSERT_EQ(record.exit_code, 0) << record.output;
     EXPECT_NE(record.output.find("recorded 150 frames"), std::string::npos) << record.output;
     EXPECT_NE(record.output.find("sync"), std::string::npos) << record.output;
+
+    // The recording says how its host stamps map to UTC (the sun needs the time of day): UTC
+    // minus the monotonic clock, now.
+    const auto recorded = nlohmann::json::parse(mixray("info --json " + q(out)).output);
+    const int64_t utc_minus_host =
+        std::stoll(recorded["tags"]["utc_minus_host_ns"].get<std::string>());
+    const int64_t now_utc_minus_host = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                           std::chrono::system_clock::now().time_since_epoch())
+                                           .count() -
+                                       std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                           std::chrono::steady_clock::now().time_since_epoch())
+                                           .count();
+    EXPECT_LT(std::llabs(utc_minus_host - now_utc_minus_host), 60'000'000'000LL);
 
     CliRun again =
         mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") + " -o " + q(out));

@@ -14,6 +14,8 @@
 #include "cli_runner.h"
 #include "mixray/graph/frame.h"
 #include "mixray/graph/mkv.h"
+#include "mixray/graph/rig.h"
+#include "mixray/tracking/sun.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -224,6 +226,60 @@ TEST(BenchCli, TrackPrintsTrackingAgainstOpenCvAndLightTimes) {
     for (const char* key :
          {"opencv_detect_markers_ms", "mixray_track_ms", "probe_lights_ms", "environment_ms"})
         EXPECT_GT(out[0][key].get<double>(), 0) << key;
+}
+
+}  // namespace
+}  // namespace mixray
+
+namespace mixray {
+namespace {
+
+// An outdoor rig: the rig file's site and the first frame's UTC give the sun's direction in
+// the marker frame on every frame, as tracking::sunDirectionWorld computes it for that instant.
+TEST(TrackCli, SunDirectionFromTheRigsSiteAndTheFramesTime) {
+    const fs::path dir = test::tempDir();
+    {
+        std::ofstream rig(dir / "outdoor.yaml");
+        rig << "version: 1\nrig: outdoor\ndevices:\n  - name: kinect\n    driver: pattern\n"
+               "site: {latitude_deg: 48.8584, longitude_deg: 2.2945, heading_deg: 135, "
+               "altitude_m: 35}\n";
+    }
+    CliRun run = mixray("track " + q(kSession) + " --max-frames 5 --no-video --no-record --rig " +
+                        q(dir / "outdoor.yaml") + " --utc 2026-06-21T12:00:00.5Z -o " + q(dir));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    auto rig = loadRig(dir / "outdoor.yaml");
+    ASSERT_TRUE(rig && rig->site) << rig.status().toString();
+    const int64_t utc0 = 1'782'043'200'500'000'000;  // 2026-06-21T12:00:00.5Z
+    int64_t first_stamp = -1;
+    int rows = 0;
+    for (const std::string& line : lines(dir / "lights.csv")) {
+        const auto f = fields(line);
+        if (f.size() < 9 || f[2] != "sun")
+            continue;
+        const int64_t stamp = std::stoll(f[1]);
+        if (first_stamp < 0)
+            first_stamp = stamp;
+        auto expected = tracking::sunDirectionWorld(*rig->site, utc0 + (stamp - first_stamp));
+        ASSERT_TRUE(expected);
+        const Eigen::Vector3d got(std::stod(f[6]), std::stod(f[7]), std::stod(f[8]));
+        EXPECT_LT((got - *expected).norm(), 1e-5) << line;
+        EXPECT_GT(got.z(), 0.5);  // midsummer noon in Paris: high in the sky
+        ++rows;
+    }
+    EXPECT_EQ(rows, 5);
+
+    // Without a time of day the sun is not guessed: stale, and the reason says what to give.
+    CliRun untimed = mixray("track " + q(kSession) + " --max-frames 2 --no-video --no-record " +
+                            "--rig " + q(dir / "outdoor.yaml") + " -o " + q(dir / "untimed"));
+    ASSERT_EQ(untimed.exit_code, 0) << untimed.output;
+    std::ifstream json_file(dir / "untimed" / "track.json");
+    const json frames = json::parse(json_file)["frames"];
+    EXPECT_TRUE(frames[0]["sun"]["stale"].get<bool>());
+    EXPECT_NE(frames[0]["sun"]["reason"].get<std::string>().find("--utc"), std::string::npos);
+    CliRun bad = mixray("track " + q(kSession) + " --rig " + q(dir / "outdoor.yaml") +
+                        " --utc 2026-06-21 -o " + q(dir / "bad"));
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_NE(bad.output.find("2026-06-21T12:00:00Z"), std::string::npos) << bad.output;
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "mixray/graph/frame.h"
@@ -49,6 +50,10 @@ public:
 };
 
 // What a writer is asked to store besides frames.
+// Recording tag: UTC minus the host clock, in ns, at the start of recording (decimal), so a
+// frame's host_stamp_ns maps to UTC (the sun's position needs the time of day).
+inline constexpr std::string_view kUtcMinusHostTag = "utc_minus_host_ns";
+
 struct RecordingHeader {
     std::vector<StreamInfo> streams;  // frame.meta().stream indexes this list
     std::vector<Attachment> attachments;
