@@ -20,6 +20,7 @@
 #include "mixray/render/scene_file.h"
 #include "mixray/render/simulator.h"
 #include "mixray/replay/open_recording.h"
+#include "recording_frames.h"
 #include "tracking_pipeline.h"
 
 namespace mixray::cli {
@@ -430,23 +431,20 @@ int runDemo(const DemoOptions& options) {
     };
     const StreamId color_stream = (*pipeline)->colorStream();
     while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                result = frame.status();
+        auto next = nextFrame(**reader);
+        if (!next || !*next) {
+            if (!next)
+                result = next.status();
             break;
         }
-        if (frame->meta().stream == depth_stream) {
-            depth = *frame;
-        } else if (frame->meta().stream == color_stream) {
+        const FrameRef& frame = **next;
+        if (frame.meta().stream == depth_stream) {
+            depth = frame;
+        } else if (frame.meta().stream == color_stream) {
             if (pending && !(result = processPending()))
                 break;
-            pending = *frame;
-        } else if (auto pushed = (*pipeline)->push(*frame); !pushed) {
+            pending = frame;
+        } else if (auto pushed = (*pipeline)->push(frame); !pushed) {
             result = pushed.status();
             break;
         }

@@ -10,6 +10,7 @@
 #include "console.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/replay/open_recording.h"
+#include "recording_frames.h"
 
 namespace mixray::cli {
 namespace {
@@ -79,17 +80,15 @@ int runInfo(const std::string& path, bool as_json) {
     Status end_status;
     uint64_t total = 0;
     for (;;) {
-        auto frame = reader.next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                end_status = frame.status();
+        auto next = nextFrame(reader);
+        if (!next) {
+            end_status = next.status();
             break;
         }
-        const auto& meta = frame->meta();
+        if (!*next)
+            break;
+        const FrameRef& frame = **next;
+        const auto& meta = frame.meta();
         if (meta.stream >= summaries.size())
             continue;
         StreamSummary& s = summaries[meta.stream];
@@ -105,7 +104,7 @@ int runInfo(const std::string& path, bool as_json) {
         ++s.frames;
         if (meta.status != FrameStatus::kOk)
             ++s.bad_frames;
-        s.payload_bytes += frame->image().size_bytes;
+        s.payload_bytes += frame.image().size_bytes;
         ++total;
     }
 

@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "mixray/replay/open_recording.h"
+#include "recording_frames.h"
 
 namespace mixray::cli {
 
@@ -67,22 +68,18 @@ Result<PoseTrack> readPoseTrack(const std::filesystem::path& recording, const st
     if (const auto it = streams[id].tags.find("pose_of"); it != streams[id].tags.end())
         track.pose_of = it->second;
     while (true) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kEndOfStream)
-                break;
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            return frame.status();
-        }
-        if (frame->meta().stream != id)
+        auto next = nextFrame(**reader);
+        if (!next)
+            return next.status();
+        if (!*next)
+            break;
+        const FrameRef& frame = **next;
+        if (frame.meta().stream != id)
             continue;
-        auto record = decodePoseRecord(frame->image());
+        auto record = decodePoseRecord(frame.image());
         if (!record)
             return record.status().withContext(recording.string() + ": " + track.stream +
-                                               " frame " + std::to_string(frame->meta().sequence));
+                                               " frame " + std::to_string(frame.meta().sequence));
         track.by_sequence[record->frame_sequence] = *record;
         track.by_stamp.push_back(*record);
     }

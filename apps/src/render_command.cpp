@@ -16,6 +16,7 @@
 #include "mixray/replay/depth_units.h"
 #include "mixray/replay/open_recording.h"
 #include "pose_track.h"
+#include "recording_frames.h"
 
 namespace mixray::cli {
 namespace {
@@ -291,27 +292,24 @@ int runRender(const RenderCommandOptions& options) {
     // to it than the previous one) but stored after it still occludes it.
     FrameRef pending;
     while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                result = frame.status();
+        auto next = nextFrame(**reader);
+        if (!next || !*next) {
+            if (!next)
+                result = next.status();
             break;
         }
-        if (frame->meta().stream == streams->depth) {
-            result = depths->push(*frame);
+        const FrameRef& frame = **next;
+        if (frame.meta().stream == streams->depth) {
+            result = depths->push(frame);
             if (!result)
                 break;
             continue;
         }
-        if (frame->meta().stream != streams->color)
+        if (frame.meta().stream != streams->color)
             continue;
         if (pending && !composite(pending))
             break;
-        pending = *frame;
+        pending = frame;
     }
     if (pending && result && !interrupt.raised() &&
         (options.max_frames == 0 || frames < options.max_frames))

@@ -12,6 +12,7 @@
 #include "mixray/render/output.h"
 #include "mixray/replay/open_recording.h"
 #include "overlay.h"
+#include "recording_frames.h"
 #include "tracking_pipeline.h"
 
 namespace mixray::cli {
@@ -360,20 +361,17 @@ int runTrack(const TrackCommandOptions& options) {
     };
     const StreamId color_stream = (*pipeline)->colorStream();
     while (!interrupt.raised() && (options.max_frames == 0 || frames.size() < options.max_frames)) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kUnavailable) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                continue;
-            }
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                result = frame.status();
+        auto next = nextFrame(**reader);
+        if (!next || !*next) {
+            if (!next)
+                result = next.status();
             break;
         }
-        if (recorder && !(result = recorder->copy(*frame)))
+        const FrameRef& frame = **next;
+        if (recorder && !(result = recorder->copy(frame)))
             break;
-        if (frame->meta().stream != color_stream) {
-            auto pushed = (*pipeline)->push(*frame);
+        if (frame.meta().stream != color_stream) {
+            auto pushed = (*pipeline)->push(frame);
             if (!pushed) {
                 result = pushed.status();
                 break;
@@ -382,7 +380,7 @@ int runTrack(const TrackCommandOptions& options) {
         }
         if (pending && !trackPending())
             break;
-        pending = *frame;
+        pending = frame;
     }
     if (result && pending && !interrupt.raised() &&
         (options.max_frames == 0 || frames.size() < options.max_frames))

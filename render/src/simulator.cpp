@@ -617,9 +617,7 @@ public:
 
     Result<SimFrame> render(int index) override {
         const SimTruth& t = setup_.truth;
-        if (index < 0 || index >= frameCount())
-            return Status(ErrorCode::kInvalidArgument, "simulator: frame " + std::to_string(index) +
-                                                           " of " + std::to_string(frameCount()));
+        MIXRAY_RETURN_IF_ERROR(checkIndex(index));
         const SimFrameTruth& f = t.frames[static_cast<size_t>(index)];
         MIXRAY_RETURN_IF_ERROR(prepare(f));
         SimFrame out;
@@ -650,12 +648,17 @@ public:
 
     Result<Image> renderColor(int index) override {
         const SimTruth& t = setup_.truth;
-        if (index < 0 || index >= frameCount())
-            return Status(ErrorCode::kInvalidArgument, "simulator: frame " + std::to_string(index) +
-                                                           " of " + std::to_string(frameCount()));
+        MIXRAY_RETURN_IF_ERROR(checkIndex(index));
         const SimFrameTruth& f = t.frames[static_cast<size_t>(index)];
         MIXRAY_RETURN_IF_ERROR(prepare(f));
         return renderCamera(0, t.color, f.T_world_color);
+    }
+
+    Status checkIndex(int index) const {
+        if (index < 0 || index >= frameCount())
+            return Status(ErrorCode::kInvalidArgument, "simulator: frame " + std::to_string(index) +
+                                                           " of " + std::to_string(frameCount()));
+        return Status::ok();
     }
 
     Status init() {

@@ -7,12 +7,10 @@
 #include <cmath>
 #include <numbers>
 
+#include "srgb.h"
+
 namespace mixray::tracking {
 namespace {
-
-double srgbToLinear(double c) {
-    return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-}
 
 // Non-negative least squares for a handful of unknowns: solve, drop the most negative
 // coefficient, repeat (an active-set method that is exact for the small systems here).
@@ -161,8 +159,9 @@ Result<IntensityFit> fitLightIntensities(const ImageView& color,
             if (options.ambient)
                 terms[unknowns - 1] = options.albedo;
             shading.push_back(std::move(terms));
-            values.emplace_back(srgbToLinear(r / 255.0), srgbToLinear(g / 255.0),
-                                srgbToLinear(bl / 255.0));
+            const auto& linear = detail::srgbToLinearTable();
+            values.emplace_back(linear[static_cast<size_t>(r)], linear[static_cast<size_t>(g)],
+                                linear[static_cast<size_t>(bl)]);
         }
     }
     if (static_cast<Eigen::Index>(shading.size()) < 4 * unknowns + 8)

@@ -67,19 +67,6 @@ Status EnvironmentLightOptions::validate() const {
 
 namespace detail {
 
-const std::array<float, 256>& srgbToLinearTable() {
-    static const std::array<float, 256> table = [] {
-        std::array<float, 256> t{};
-        for (int i = 0; i < 256; ++i) {
-            const double c = i / 255.0;
-            t[static_cast<size_t>(i)] =
-                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
-        }
-        return t;
-    }();
-    return table;
-}
-
 Status checkColorImage(const ImageView& image, const char* what) {
     const PixelFormat f = image.desc.format;
     if (f != PixelFormat::kRGB8 && f != PixelFormat::kBGR8 && f != PixelFormat::kMono8)

@@ -11,11 +11,9 @@
 #include "mixray/graph/image.h"
 #include "mixray/graph/result.h"
 #include "mixray/tracking/lights.h"
+#include "srgb.h"
 
 namespace mixray::tracking::detail {
-
-// sRGB code value (0..255) to linear [0, 1] (IEC 61966-2-1).
-const std::array<float, 256>& srgbToLinearTable();
 
 // kInvalidArgument unless `image` is kRGB8, kBGR8 or kMono8 with data for its size.
 Status checkColorImage(const ImageView& image, const char* what);

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <opencv2/aruco/dictionary.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string_view>
@@ -24,6 +25,9 @@ namespace mixray::tracking::detail {
 constexpr double kOpenCvArucoOffsetPx = 0.0;
 constexpr double kAprilTagOffsetPx = 0.5;
 constexpr double kCharucoOffsetPx = 0.5;
+
+// OpenCV's predefined dictionary of that name ("DICT_6X6_250"); nullopt for others.
+std::optional<cv::aruco::PREDEFINED_DICTIONARY_NAME> arucoDictionaryId(std::string_view name);
 
 // An 8-bit grey copy of a kMono8, kRGB8 or kBGR8 image; kInvalidArgument for anything else.
 Result<cv::Mat> toGrey(const ImageView& image);

@@ -25,34 +25,11 @@ bool finite(double v) {
 cv::Ptr<cv::aruco::Board> makeBoard(const MarkerTarget& t) {
     if (t.kind == TargetKind::kMarker)
         return {};
-    static const std::map<std::string_view, cv::aruco::PREDEFINED_DICTIONARY_NAME> kNames = {
-        {"DICT_4X4_50", cv::aruco::DICT_4X4_50},
-        {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
-        {"DICT_4X4_250", cv::aruco::DICT_4X4_250},
-        {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
-        {"DICT_5X5_50", cv::aruco::DICT_5X5_50},
-        {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
-        {"DICT_5X5_250", cv::aruco::DICT_5X5_250},
-        {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
-        {"DICT_6X6_50", cv::aruco::DICT_6X6_50},
-        {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
-        {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
-        {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
-        {"DICT_7X7_50", cv::aruco::DICT_7X7_50},
-        {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
-        {"DICT_7X7_250", cv::aruco::DICT_7X7_250},
-        {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
-        {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL},
-        {"DICT_APRILTAG_16h5", cv::aruco::DICT_APRILTAG_16h5},
-        {"DICT_APRILTAG_25h9", cv::aruco::DICT_APRILTAG_25h9},
-        {"DICT_APRILTAG_36h10", cv::aruco::DICT_APRILTAG_36h10},
-        {"DICT_APRILTAG_36h11", cv::aruco::DICT_APRILTAG_36h11},
-    };
-    const auto it = kNames.find(t.dictionary);
-    if (it == kNames.end())
+    const auto dictionary_id = detail::arucoDictionaryId(t.dictionary);
+    if (!dictionary_id)
         return {};
     try {
-        const auto dict = cv::aruco::getPredefinedDictionary(it->second);
+        const auto dict = cv::aruco::getPredefinedDictionary(*dictionary_id);
         if (t.kind == TargetKind::kGridBoard)
             return cv::aruco::GridBoard::create(t.squares_x, t.squares_y,
                                                 static_cast<float>(t.size_m),

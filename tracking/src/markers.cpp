@@ -21,6 +21,7 @@
 #include <string>
 
 #include "marker_internal.h"
+#include "srgb.h"
 
 namespace mixray::tracking {
 namespace {
@@ -96,22 +97,6 @@ const AprilFamily* findApril(std::string_view name) {
         if (a.name == name)
             return &a;
     return nullptr;
-}
-
-// The edge fit works on linear intensity: a camera's 8-bit values are sRGB-like, and on them a
-// half-covered pixel reads 188, not 128, which pulls every edge towards the dark side (OpenCV's
-// cornerSubPix on raw values puts corners 0.2–0.4 px inside the marker).
-const std::array<float, 256>& linearLut() {
-    static const std::array<float, 256> lut = [] {
-        std::array<float, 256> t{};
-        for (int i = 0; i < 256; ++i) {
-            const double c = i / 255.0;
-            t[static_cast<size_t>(i)] =
-                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
-        }
-        return t;
-    }();
-    return lut;
 }
 
 // Bilinear sample of a float image; NaN outside.
@@ -276,9 +261,12 @@ std::array<Vector2d, 4> refineCorners(const cv::Mat& lin, const std::array<Vecto
     return cur;
 }
 
+// The edge fit works on linear intensity: a camera's 8-bit values are sRGB-like, and on them a
+// half-covered pixel reads 188, not 128, which pulls every edge towards the dark side (OpenCV's
+// cornerSubPix on raw values puts corners 0.2–0.4 px inside the marker).
 cv::Mat linearImage(const cv::Mat& grey) {
     cv::Mat lin(grey.rows, grey.cols, CV_32F);
-    const auto& lut = linearLut();
+    const auto& lut = detail::srgbToLinearTable();
     for (int y = 0; y < grey.rows; ++y) {
         const uint8_t* src = grey.ptr<uint8_t>(y);
         float* dst = lin.ptr<float>(y);
@@ -386,6 +374,13 @@ bool isKnownDictionary(std::string_view name) {
 }
 
 namespace detail {
+
+std::optional<cv::aruco::PREDEFINED_DICTIONARY_NAME> arucoDictionaryId(std::string_view name) {
+    const ArucoName* a = findAruco(name);
+    if (!a)
+        return std::nullopt;
+    return a->id;
+}
 
 Result<cv::Mat> toGrey(const ImageView& image) {
     const ImageDesc& d = image.desc;
