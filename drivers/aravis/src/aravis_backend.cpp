@@ -1,0 +1,649 @@
+// Aravis cameras: opening and configuring, the capture loop with loss and reconnection, and
+// the backend that discovers them.
+#include "mixray/aravis/aravis_backend.h"
+
+#include <arv.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+
+namespace mixray::aravis {
+namespace {
+
+// Aravis's device list (discovery, opening by id) is global and not thread-safe; backends
+// and reconnecting capture threads share it.
+std::mutex& aravisListMutex() {
+    static std::mutex mutex;
+    return mutex;
+}
+
+int64_t monotonicNowNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+int64_t realtimeNowNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// Takes the message out of a GError and frees it.
+std::string takeError(GError*& error) {
+    std::string message = error && error->message ? error->message : "unknown Aravis error";
+    g_clear_error(&error);
+    return message;
+}
+
+uint32_t fnv1a(std::string_view text) {
+    uint32_t h = 2166136261u;
+    for (char c : text) {
+        h ^= static_cast<uint8_t>(c);
+        h *= 16777619u;
+    }
+    return h;
+}
+
+PixelFormat toPixelFormat(ArvPixelFormat format) {
+    switch (format) {
+        case ARV_PIXEL_FORMAT_MONO_8:
+            return PixelFormat::kMono8;
+        case ARV_PIXEL_FORMAT_MONO_16:
+            return PixelFormat::kMono16;
+        case ARV_PIXEL_FORMAT_RGB_8_PACKED:
+            return PixelFormat::kRGB8;
+        case ARV_PIXEL_FORMAT_BAYER_RG_8:
+            return PixelFormat::kBayerRGGB8;
+        case ARV_PIXEL_FORMAT_BAYER_GR_8:
+            return PixelFormat::kBayerGRBG8;
+        case ARV_PIXEL_FORMAT_BAYER_GB_8:
+            return PixelFormat::kBayerGBRG8;
+        case ARV_PIXEL_FORMAT_BAYER_BG_8:
+            return PixelFormat::kBayerBGGR8;
+        default:
+            return PixelFormat::kUnknown;
+    }
+}
+
+bool isBayer(PixelFormat format) {
+    return format == PixelFormat::kBayerRGGB8 || format == PixelFormat::kBayerGRBG8 ||
+           format == PixelFormat::kBayerGBRG8 || format == PixelFormat::kBayerBGGR8;
+}
+
+std::string formatFps(double fps) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", fps);
+    return text;
+}
+
+// Opens `id` as Aravis understands it (device id or address), else as a serial number or
+// address from discovery. Empty: the first camera found.
+Result<ArvCamera*> openCamera(const std::string& id) {
+    std::lock_guard lock(aravisListMutex());
+    GError* error = nullptr;
+    std::string target = id;
+    if (target.empty()) {
+        arv_update_device_list();
+        if (arv_get_n_devices() == 0)
+            return {ErrorCode::kNotFound, "no Aravis camera found"};
+        target = arv_get_device_id(0);
+    }
+    if (ArvCamera* camera = arv_camera_new(target.c_str(), &error))
+        return camera;
+    const std::string first_error = takeError(error);
+    arv_update_device_list();
+    for (unsigned i = 0; i < arv_get_n_devices(); ++i) {
+        const char* serial = arv_get_device_serial_nbr(i);
+        const char* address = arv_get_device_address(i);
+        if ((serial && target == serial) || (address && target == address)) {
+            if (ArvCamera* camera = arv_camera_new(arv_get_device_id(i), &error))
+                return camera;
+            return {ErrorCode::kUnavailable, "Aravis camera '" + target + "': " + takeError(error)};
+        }
+    }
+    return {ErrorCode::kNotFound, "Aravis camera '" + target + "': " + first_error};
+}
+
+// Applies `o` to `camera`. Settings the options leave empty keep the camera's values.
+Status configure(ArvCamera* camera, const AravisOptions& o) {
+    GError* error = nullptr;
+    auto failed = [&](const std::string& what) -> Status {
+        return {ErrorCode::kUnsupported, what + ": " + takeError(error)};
+    };
+    if (!o.pixel_format.empty()) {
+        arv_camera_set_pixel_format_from_string(camera, o.pixel_format.c_str(), &error);
+        if (error)
+            return failed("pixel_format " + o.pixel_format);
+    }
+    if (o.width > 0 || o.height > 0 || o.offset_x >= 0 || o.offset_y >= 0) {
+        gint x = 0, y = 0, w = 0, h = 0;
+        arv_camera_get_region(camera, &x, &y, &w, &h, &error);
+        if (error)
+            return failed("reading the region of interest");
+        arv_camera_set_region(camera, o.offset_x >= 0 ? o.offset_x : x,
+                              o.offset_y >= 0 ? o.offset_y : y, o.width > 0 ? o.width : w,
+                              o.height > 0 ? o.height : h, &error);
+        if (error)
+            return failed("region of interest");
+    }
+    if (o.exposure_us > 0) {
+        arv_camera_set_exposure_time(camera, o.exposure_us, &error);
+        if (error)
+            return failed("exposure_us");
+    }
+    if (o.gain >= 0) {
+        arv_camera_set_gain(camera, o.gain, &error);
+        if (error)
+            return failed("gain");
+    }
+    // Some cameras switch triggers off when the frame rate is written: rate first.
+    if (o.fps > 0) {
+        arv_camera_set_frame_rate(camera, o.fps, &error);
+        if (error)
+            return failed("fps");
+    }
+    if (o.trigger == TriggerMode::kSoftware) {
+        arv_camera_set_trigger(camera, "Software", &error);
+        if (error)
+            return failed("software trigger");
+    } else {
+        if (arv_camera_is_feature_available(camera, "TriggerMode", nullptr)) {
+            arv_camera_clear_triggers(camera, &error);
+            if (error)
+                return failed("clearing triggers");
+        }
+        arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
+        if (error)
+            return failed("continuous acquisition");
+    }
+    if (arv_camera_is_gv_device(camera)) {
+        if (o.packet_size > 0) {
+            arv_camera_gv_set_packet_size(camera, o.packet_size, &error);
+        } else {
+            arv_camera_gv_auto_packet_size(camera, &error);
+        }
+        if (error)
+            return failed("packet_size");
+    }
+    return Status::ok();
+}
+
+}  // namespace
+
+ClockDomainId defaultClockDomain(std::string_view device_name) {
+    const uint32_t h = fnv1a("aravis/" + std::string(device_name));
+    return h == kHostClockDomain ? 1 : h;
+}
+
+// The Aravis objects of one connection to the camera. Owned by the device; the capture
+// thread replaces it on reconnection.
+struct AravisDevice::Camera {
+    ArvCamera* camera = nullptr;
+    ArvStream* stream = nullptr;
+    gulong lost_handler = 0;
+    std::atomic<bool> control_lost{false};
+
+    explicit Camera(ArvCamera* c) : camera(c) {
+        // The heartbeat thread of a GigE Vision device emits this when the camera stops
+        // answering; the capture thread reads the flag.
+        lost_handler = g_signal_connect_swapped(
+            arv_camera_get_device(camera), "control-lost",
+            G_CALLBACK(+[](Camera* self) { self->control_lost.store(true); }), this);
+    }
+    ~Camera() {
+        closeStream(nullptr, false);
+        if (lost_handler)
+            g_signal_handler_disconnect(arv_camera_get_device(camera), lost_handler);
+        g_object_unref(camera);
+    }
+    Camera(const Camera&) = delete;
+    Camera& operator=(const Camera&) = delete;
+
+    // Adds the stream's counters to `stats`, stops acquisition when the camera still
+    // answers, and releases the stream with its buffers.
+    void closeStream(AravisStats* stats, bool stop_acquisition) {
+        if (!stream)
+            return;
+        if (stats)
+            addCounters(*stats);
+        if (stop_acquisition) {
+            GError* error = nullptr;
+            arv_camera_stop_acquisition(camera, &error);
+            g_clear_error(&error);
+        }
+        g_object_unref(stream);
+        stream = nullptr;
+    }
+
+    void addCounters(AravisStats& stats) const {
+        if (!stream)
+            return;
+        guint64 completed = 0, failures = 0, underruns = 0;
+        arv_stream_get_statistics(stream, &completed, &failures, &underruns);
+        stats.underruns += underruns;
+        if (ARV_IS_GV_STREAM(stream)) {
+            stats.received_packets +=
+                arv_stream_get_info_uint64_by_name(stream, "n_received_packets");
+            stats.missing_packets +=
+                arv_stream_get_info_uint64_by_name(stream, "n_missing_packets");
+            stats.resend_requests +=
+                arv_stream_get_info_uint64_by_name(stream, "n_resend_requests");
+            stats.resent_packets += arv_stream_get_info_uint64_by_name(stream, "n_resent_packets");
+        }
+    }
+};
+
+AravisDevice::AravisDevice(std::string name, AravisOptions options)
+    : name_(std::move(name)), options_(std::move(options)) {
+    if (options_.clock_domain == kHostClockDomain)
+        options_.clock_domain = defaultClockDomain(name_);
+}
+
+AravisDevice::~AravisDevice() {
+    stop();
+    camera_.reset();
+}
+
+Result<std::unique_ptr<AravisDevice>> AravisDevice::open(std::string name, std::string id,
+                                                         AravisOptions options) {
+    MIXRAY_RETURN_IF_ERROR(options.validate().withContext("aravis device '" + name + "'"));
+    const std::string context = "aravis device '" + name + "'";
+    auto opened = openCamera(id);
+    if (!opened)
+        return opened.status().withContext(context);
+    std::unique_ptr<AravisDevice> device(new AravisDevice(std::move(name), std::move(options)));
+    device->camera_ = std::make_unique<Camera>(*opened);
+    ArvCamera* camera = *opened;
+    MIXRAY_RETURN_IF_ERROR(configure(camera, device->options_).withContext(context));
+
+    // What the camera settled on: the stream's fixed layout, and the settings a reconnection
+    // restores even if the camera came back with other defaults.
+    GError* error = nullptr;
+    const ArvPixelFormat arv_format = arv_camera_get_pixel_format(camera, &error);
+    gint x = 0, y = 0, w = 0, h = 0;
+    if (!error)
+        arv_camera_get_region(camera, &x, &y, &w, &h, &error);
+    if (error) {
+        return {ErrorCode::kUnavailable, context + ": reading the format: " + takeError(error)};
+    }
+    const PixelFormat format = toPixelFormat(arv_format);
+    if (format == PixelFormat::kUnknown) {
+        const char* text = arv_camera_get_pixel_format_as_string(camera, nullptr);
+        return {ErrorCode::kUnsupported,
+                context + ": pixel format " + std::string(text ? text : "?") +
+                    " is not one mixray takes (Mono8, Mono16, RGB8, Bayer*8)"};
+    }
+    if (device->options_.debayer && !isBayer(format)) {
+        return {
+            ErrorCode::kInvalidArgument,
+            context + ": debayer asked for, but the camera sends " + std::string(toString(format))};
+    }
+    AravisOptions& o = device->options_;
+    const char* format_text = arv_camera_get_pixel_format_as_string(camera, nullptr);
+    o.pixel_format = format_text ? format_text : "";
+    o.offset_x = x;
+    o.offset_y = y;
+    o.width = w;
+    o.height = h;
+    const double fps = arv_camera_get_frame_rate(camera, &error);
+    g_clear_error(&error);
+    if (o.buffers == 0) {
+        // Half a second of frames absorbs a consumer's hiccup or a burst of triggers.
+        o.buffers = std::max<size_t>(8, static_cast<size_t>(std::ceil(fps * 0.5)));
+    }
+
+    const PixelFormat published = o.debayer ? PixelFormat::kRGB8 : format;
+    StreamInfo& info = device->info_;
+    const bool mono = format == PixelFormat::kMono8 || format == PixelFormat::kMono16;
+    info.name = device->name_ + (mono ? "/mono" : "/color");
+    info.device = device->name_;
+    info.kind = mono ? StreamKind::kMono : StreamKind::kColor;
+    info.format = ImageDesc::packed(published, w, h);
+    info.nominal_fps = o.trigger == TriggerMode::kFreeRun && fps > 0 ? fps : 0;
+    info.clock_domain = o.clock_domain;
+
+    DeviceDescriptor& d = device->descriptor_;
+    d.backend = "aravis";
+    d.id =
+        arv_camera_get_device_id(camera, nullptr) ? arv_camera_get_device_id(camera, nullptr) : id;
+    const char* vendor = arv_camera_get_vendor_name(camera, nullptr);
+    const char* model = arv_camera_get_model_name(camera, nullptr);
+    d.model = std::string(vendor ? vendor : "") + (vendor && model ? " " : "") +
+              std::string(model ? model : "");
+    const char* serial = arv_camera_get_device_serial_number(camera, nullptr);
+    d.serial = serial ? serial : "";
+    if (arv_camera_is_gv_device(camera)) {
+        GSocketAddress* socket_address =
+            arv_gv_device_get_device_address(ARV_GV_DEVICE(arv_camera_get_device(camera)));
+        GInetAddress* address =
+            socket_address && G_IS_INET_SOCKET_ADDRESS(socket_address)
+                ? g_inet_socket_address_get_address(G_INET_SOCKET_ADDRESS(socket_address))
+                : nullptr;
+        if (address) {
+            gchar* text = g_inet_address_to_string(address);
+            d.location = text ? text : "";
+            g_free(text);
+        }
+    }
+    d.modes.push_back(std::string(mono ? "mono " : "color ") + std::to_string(w) + "x" +
+                      std::to_string(h) + "@" + formatFps(fps) + " " +
+                      std::string(toString(published)));
+    // Reconnection opens the same camera again by its id (an address may change).
+    device->reopen_id_ = d.id;
+    info.tags["model"] = d.model;
+    info.tags["serial"] = d.serial;
+    info.tags["aravis_pixel_format"] = o.pixel_format;
+    return device;
+}
+
+DeviceDescriptor AravisDevice::descriptor() const {
+    return descriptor_;
+}
+
+Status AravisDevice::connect(Graph& graph) {
+    const std::string context = "aravis device '" + name_ + "'";
+    if (graph_)
+        return {ErrorCode::kInvalidArgument, context + " connected twice"};
+    auto id = graph.addStream(info_);
+    if (!id)
+        return id.status();
+    pool_ = BufferPool::create({info_.format, 0, options_.buffers, info_.name});
+    if (!pool_)
+        return {ErrorCode::kInternal, context + ": cannot create the pool of " + info_.name};
+    stream_id_ = *id;
+    graph_ = &graph;
+    return Status::ok();
+}
+
+Status AravisDevice::startStream() {
+    const std::string context = "aravis device '" + name_ + "'";
+    ArvCamera* camera = camera_->camera;
+    GError* error = nullptr;
+    ArvStream* stream = arv_camera_create_stream(camera, nullptr, nullptr, &error);
+    if (!stream)
+        return {ErrorCode::kUnavailable, context + ": creating the stream: " + takeError(error)};
+    if (ARV_IS_GV_STREAM(stream)) {
+        // The auto socket buffer holds one whole frame, so a frame survives a capture
+        // thread that is late by up to a frame time.
+        g_object_set(stream, "packet-resend",
+                     options_.packet_resend ? ARV_GV_STREAM_PACKET_RESEND_ALWAYS
+                                            : ARV_GV_STREAM_PACKET_RESEND_NEVER,
+                     "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
+    }
+    const guint payload = arv_camera_get_payload(camera, &error);
+    if (error) {
+        g_object_unref(stream);
+        return {ErrorCode::kUnavailable, context + ": reading the payload: " + takeError(error)};
+    }
+    for (size_t i = 0; i < options_.buffers; ++i)
+        arv_stream_push_buffer(stream, arv_buffer_new_allocate(payload));
+    camera_->stream = stream;
+    arv_camera_start_acquisition(camera, &error);
+    if (error) {
+        camera_->closeStream(nullptr, false);
+        return {ErrorCode::kUnavailable, context + ": starting acquisition: " + takeError(error)};
+    }
+    have_frame_id_ = false;
+    return Status::ok();
+}
+
+Status AravisDevice::start() {
+    if (!graph_)
+        return {ErrorCode::kInvalidArgument, "aravis device '" + name_ + "': not connected"};
+    if (thread_.joinable())
+        return Status::ok();
+    {
+        std::lock_guard lock(mutex_);
+        stop_requested_ = false;
+        if (camera_ && !camera_->stream) {
+            MIXRAY_RETURN_IF_ERROR(startStream());
+            stats_.connected = true;
+        }
+    }
+    thread_ = std::thread([this] { run(); });
+    return Status::ok();
+}
+
+void AravisDevice::stop() {
+    {
+        std::lock_guard lock(mutex_);
+        stop_requested_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable())
+        thread_.join();
+    std::lock_guard lock(mutex_);
+    if (camera_)
+        camera_->closeStream(&stats_, !camera_->control_lost.load());
+}
+
+bool AravisDevice::waitFor(int64_t ms) {
+    std::unique_lock lock(mutex_);
+    return !wake_.wait_for(lock, std::chrono::milliseconds(ms), [&] { return stop_requested_; });
+}
+
+Status AravisDevice::softwareTrigger() {
+    if (options_.trigger != TriggerMode::kSoftware) {
+        return {ErrorCode::kUnsupported,
+                "aravis device '" + name_ + "' runs free; open it with trigger=software"};
+    }
+    std::lock_guard lock(mutex_);
+    if (!camera_ || !camera_->stream)
+        return {ErrorCode::kUnavailable, "aravis device '" + name_ + "': camera not streaming"};
+    GError* error = nullptr;
+    arv_camera_software_trigger(camera_->camera, &error);
+    if (error) {
+        return {ErrorCode::kUnavailable,
+                "aravis device '" + name_ + "': software trigger: " + takeError(error)};
+    }
+    return Status::ok();
+}
+
+AravisStats AravisDevice::stats() const {
+    std::lock_guard lock(mutex_);
+    AravisStats s = stats_;
+    if (camera_)
+        camera_->addCounters(s);
+    if (pool_)
+        s.pool_exhausted = pool_->exhaustedCount();
+    return s;
+}
+
+// The camera's frame ids count 1..65535 and wrap to 1 (GigE Vision 1.x; 0 is never used);
+// extended ids (GigE Vision 2, USB3 Vision) are 64-bit. Returns how far `id` is past the
+// previous one.
+uint64_t AravisDevice::frameIdStep(uint64_t id) const {
+    if (id > last_frame_id_ || last_frame_id_ > 0xFFFF)
+        return id - last_frame_id_;
+    // Wrapped (or the camera restarted its count): 1..last is skipped over.
+    return (0xFFFF - last_frame_id_) + id;
+}
+
+void AravisDevice::handleBuffer(ArvBuffer* buffer) {
+    const ArvBufferStatus status = arv_buffer_get_status(buffer);
+    const bool complete = status == ARV_BUFFER_STATUS_SUCCESS;
+    const bool partial =
+        status == ARV_BUFFER_STATUS_MISSING_PACKETS || status == ARV_BUFFER_STATUS_TIMEOUT;
+
+    const uint64_t frame_id = arv_buffer_get_frame_id(buffer);
+    if (have_frame_id_) {
+        const uint64_t step = frameIdStep(frame_id);
+        std::lock_guard lock(mutex_);
+        stats_.missing_frames += step > 0 ? step - 1 : 0;
+        next_sequence_ += step > 0 ? step - 1 : 0;
+    }
+    have_frame_id_ = true;
+    last_frame_id_ = frame_id;
+    const uint64_t sequence = next_sequence_++;
+
+    size_t size = 0;
+    const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(buffer, &size));
+    const PixelFormat format = toPixelFormat(arv_buffer_get_image_pixel_format(buffer));
+    const ImageDesc desc = ImageDesc::packed(format, arv_buffer_get_image_width(buffer),
+                                             arv_buffer_get_image_height(buffer));
+    const bool fits = data && format != PixelFormat::kUnknown && desc.width == info_.format.width &&
+                      desc.height == info_.format.height && size >= desc.bufferBytes();
+    if (!(complete || partial) || !fits) {
+        std::lock_guard lock(mutex_);
+        ++stats_.failed;
+        return;
+    }
+    WritableFrame frame = pool_->acquire();
+    if (!frame)
+        return;  // counted by the pool: a camera does not wait for its consumers
+    const ImageView source{desc, data, size};
+    if (options_.debayer) {
+        if (!debayer(source, frame.image())) {
+            std::lock_guard lock(mutex_);
+            ++stats_.failed;
+            return;
+        }
+    } else {
+        std::memcpy(frame.image().data, data, desc.bufferBytes());
+    }
+
+    FrameMetadata& meta = frame.meta();
+    meta.stream = stream_id_;
+    meta.sequence = sequence;
+    // Aravis stamps a frame's first packet with the real-time clock; the graph's host stamps
+    // are monotonic.
+    const int64_t system_ns = static_cast<int64_t>(arv_buffer_get_system_timestamp(buffer));
+    const int64_t mono_now = monotonicNowNs();
+    meta.host_stamp_ns = system_ns > 0 ? system_ns - (realtimeNowNs() - mono_now) : mono_now;
+    if (meta.host_stamp_ns > mono_now)
+        meta.host_stamp_ns = mono_now;
+    const int64_t device_ns = static_cast<int64_t>(arv_buffer_get_timestamp(buffer));
+    if (device_ns > 0) {
+        meta.device_stamp_ns = device_ns;
+        meta.clock_domain = options_.clock_domain;
+    } else {
+        meta.device_stamp_ns = meta.host_stamp_ns;
+        meta.clock_domain = kHostClockDomain;
+    }
+    meta.status = complete ? FrameStatus::kOk : FrameStatus::kIncomplete;
+    graph_->publish(std::move(frame).publish());
+    std::lock_guard lock(mutex_);
+    ++stats_.published;
+    if (!complete)
+        ++stats_.incomplete;
+}
+
+Status AravisDevice::reconnect() {
+    auto opened = openCamera(reopen_id_);
+    if (!opened)
+        return opened.status();
+    auto camera = std::make_unique<Camera>(*opened);
+    MIXRAY_RETURN_IF_ERROR(configure(camera->camera, options_));
+    std::lock_guard lock(mutex_);
+    if (stop_requested_)
+        return {ErrorCode::kCancelled, "stopped"};
+    camera_ = std::move(camera);
+    Status started = startStream();
+    if (!started) {
+        return started;
+    }
+    ++stats_.reconnects;
+    stats_.connected = true;
+    return Status::ok();
+}
+
+void AravisDevice::run() {
+    int64_t last_frame_ns = monotonicNowNs();
+    while (true) {
+        {
+            std::lock_guard lock(mutex_);
+            if (stop_requested_)
+                break;
+        }
+        if (!camera_ || !camera_->stream) {
+            if (!waitFor(options_.reconnect_ms))
+                break;
+            if (reconnect())
+                last_frame_ns = monotonicNowNs();
+            continue;
+        }
+        // A short pop keeps stop() prompt.
+        ArvBuffer* buffer = arv_stream_timeout_pop_buffer(camera_->stream, 100'000);
+        if (buffer) {
+            handleBuffer(buffer);
+            arv_stream_push_buffer(camera_->stream, buffer);
+            last_frame_ns = monotonicNowNs();
+            continue;
+        }
+        bool lost = camera_->control_lost.load();
+        if (!lost && options_.trigger == TriggerMode::kFreeRun &&
+            monotonicNowNs() - last_frame_ns > options_.lost_timeout_ms * 1'000'000) {
+            // Silence in free run: a register read tells a slow camera from a gone one.
+            GError* error = nullptr;
+            arv_camera_get_payload(camera_->camera, &error);
+            lost = error != nullptr;
+            g_clear_error(&error);
+            last_frame_ns = monotonicNowNs();
+        }
+        if (lost) {
+            std::unique_ptr<Camera> gone;
+            {
+                std::lock_guard lock(mutex_);
+                camera_->closeStream(&stats_, false);
+                ++stats_.connection_losses;
+                stats_.connected = false;
+                gone = std::move(camera_);
+            }
+            // Releasing a camera that does not answer may wait for its timeouts: outside
+            // the lock, so stats() and softwareTrigger() stay prompt.
+            gone.reset();
+        }
+    }
+}
+
+AravisBackend::AravisBackend(const AravisBackendOptions& options) : options_(options) {
+    if (options_.fake_interface) {
+        std::lock_guard lock(aravisListMutex());
+        arv_enable_interface("Fake");
+    }
+}
+
+Result<std::vector<DeviceDescriptor>> AravisBackend::enumerate() {
+    std::lock_guard lock(aravisListMutex());
+    arv_update_device_list();
+    std::vector<DeviceDescriptor> out;
+    for (unsigned i = 0; i < arv_get_n_devices(); ++i) {
+        DeviceDescriptor d;
+        d.backend = "aravis";
+        const char* id = arv_get_device_id(i);
+        const char* vendor = arv_get_device_vendor(i);
+        const char* model = arv_get_device_model(i);
+        const char* serial = arv_get_device_serial_nbr(i);
+        const char* address = arv_get_device_address(i);
+        const char* protocol = arv_get_device_protocol(i);
+        d.id = id ? id : "";
+        d.model = std::string(vendor ? vendor : "") + (vendor && model ? " " : "") +
+                  std::string(model ? model : "");
+        d.serial = serial ? serial : "";
+        d.location = std::string(protocol ? protocol : "") + (protocol && address ? " " : "") +
+                     std::string(address ? address : "");
+        out.push_back(std::move(d));
+    }
+    return out;
+}
+
+Result<std::unique_ptr<Device>> AravisBackend::open(const DeviceConfig& config) {
+    if (config.name.empty()) {
+        return {ErrorCode::kInvalidArgument,
+                "aravis device without a name (streams are named <name>/<stream>)"};
+    }
+    auto options = AravisOptions::fromConfig(config);
+    if (!options)
+        return options.status();
+    auto device = AravisDevice::open(config.name, config.id, std::move(*options));
+    if (!device)
+        return device.status();
+    return std::unique_ptr<Device>(std::move(*device));
+}
+
+}  // namespace mixray::aravis
