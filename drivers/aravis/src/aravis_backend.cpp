@@ -298,6 +298,7 @@ Result<std::unique_ptr<AravisDevice>> AravisDevice::open(std::string name, std::
     }
 
     const PixelFormat published = o.debayer ? PixelFormat::kRGB8 : format;
+    device->camera_desc_ = ImageDesc::packed(format, w, h);
     StreamInfo& info = device->info_;
     const bool mono = format == PixelFormat::kMono8 || format == PixelFormat::kMono16;
     info.name = device->name_ + (mono ? "/mono" : "/color");
@@ -333,8 +334,8 @@ Result<std::unique_ptr<AravisDevice>> AravisDevice::open(std::string name, std::
     d.modes.push_back(std::string(mono ? "mono " : "color ") + std::to_string(w) + "x" +
                       std::to_string(h) + "@" + formatFps(fps) + " " +
                       std::string(toString(published)));
-    // Reconnection opens the same camera again by its id (an address may change).
-    device->reopen_id_ = d.id;
+    // Reconnection opens the camera the way the rig named it.
+    device->reopen_id_ = id.empty() ? d.id : id;
     info.tags["model"] = d.model;
     info.tags["serial"] = d.serial;
     info.tags["aravis_pixel_format"] = o.pixel_format;
@@ -382,6 +383,7 @@ Status AravisDevice::startStream() {
     }
     for (size_t i = 0; i < options_.buffers; ++i)
         arv_stream_push_buffer(stream, arv_buffer_new_allocate(payload));
+    payload_bytes_ = payload;
     camera_->stream = stream;
     arv_camera_start_acquisition(camera, &error);
     if (error) {
@@ -481,13 +483,23 @@ void AravisDevice::handleBuffer(ArvBuffer* buffer) {
     last_frame_id_ = frame_id;
     const uint64_t sequence = next_sequence_++;
 
+    // Aravis describes the image of complete buffers only. A partial one is the frame the
+    // camera was set up to send, in a buffer of payload_bytes_; the missing packets' bytes
+    // are stale.
     size_t size = 0;
     const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(buffer, &size));
-    const PixelFormat format = toPixelFormat(arv_buffer_get_image_pixel_format(buffer));
-    const ImageDesc desc = ImageDesc::packed(format, arv_buffer_get_image_width(buffer),
-                                             arv_buffer_get_image_height(buffer));
-    const bool fits = data && format != PixelFormat::kUnknown && desc.width == info_.format.width &&
-                      desc.height == info_.format.height && size >= desc.bufferBytes();
+    ImageDesc desc = camera_desc_;
+    if (complete) {
+        const bool image = arv_buffer_get_payload_type(buffer) == ARV_BUFFER_PAYLOAD_TYPE_IMAGE &&
+                           arv_buffer_get_n_parts(buffer) > 0;
+        desc = image ? ImageDesc::packed(toPixelFormat(arv_buffer_get_image_pixel_format(buffer)),
+                                         arv_buffer_get_image_width(buffer),
+                                         arv_buffer_get_image_height(buffer))
+                     : ImageDesc{};
+    } else {
+        size = payload_bytes_;
+    }
+    const bool fits = data && desc == camera_desc_ && size >= desc.bufferBytes();
     if (!(complete || partial) || !fits) {
         std::lock_guard lock(mutex_);
         ++stats_.failed;

@@ -149,6 +149,8 @@ private:
     Graph* graph_ = nullptr;
     StreamId stream_id_ = kInvalidStream;
     std::shared_ptr<BufferPool> pool_;
+    ImageDesc camera_desc_;     // what the camera sends (before debayering)
+    size_t payload_bytes_ = 0;  // size of each Aravis buffer
 
     std::thread thread_;
     mutable std::mutex mutex_;  // guards camera_ against softwareTrigger(), stats and stop
