@@ -13,6 +13,8 @@
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/rig.h"
+#include "test_data.h"
 
 extern char** environ;
 
@@ -202,6 +204,25 @@ TEST_F(AravisGv, StreamsOverGvspWithMappedTimestamps) {
     EXPECT_GT(stats.received_packets, 40u);
     EXPECT_EQ(stats.missing_packets, 0u);
     EXPECT_EQ(stats.connection_losses, 0u);
+}
+
+// The rig file fixture opens the simulator by serial, in the mode it names.
+TEST_F(AravisGv, OpensTheRigFixture) {
+    auto rig = loadRig(test::fixturesDir() / "rigs" / "aravis_simulator.yaml");
+    ASSERT_TRUE(rig) << rig.status().toString();
+    const std::vector<DeviceConfig> configs = rig->deviceConfigs();
+    ASSERT_EQ(configs.size(), 1u);
+    ASSERT_TRUE(simulator_.start());
+    const Status opened = open(configs[0]);
+    ASSERT_TRUE(opened) << opened.toString();
+    EXPECT_EQ(device_->streamInfo().name, "gv/mono");
+    EXPECT_EQ(device_->streamInfo().format, ImageDesc::packed(PixelFormat::kMono8, 256, 128));
+    EXPECT_DOUBLE_EQ(device_->streamInfo().nominal_fps, 50);
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(5);
+    graph_.stop();
+    ASSERT_EQ(frames.size(), 5u);
+    EXPECT_EQ(frames[4].meta().sequence, frames[0].meta().sequence + 4);
 }
 
 // The simulator drops 3% of its packets: the frames that lost some are published as

@@ -70,9 +70,41 @@ TEST(AravisOptions, RefusesBadValuesNamingTheOption) {
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"fps", "0"}})));
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"buffers", "1"}})));
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"clock_domain", "0"}})));
-    DeviceConfig streams = configOf({});
-    streams.streams = {"color"};
-    EXPECT_FALSE(AravisOptions::fromConfig(streams));
+    DeviceConfig two = configOf({});
+    two.streams = {"color", "mono"};
+    EXPECT_FALSE(AravisOptions::fromConfig(two));
+    DeviceConfig depth = configOf({});
+    depth.streams = {"depth"};
+    EXPECT_FALSE(AravisOptions::fromConfig(depth));
+    EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"width", "64"}, {"mono.width", "64"}})));
+    EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"mono.format", "yuyv"}})));
+    DeviceConfig mismatch = configOf({{"color.width", "64"}});
+    mismatch.streams = {"mono"};
+    EXPECT_FALSE(AravisOptions::fromConfig(mismatch));
+}
+
+// What a rig file's "mode: { mono: 320x240@30 mono16 }" becomes.
+TEST(AravisOptions, TakesTheRigsStreamMode) {
+    DeviceConfig config = configOf({{"mono.width", "320"},
+                                    {"mono.height", "240"},
+                                    {"mono.fps", "30"},
+                                    {"mono.format", "mono16"}});
+    config.streams = {"mono"};
+    auto o = AravisOptions::fromConfig(config);
+    ASSERT_TRUE(o) << o.status().toString();
+    EXPECT_EQ(o->stream, "mono");
+    EXPECT_EQ(o->width, 320);
+    EXPECT_EQ(o->height, 240);
+    EXPECT_EQ(o->fps, 30);
+    EXPECT_EQ(o->pixel_format, "Mono16");
+    auto bayer = AravisOptions::fromConfig(configOf({{"color.format", "bayer_gbrg8"}}));
+    ASSERT_TRUE(bayer);
+    EXPECT_EQ(bayer->pixel_format, "BayerGB8");
+    EXPECT_EQ(bayer->stream, "color");
+    auto debayered =
+        AravisOptions::fromConfig(configOf({{"color.format", "rgb8"}, {"debayer", "true"}}));
+    ASSERT_TRUE(debayered);
+    EXPECT_EQ(debayered->pixel_format, "");
 }
 
 // A mosaic of a uniform colour, demosaiced, gives that colour back in every inner pixel,
@@ -219,6 +251,11 @@ TEST(AravisFake, PublishesEachPixelFormat) {
     }
     Capture mono_debayer;
     EXPECT_FALSE(mono_debayer.open(configOf({{"pixel_format", "Mono8"}, {"debayer", "true"}})));
+    DeviceConfig wrong_stream = configOf({{"pixel_format", "Mono8"}});
+    wrong_stream.streams = {"color"};
+    Capture mono_as_color;
+    const Status refused = mono_as_color.open(wrong_stream);
+    EXPECT_EQ(refused.code(), ErrorCode::kInvalidArgument) << refused.toString();
 }
 
 // A burst of triggers while nobody reads: every frame waits in the pool, none is lost.

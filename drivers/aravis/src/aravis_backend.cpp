@@ -301,7 +301,13 @@ Result<std::unique_ptr<AravisDevice>> AravisDevice::open(std::string name, std::
     device->camera_desc_ = ImageDesc::packed(format, w, h);
     StreamInfo& info = device->info_;
     const bool mono = format == PixelFormat::kMono8 || format == PixelFormat::kMono16;
-    info.name = device->name_ + (mono ? "/mono" : "/color");
+    const std::string stream = mono ? "mono" : "color";
+    if (!o.stream.empty() && o.stream != stream) {
+        return {ErrorCode::kInvalidArgument,
+                context + ": stream '" + o.stream + "' asked for, but the camera sends " +
+                    std::string(toString(format)) + " ('" + stream + "')"};
+    }
+    info.name = device->name_ + "/" + stream;
     info.device = device->name_;
     info.kind = mono ? StreamKind::kMono : StreamKind::kColor;
     info.format = ImageDesc::packed(published, w, h);

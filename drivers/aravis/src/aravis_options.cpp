@@ -3,7 +3,9 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <optional>
 #include <set>
+#include <utility>
 
 #include "mixray/aravis/aravis_backend.h"
 
@@ -89,7 +91,8 @@ public:
                     "aravis device '" + config_.name + "': unknown option '" + key +
                         "' (known: pixel_format, debayer, exposure_us, gain, fps, width, "
                         "height, offset_x, offset_y, trigger, buffers, packet_size, "
-                        "packet_resend, lost_timeout_ms, reconnect_ms, clock_domain)"};
+                        "packet_resend, lost_timeout_ms, reconnect_ms, clock_domain, and the rig's "
+                        "<stream>.width, .height, .fps, .format for mono or color)"};
         }
         return Status::ok();
     }
@@ -98,6 +101,81 @@ private:
     const DeviceConfig& config_;
     std::set<std::string> used_;
 };
+
+// GenICam name of a graph pixel format a rig's stream mode may ask for.
+std::optional<std::string_view> genicamName(std::string_view graph_format) {
+    static const std::array<std::pair<std::string_view, std::string_view>, 7> kNames = {{
+        {"mono8", "Mono8"},
+        {"mono16", "Mono16"},
+        {"rgb8", "RGB8"},
+        {"bayer_rggb8", "BayerRG8"},
+        {"bayer_grbg8", "BayerGR8"},
+        {"bayer_gbrg8", "BayerGB8"},
+        {"bayer_bggr8", "BayerBG8"},
+    }};
+    for (const auto& [graph, genicam] : kNames) {
+        if (graph == graph_format)
+            return genicam;
+    }
+    return std::nullopt;
+}
+
+// The rig file's way of asking for a mode: the stream list and "<stream>.width", ".height",
+// ".fps", ".format" (graph format names) for the camera's one stream, "mono" or "color".
+Status readStreamMode(const DeviceConfig& config, OptionReader& reader, AravisOptions& o) {
+    const std::string context = "aravis device '" + config.name + "'";
+    if (config.streams.size() > 1) {
+        return {ErrorCode::kInvalidArgument, context + ": the camera has one stream; " +
+                                                 std::to_string(config.streams.size()) +
+                                                 " are listed"};
+    }
+    if (!config.streams.empty())
+        o.stream = config.streams.front();
+    for (const std::string prefix : {"mono", "color"}) {
+        const std::string keys[] = {prefix + ".width", prefix + ".height", prefix + ".fps",
+                                    prefix + ".format"};
+        bool any = false;
+        for (const std::string& key : keys)
+            any = any || config.options.count(key) > 0;
+        if (!any)
+            continue;
+        if (!o.stream.empty() && o.stream != prefix) {
+            return {ErrorCode::kInvalidArgument, context + ": a mode for stream '" + prefix +
+                                                     "' but stream '" + o.stream +
+                                                     "' is asked for"};
+        }
+        o.stream = prefix;
+        auto once = [&](const std::string& key, const std::string& plain, bool given) -> Status {
+            if (given && config.options.count(key)) {
+                return {ErrorCode::kInvalidArgument,
+                        context + ": both '" + plain + "' and '" + key + "' are given"};
+            }
+            return Status::ok();
+        };
+        MIXRAY_RETURN_IF_ERROR(once(keys[0], "width", o.width > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[1], "height", o.height > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[2], "fps", o.fps > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[3], "pixel_format", !o.pixel_format.empty()));
+        MIXRAY_RETURN_IF_ERROR(reader.integer(keys[0], o.width, 1, 65535, "1..65535"));
+        MIXRAY_RETURN_IF_ERROR(reader.integer(keys[1], o.height, 1, 65535, "1..65535"));
+        MIXRAY_RETURN_IF_ERROR(reader.real(keys[2], o.fps, 0, false, "a rate > 0"));
+        if (const std::string* format = reader.find(keys[3])) {
+            const auto name = genicamName(*format);
+            if (!name) {
+                return reader.error(keys[3], *format,
+                                    "mono8, mono16, rgb8 or bayer_rggb8, _grbg8, _gbrg8, _bggr8");
+            }
+            // Debayered frames are rgb8 whatever mosaic the camera sends.
+            if (!(o.debayer && *format == "rgb8"))
+                o.pixel_format = std::string(*name);
+        }
+    }
+    if (!o.stream.empty() && o.stream != "mono" && o.stream != "color") {
+        return {ErrorCode::kInvalidArgument, context + ": no stream '" + o.stream +
+                                                 "' (an Aravis camera has 'mono' or 'color')"};
+    }
+    return Status::ok();
+}
 
 }  // namespace
 
@@ -140,13 +218,8 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
     MIXRAY_RETURN_IF_ERROR(reader.integer("clock_domain", o.clock_domain, ClockDomainId{1},
                                           ClockDomainId{UINT32_MAX},
                                           "an integer >= 1 (0 is the host clock)"));
+    MIXRAY_RETURN_IF_ERROR(readStreamMode(config, reader, o));
     MIXRAY_RETURN_IF_ERROR(reader.leftovers());
-    if (!config.streams.empty()) {
-        return {ErrorCode::kInvalidArgument,
-                "aravis device '" + config.name +
-                    "': the camera has one stream, chosen by pixel_format; leave the rig's "
-                    "stream list empty"};
-    }
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("aravis device '" + config.name + "'"));
     return o;
 }

@@ -41,7 +41,11 @@ enum class TriggerMode : uint8_t {
 //                  probe declares the connection lost (default 2000)
 //   reconnect_ms   pause between attempts to reopen a lost camera (default 500)
 //   clock_domain   ClockDomainId of the camera clock, >= 1 (default: a hash of the name)
+// A rig file's stream list and stream modes arrive as DeviceConfig::streams (one of "mono",
+// "color") and "<stream>.width", ".height", ".fps", ".format" (graph format names: mono8,
+// mono16, rgb8, bayer_rggb8, ...); they set the same fields and must not repeat them.
 struct AravisOptions {
+    std::string stream;  // "mono" or "color" when the rig names it; checked at open
     std::string pixel_format;
     bool debayer = false;
     double exposure_us = 0;  // 0: keep
