@@ -307,5 +307,24 @@ TEST_F(AravisGv, RecoversWhenTheCameraComesBack) {
     graph_.stop();
 }
 
+// Stopping while the camera is gone and the device keeps trying to reopen it: stop() returns
+// and nothing is published after it.
+TEST_F(AravisGv, StopsWhileTheCameraIsGone) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"fps", "50"},
+                               {"packet_size", "8000"},
+                               {"lost_timeout_ms", "500"},
+                               {"reconnect_ms", "100"}})));
+    ASSERT_TRUE(graph_.start());
+    ASSERT_EQ(take(3).size(), 3u);
+    simulator_.kill();
+    ASSERT_TRUE(eventually([&] { return device_->stats().connection_losses >= 1; }, 30));
+    graph_.stop();
+    const AravisStats stats = device_->stats();
+    EXPECT_FALSE(stats.connected);
+    EXPECT_EQ(stats.reconnects, 0u);
+    EXPECT_FALSE(graph_.running());
+}
+
 }  // namespace
 }  // namespace mixray::aravis

@@ -146,6 +146,17 @@ TEST(AravisDebayer, UniformColourSurvivesEveryLayout) {
     EXPECT_FALSE(debayer(mono.view(), rgb.mutableView()));
 }
 
+TEST(AravisFrameIds, GapsAndWraps) {
+    EXPECT_EQ(frameIdAdvance(10, 11), 1u);
+    EXPECT_EQ(frameIdAdvance(10, 14), 4u);
+    EXPECT_EQ(frameIdAdvance(65535, 1), 1u);  // 16-bit ids skip 0
+    EXPECT_EQ(frameIdAdvance(65534, 2), 3u);
+    EXPECT_EQ(frameIdAdvance(70000, 70002), 2u);
+    EXPECT_EQ(frameIdAdvance(70000, 5), 0u);  // a 64-bit count that restarted
+    EXPECT_EQ(frameIdAdvance(3000, 2), 0u);   // a 16-bit count that restarted
+    EXPECT_EQ(frameIdAdvance(7, 7), 0u);
+}
+
 // Frames of the in-process fake camera, collected through the graph.
 struct Capture {
     Graph graph;

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <functional>
 
 namespace mixray::aravis {
 namespace {
@@ -246,6 +247,8 @@ AravisDevice::AravisDevice(std::string name, AravisOptions options)
 
 AravisDevice::~AravisDevice() {
     stop();
+    for (Helper& helper : helpers_)
+        helper.thread.join();
     camera_.reset();
 }
 
@@ -462,14 +465,15 @@ AravisStats AravisDevice::stats() const {
     return s;
 }
 
-// The camera's frame ids count 1..65535 and wrap to 1 (GigE Vision 1.x; 0 is never used);
-// extended ids (GigE Vision 2, USB3 Vision) are 64-bit. Returns how far `id` is past the
-// previous one.
-uint64_t AravisDevice::frameIdStep(uint64_t id) const {
-    if (id > last_frame_id_ || last_frame_id_ > 0xFFFF)
-        return id - last_frame_id_;
-    // Wrapped (or the camera restarted its count): 1..last is skipped over.
-    return (0xFFFF - last_frame_id_) + id;
+uint64_t frameIdAdvance(uint64_t previous, uint64_t id) {
+    if (id > previous)
+        return id - previous;
+    // Only a 16-bit id near its end that comes back near 1 has wrapped; anything else going
+    // backwards is a count that restarted.
+    constexpr uint64_t kLast = 0xFFFF, kNear = 0x1000;
+    if (id < previous && previous <= kLast && previous > kLast - kNear && id < kNear)
+        return (kLast - previous) + id;
+    return 0;
 }
 
 void AravisDevice::handleBuffer(ArvBuffer* buffer) {
@@ -480,7 +484,7 @@ void AravisDevice::handleBuffer(ArvBuffer* buffer) {
 
     const uint64_t frame_id = arv_buffer_get_frame_id(buffer);
     if (have_frame_id_) {
-        const uint64_t step = frameIdStep(frame_id);
+        const uint64_t step = frameIdAdvance(last_frame_id_, frame_id);
         std::lock_guard lock(mutex_);
         stats_.missing_frames += step > 0 ? step - 1 : 0;
         next_sequence_ += step > 0 ? step - 1 : 0;
@@ -551,20 +555,64 @@ void AravisDevice::handleBuffer(ArvBuffer* buffer) {
         ++stats_.incomplete;
 }
 
+void AravisDevice::spawnAside(std::function<void()> work, std::shared_ptr<std::atomic<bool>> done) {
+    for (auto it = helpers_.begin(); it != helpers_.end();) {
+        if (it->done->load()) {
+            it->thread.join();
+            it = helpers_.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    if (!done)
+        done = std::make_shared<std::atomic<bool>>(false);
+    std::thread thread([this, done, work = std::move(work)]() mutable {
+        work();
+        // Whatever the work captured is released here, on this thread.
+        work = nullptr;
+        {
+            std::lock_guard lock(mutex_);
+            done->store(true);
+        }
+        wake_.notify_all();
+    });
+    helpers_.push_back({std::move(thread), std::move(done)});
+}
+
+bool AravisDevice::runAside(std::function<void()> work) {
+    auto done = std::make_shared<std::atomic<bool>>(false);
+    spawnAside(std::move(work), done);
+    std::unique_lock lock(mutex_);
+    wake_.wait(lock, [&] { return done->load() || stop_requested_; });
+    return done->load();
+}
+
 Status AravisDevice::reconnect() {
-    auto opened = openCamera(reopen_id_);
-    if (!opened)
-        return opened.status();
-    auto camera = std::make_unique<Camera>(*opened);
-    MIXRAY_RETURN_IF_ERROR(configure(camera->camera, options_));
+    struct Attempt {
+        std::unique_ptr<Camera> camera;
+        Status status;
+    };
+    auto attempt = std::make_shared<Attempt>();
+    const bool finished = runAside([attempt, id = reopen_id_, options = options_] {
+        auto opened = openCamera(id);
+        if (!opened) {
+            attempt->status = opened.status();
+            return;
+        }
+        auto camera = std::make_unique<Camera>(*opened);
+        attempt->status = configure(camera->camera, options);
+        if (attempt->status)
+            attempt->camera = std::move(camera);
+    });
+    if (!finished)
+        return {ErrorCode::kCancelled, "stopped"};
+    if (!attempt->camera)
+        return attempt->status;
     std::lock_guard lock(mutex_);
     if (stop_requested_)
         return {ErrorCode::kCancelled, "stopped"};
-    camera_ = std::move(camera);
-    Status started = startStream();
-    if (!started) {
-        return started;
-    }
+    camera_ = std::move(attempt->camera);
+    MIXRAY_RETURN_IF_ERROR(startStream());
     ++stats_.reconnects;
     stats_.connected = true;
     return Status::ok();
@@ -596,25 +644,38 @@ void AravisDevice::run() {
         bool lost = camera_->control_lost.load();
         if (!lost && options_.trigger == TriggerMode::kFreeRun &&
             monotonicNowNs() - last_frame_ns > options_.lost_timeout_ms * 1'000'000) {
-            // Silence in free run: a register read tells a slow camera from a gone one.
-            GError* error = nullptr;
-            arv_camera_get_payload(camera_->camera, &error);
-            lost = error != nullptr;
-            g_clear_error(&error);
+            // Silence in free run: one register read tells a slow camera from a gone one
+            // (address 0 is the bootstrap or ABRM version register of every GigE Vision and
+            // USB3 Vision camera; one read costs a single round of Aravis's retries, where a
+            // feature may read several registers). It runs aside so stop() need not wait
+            // for the retries.
+            auto answered = std::make_shared<std::atomic<bool>>(false);
+            ArvDevice* device = ARV_DEVICE(g_object_ref(arv_camera_get_device(camera_->camera)));
+            if (!runAside([device, answered] {
+                    GError* error = nullptr;
+                    guint32 version = 0;
+                    arv_device_read_register(device, 0, &version, &error);
+                    answered->store(error == nullptr);
+                    g_clear_error(&error);
+                    g_object_unref(device);
+                })) {
+                break;
+            }
+            lost = !answered->load();
             last_frame_ns = monotonicNowNs();
         }
         if (lost) {
-            std::unique_ptr<Camera> gone;
+            std::shared_ptr<Camera> gone;
             {
                 std::lock_guard lock(mutex_);
-                camera_->closeStream(&stats_, false);
+                camera_->addCounters(stats_);
                 ++stats_.connection_losses;
                 stats_.connected = false;
                 gone = std::move(camera_);
             }
-            // Releasing a camera that does not answer may wait for its timeouts: outside
-            // the lock, so stats() and softwareTrigger() stay prompt.
-            gone.reset();
+            // Releasing a camera that does not answer waits for Aravis's retries (seconds):
+            // aside, so that reconnection, stats() and stop() do not wait for it.
+            spawnAside([gone = std::move(gone)]() mutable { gone.reset(); });
         }
     }
 }

@@ -4,11 +4,13 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
 #include <thread>
+#include <vector>
 
 #include "mixray/graph/device.h"
 #include "mixray/graph/frame.h"
@@ -76,6 +78,12 @@ ClockDomainId defaultClockDomain(std::string_view device_name);
 // bilinear interpolation. kInvalidArgument for other formats or mismatched sizes.
 Status debayer(const ImageView& bayer, const MutableImageView& rgb);
 
+// How far the camera's frame id `id` lies past `previous`: 1 for the next frame, more across
+// lost frames. GigE Vision 1.x ids count 1..65535 and wrap to 1; 64-bit ids (GigE Vision 2,
+// USB3 Vision) do not wrap. 0 when `id` does not follow `previous` (repeated, or the camera
+// restarted its count): no gap can be told.
+uint64_t frameIdAdvance(uint64_t previous, uint64_t id);
+
 // What a device has seen since it was opened. Plain value.
 struct AravisStats {
     uint64_t published = 0;         // frames handed to the graph
@@ -141,8 +149,12 @@ private:
     bool waitFor(int64_t ms);
     Status startStream();  // with mutex_ held
     Status reconnect();
+    // Runs `work` on a helper thread (Aravis calls that may wait seconds for a camera that
+    // is gone); `done` is set when it has finished. Helpers are joined by the destructor.
+    void spawnAside(std::function<void()> work, std::shared_ptr<std::atomic<bool>> done = {});
+    // Runs `work` aside and waits for it or for stop(); false when stop() came first.
+    bool runAside(std::function<void()> work);
     void handleBuffer(ArvBuffer* buffer);
-    uint64_t frameIdStep(uint64_t id) const;
 
     std::string name_;
     AravisOptions options_;
@@ -157,7 +169,12 @@ private:
     size_t payload_bytes_ = 0;  // size of each Aravis buffer
 
     std::thread thread_;
-    mutable std::mutex mutex_;  // guards camera_ against softwareTrigger(), stats and stop
+    struct Helper {
+        std::thread thread;
+        std::shared_ptr<std::atomic<bool>> done;
+    };
+    std::vector<Helper> helpers_;  // used by the capture thread, then by the destructor
+    mutable std::mutex mutex_;     // guards camera_ against softwareTrigger(), stats and stop
     std::condition_variable wake_;
     bool stop_requested_ = false;
     AravisStats stats_;
