@@ -112,7 +112,9 @@ struct AravisStats {
 // When the camera stops answering (GigE Vision heartbeat lost, or free run without frames
 // for lost_timeout_ms and a failed register read), the device counts a connection loss,
 // releases the camera and tries to reopen it every reconnect_ms with the same settings;
-// frames resume on the same stream. The graph is never stopped by a loss.
+// frames resume on the same stream. The graph is never stopped by a loss. Aravis calls that
+// wait for a gone camera (probe, reopen, release) run on helper threads, so stop() returns at
+// once; the destructor joins them and may wait for Aravis's retries (seconds).
 //
 // Thread-safety: connect/start/stop are called by the graph's owner; softwareTrigger() and
 // stats() may be called from any thread.
