@@ -1,0 +1,247 @@
+// Aravis device options: parsing DeviceConfig::options into AravisOptions.
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <optional>
+#include <set>
+#include <utility>
+
+#include "mixray/aravis/aravis_backend.h"
+
+namespace mixray::aravis {
+namespace {
+
+constexpr std::array<std::string_view, 7> kPixelFormats = {
+    "Mono8", "Mono16", "RGB8", "BayerRG8", "BayerGR8", "BayerGB8", "BayerBG8"};
+
+// Reads options one key at a time, remembering which were used, so that the leftovers
+// (typos) can be reported.
+class OptionReader {
+public:
+    explicit OptionReader(const DeviceConfig& config) : config_(config) {}
+
+    const std::string* find(const std::string& key) {
+        auto it = config_.options.find(key);
+        if (it == config_.options.end())
+            return nullptr;
+        used_.insert(key);
+        return &it->second;
+    }
+
+    Status error(const std::string& key, const std::string& value,
+                 std::string_view expected) const {
+        return {ErrorCode::kInvalidArgument, "aravis device '" + config_.name + "': option '" +
+                                                 key + "': expected " + std::string(expected) +
+                                                 ", got '" + value + "'"};
+    }
+
+    template <typename T>
+    Status integer(const std::string& key, T& out, T lo, T hi, std::string_view expected) {
+        const std::string* text = find(key);
+        if (!text)
+            return Status::ok();
+        T value{};
+        const char* end = text->data() + text->size();
+        auto [ptr, ec] = std::from_chars(text->data(), end, value);
+        if (ec != std::errc() || ptr != end || value < lo || value > hi)
+            return error(key, *text, expected);
+        out = value;
+        return Status::ok();
+    }
+
+    // A value > lo (or >= lo when `closed`).
+    Status real(const std::string& key, double& out, double lo, bool closed,
+                std::string_view expected) {
+        const std::string* text = find(key);
+        if (!text)
+            return Status::ok();
+        double value = 0;
+        const char* end = text->data() + text->size();
+        auto [ptr, ec] = std::from_chars(text->data(), end, value);
+        if (ec != std::errc() || ptr != end || !std::isfinite(value) ||
+            (closed ? value < lo : value <= lo)) {
+            return error(key, *text, expected);
+        }
+        out = value;
+        return Status::ok();
+    }
+
+    Status boolean(const std::string& key, bool& out) {
+        const std::string* text = find(key);
+        if (!text)
+            return Status::ok();
+        static const std::array<std::string_view, 4> kTrue = {"true", "1", "on", "yes"};
+        static const std::array<std::string_view, 4> kFalse = {"false", "0", "off", "no"};
+        if (std::find(kTrue.begin(), kTrue.end(), *text) != kTrue.end()) {
+            out = true;
+        } else if (std::find(kFalse.begin(), kFalse.end(), *text) != kFalse.end()) {
+            out = false;
+        } else {
+            return error(key, *text, "true or false");
+        }
+        return Status::ok();
+    }
+
+    Status leftovers() const {
+        for (const auto& [key, value] : config_.options) {
+            if (used_.count(key))
+                continue;
+            return {ErrorCode::kInvalidArgument,
+                    "aravis device '" + config_.name + "': unknown option '" + key +
+                        "' (known: pixel_format, debayer, exposure_us, gain, fps, width, "
+                        "height, offset_x, offset_y, trigger, buffers, packet_size, "
+                        "packet_resend, lost_timeout_ms, reconnect_ms, clock_domain, and the rig's "
+                        "<stream>.width, .height, .fps, .format for mono or color)"};
+        }
+        return Status::ok();
+    }
+
+private:
+    const DeviceConfig& config_;
+    std::set<std::string> used_;
+};
+
+// GenICam name of a graph pixel format a rig's stream mode may ask for.
+std::optional<std::string_view> genicamName(std::string_view graph_format) {
+    static const std::array<std::pair<std::string_view, std::string_view>, 7> kNames = {{
+        {"mono8", "Mono8"},
+        {"mono16", "Mono16"},
+        {"rgb8", "RGB8"},
+        {"bayer_rggb8", "BayerRG8"},
+        {"bayer_grbg8", "BayerGR8"},
+        {"bayer_gbrg8", "BayerGB8"},
+        {"bayer_bggr8", "BayerBG8"},
+    }};
+    for (const auto& [graph, genicam] : kNames) {
+        if (graph == graph_format)
+            return genicam;
+    }
+    return std::nullopt;
+}
+
+// The rig file's way of asking for a mode: the stream list and "<stream>.width", ".height",
+// ".fps", ".format" (graph format names) for the camera's one stream, "mono" or "color".
+Status readStreamMode(const DeviceConfig& config, OptionReader& reader, AravisOptions& o) {
+    const std::string context = "aravis device '" + config.name + "'";
+    if (config.streams.size() > 1) {
+        return {ErrorCode::kInvalidArgument, context + ": the camera has one stream; " +
+                                                 std::to_string(config.streams.size()) +
+                                                 " are listed"};
+    }
+    if (!config.streams.empty())
+        o.stream = config.streams.front();
+    for (const std::string prefix : {"mono", "color"}) {
+        const std::string keys[] = {prefix + ".width", prefix + ".height", prefix + ".fps",
+                                    prefix + ".format"};
+        bool any = false;
+        for (const std::string& key : keys)
+            any = any || config.options.count(key) > 0;
+        if (!any)
+            continue;
+        if (!o.stream.empty() && o.stream != prefix) {
+            return {ErrorCode::kInvalidArgument, context + ": a mode for stream '" + prefix +
+                                                     "' but stream '" + o.stream +
+                                                     "' is asked for"};
+        }
+        o.stream = prefix;
+        auto once = [&](const std::string& key, const std::string& plain, bool given) -> Status {
+            if (given && config.options.count(key)) {
+                return {ErrorCode::kInvalidArgument,
+                        context + ": both '" + plain + "' and '" + key + "' are given"};
+            }
+            return Status::ok();
+        };
+        MIXRAY_RETURN_IF_ERROR(once(keys[0], "width", o.width > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[1], "height", o.height > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[2], "fps", o.fps > 0));
+        MIXRAY_RETURN_IF_ERROR(once(keys[3], "pixel_format", !o.pixel_format.empty()));
+        MIXRAY_RETURN_IF_ERROR(reader.integer(keys[0], o.width, 1, 65535, "1..65535"));
+        MIXRAY_RETURN_IF_ERROR(reader.integer(keys[1], o.height, 1, 65535, "1..65535"));
+        MIXRAY_RETURN_IF_ERROR(reader.real(keys[2], o.fps, 0, false, "a rate > 0"));
+        if (const std::string* format = reader.find(keys[3])) {
+            const auto name = genicamName(*format);
+            if (!name) {
+                return reader.error(keys[3], *format,
+                                    "mono8, mono16, rgb8 or bayer_rggb8, _grbg8, _gbrg8, _bggr8");
+            }
+            // Debayered frames are rgb8 whatever mosaic the camera sends.
+            if (!(o.debayer && *format == "rgb8"))
+                o.pixel_format = std::string(*name);
+        }
+    }
+    if (!o.stream.empty() && o.stream != "mono" && o.stream != "color") {
+        return {ErrorCode::kInvalidArgument, context + ": no stream '" + o.stream +
+                                                 "' (an Aravis camera has 'mono' or 'color')"};
+    }
+    return Status::ok();
+}
+
+}  // namespace
+
+Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
+    AravisOptions o;
+    OptionReader reader(config);
+    if (const std::string* format = reader.find("pixel_format")) {
+        if (std::find(kPixelFormats.begin(), kPixelFormats.end(), *format) == kPixelFormats.end()) {
+            return reader.error("pixel_format", *format,
+                                "Mono8, Mono16, RGB8, BayerRG8, BayerGR8, BayerGB8 or BayerBG8");
+        }
+        o.pixel_format = *format;
+    }
+    MIXRAY_RETURN_IF_ERROR(reader.boolean("debayer", o.debayer));
+    MIXRAY_RETURN_IF_ERROR(reader.real("exposure_us", o.exposure_us, 0, false, "a time > 0"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("gain", o.gain, 0, true, "a gain >= 0"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("fps", o.fps, 0, false, "a rate > 0"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("width", o.width, 1, 65535, "1..65535"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("height", o.height, 1, 65535, "1..65535"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("offset_x", o.offset_x, 0, 65535, "0..65535"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("offset_y", o.offset_y, 0, 65535, "0..65535"));
+    if (const std::string* trigger = reader.find("trigger")) {
+        if (*trigger == "free") {
+            o.trigger = TriggerMode::kFreeRun;
+        } else if (*trigger == "software") {
+            o.trigger = TriggerMode::kSoftware;
+        } else {
+            return reader.error("trigger", *trigger, "free or software");
+        }
+    }
+    MIXRAY_RETURN_IF_ERROR(
+        reader.integer("buffers", o.buffers, size_t{2}, size_t{4096}, "2..4096"));
+    MIXRAY_RETURN_IF_ERROR(
+        reader.integer("packet_size", o.packet_size, 0, 65535, "0 (negotiate) or a size"));
+    MIXRAY_RETURN_IF_ERROR(reader.boolean("packet_resend", o.packet_resend));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("lost_timeout_ms", o.lost_timeout_ms, int64_t{100},
+                                          int64_t{3'600'000}, "100..3600000"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("reconnect_ms", o.reconnect_ms, int64_t{10},
+                                          int64_t{3'600'000}, "10..3600000"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("clock_domain", o.clock_domain, ClockDomainId{1},
+                                          ClockDomainId{UINT32_MAX},
+                                          "an integer >= 1 (0 is the host clock)"));
+    MIXRAY_RETURN_IF_ERROR(readStreamMode(config, reader, o));
+    MIXRAY_RETURN_IF_ERROR(reader.leftovers());
+    MIXRAY_RETURN_IF_ERROR(o.validate().withContext("aravis device '" + config.name + "'"));
+    return o;
+}
+
+Status AravisOptions::validate() const {
+    if (!pixel_format.empty() && std::find(kPixelFormats.begin(), kPixelFormats.end(),
+                                           pixel_format) == kPixelFormats.end()) {
+        return {ErrorCode::kInvalidArgument, "unsupported pixel_format '" + pixel_format + "'"};
+    }
+    if (exposure_us < 0 || fps < 0 || !std::isfinite(gain))
+        return {ErrorCode::kInvalidArgument, "exposure, fps and gain must be finite and >= 0"};
+    if (width < 0 || height < 0)
+        return {ErrorCode::kInvalidArgument, "width and height must be >= 0"};
+    if (buffers == 1)
+        return {ErrorCode::kInvalidArgument, "buffers must be >= 2"};
+    if (packet_size < 0)
+        return {ErrorCode::kInvalidArgument, "packet_size must be >= 0"};
+    if (lost_timeout_ms < 100 || reconnect_ms < 10) {
+        return {ErrorCode::kInvalidArgument,
+                "lost_timeout_ms must be >= 100 and reconnect_ms >= 10"};
+    }
+    return Status::ok();
+}
+
+}  // namespace mixray::aravis

@@ -1,0 +1,330 @@
+// The Aravis backend against a real GigE Vision peer: Aravis's camera simulator
+// (arv-fake-gv-camera-0.8) on loopback, discovered and opened over GVCP, streaming over GVSP.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <memory>
+#include <thread>
+
+#include "mixray/aravis/aravis_backend.h"
+#include "mixray/graph/clock.h"
+#include "mixray/graph/graph.h"
+#include "mixray/graph/rig.h"
+#include "test_data.h"
+
+extern char** environ;
+
+namespace mixray::aravis {
+namespace {
+
+constexpr const char* kSimulator = "/usr/bin/arv-fake-gv-camera-0.8";
+constexpr const char* kSerial = "MIXRAYGV";
+constexpr const char* kAddress = "127.0.0.1";
+
+// The simulator as a child process, killed when the test ends.
+class Simulator {
+public:
+    ~Simulator() { kill(); }
+
+    // Starts it, with `lost_per_thousand` GVSP packets dropped on purpose.
+    bool start(int lost_per_thousand = 0) {
+        const std::string lost = std::to_string(lost_per_thousand);
+        const char* argv[] = {kSimulator, "-i", kAddress,     "-s",
+                              kSerial,    "-r", lost.c_str(), nullptr};
+        return posix_spawn(&pid_, kSimulator, nullptr, nullptr, const_cast<char**>(argv),
+                           environ) == 0;
+    }
+
+    void kill() {
+        if (pid_ <= 0)
+            return;
+        ::kill(pid_, SIGKILL);
+        waitpid(pid_, nullptr, 0);
+        pid_ = -1;
+    }
+
+private:
+    pid_t pid_ = -1;
+};
+
+DeviceConfig configOf(std::map<std::string, std::string> options, std::string id = kAddress) {
+    DeviceConfig config;
+    config.name = "gv";
+    config.driver = "aravis";
+    config.id = std::move(id);
+    config.options = std::move(options);
+    return config;
+}
+
+// Opens the simulator, retrying while it starts up (it answers GVCP within a second).
+Result<std::unique_ptr<Device>> openWhenUp(AravisBackend& backend, const DeviceConfig& config) {
+    Result<std::unique_ptr<Device>> opened{ErrorCode::kNotFound, "not tried"};
+    for (int attempt = 0; attempt < 40; ++attempt) {
+        opened = backend.open(config);
+        if (opened || opened.status().code() != ErrorCode::kNotFound)
+            return opened;
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+    return opened;
+}
+
+class AravisGv : public ::testing::Test {
+protected:
+    void SetUp() override {
+        if (access(kSimulator, X_OK) != 0) {
+            GTEST_SKIP() << kSimulator << " is missing (Debian package aravis-tools): the "
+                         << "GigE Vision peer these tests run against";
+        }
+    }
+
+    Status open(const DeviceConfig& config) {
+        auto opened = openWhenUp(backend_, config);
+        if (!opened)
+            return opened.status();
+        device_ = static_cast<AravisDevice*>(opened->get());
+        MIXRAY_RETURN_IF_ERROR(graph_.addNode(std::move(*opened)));
+        auto q = graph_.subscribe(device_->streamId(), {256, QueuePolicy::kLive, "test"});
+        if (!q)
+            return q.status();
+        queue_ = *q;
+        return Status::ok();
+    }
+
+    std::vector<FrameRef> take(size_t n) {
+        std::vector<FrameRef> frames;
+        while (frames.size() < n) {
+            auto frame = queue_->pop(std::chrono::seconds(10));
+            if (!frame)
+                break;
+            frames.push_back(std::move(*frame));
+        }
+        return frames;
+    }
+
+    // Polls `done` until it holds or `seconds` pass: an upper bound against hangs, not a
+    // measurement.
+    template <typename F>
+    static bool eventually(F done, int seconds) {
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(seconds);
+        while (std::chrono::steady_clock::now() < deadline) {
+            if (done())
+                return true;
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+        return done();
+    }
+
+    Simulator simulator_;
+    AravisBackend backend_;
+    Graph graph_;
+    AravisDevice* device_ = nullptr;
+    std::shared_ptr<FrameQueue> queue_;
+};
+
+TEST_F(AravisGv, DiscoversAndOpensByIdSerialAndAddress) {
+    ASSERT_TRUE(simulator_.start());
+    std::string id;
+    ASSERT_TRUE(eventually(
+        [&] {
+            auto devices = backend_.enumerate();
+            if (!devices)
+                return false;
+            for (const auto& d : *devices) {
+                if (d.serial == kSerial) {
+                    id = d.id;
+                    EXPECT_NE(d.location.find(kAddress), std::string::npos) << d.location;
+                    EXPECT_NE(d.location.find("GigEVision"), std::string::npos) << d.location;
+                }
+            }
+            return !id.empty();
+        },
+        10));
+    for (const std::string& key : {id, std::string(kSerial), std::string(kAddress)}) {
+        SCOPED_TRACE(key);
+        auto opened = backend_.open(configOf({}, key));
+        ASSERT_TRUE(opened) << opened.status().toString();
+        const DeviceDescriptor d = (*opened)->descriptor();
+        EXPECT_EQ(d.serial, kSerial);
+        // The camera's DeviceID, which opens it again.
+        EXPECT_EQ(d.id, kSerial);
+        EXPECT_EQ(d.location, kAddress);
+        ASSERT_EQ(d.modes.size(), 1u);
+    }
+}
+
+TEST_F(AravisGv, StreamsOverGvspWithMappedTimestamps) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"fps", "50"},
+                               {"width", "256"},
+                               {"height", "128"},
+                               {"offset_x", "16"},
+                               {"offset_y", "8"},
+                               {"exposure_us", "2000"},
+                               {"gain", "1"},
+                               {"packet_size", "8000"},
+                               {"buffers", "64"}})));
+    EXPECT_EQ(device_->streamInfo().format, ImageDesc::packed(PixelFormat::kMono8, 256, 128));
+    EXPECT_DOUBLE_EQ(device_->streamInfo().nominal_fps, 50);
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(40);
+    graph_.stop();
+    {
+        const AravisStats s = device_->stats();
+        ASSERT_EQ(frames.size(), 40u)
+            << "published " << s.published << " failed " << s.failed << " pool exhausted "
+            << s.pool_exhausted << " underruns " << s.underruns << " missing packets "
+            << s.missing_packets << " received " << s.received_packets;
+    }
+    ClockSync sync;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const FrameMetadata& m = frames[i].meta();
+        EXPECT_EQ(m.status, FrameStatus::kOk);
+        EXPECT_EQ(frames[i].image().size_bytes, 256u * 128u);
+        EXPECT_NE(m.clock_domain, kHostClockDomain);
+        const int64_t host = sync.observe(m);
+        EXPECT_LE(host, m.host_stamp_ns + 1'000'000);
+        EXPECT_GT(host, m.host_stamp_ns - 500'000'000);
+        if (i > 0) {
+            EXPECT_EQ(m.sequence, frames[i - 1].meta().sequence + 1);
+            EXPECT_GT(m.device_stamp_ns, frames[i - 1].meta().device_stamp_ns);
+        }
+    }
+    // 50 fps: device stamps 20 ms apart on average (the simulator stamps with the system
+    // clock when it sends, so single intervals carry its scheduling jitter).
+    const double period_ns = static_cast<double>(frames.back().meta().device_stamp_ns -
+                                                 frames.front().meta().device_stamp_ns) /
+                             static_cast<double>(frames.size() - 1);
+    EXPECT_NEAR(period_ns, 20e6, 3e6);
+    const AravisStats stats = device_->stats();
+    EXPECT_GE(stats.published, 40u);
+    EXPECT_GT(stats.received_packets, 40u);
+    EXPECT_EQ(stats.missing_packets, 0u);
+    EXPECT_EQ(stats.connection_losses, 0u);
+}
+
+// The rig file fixture opens the simulator by serial, in the mode it names.
+TEST_F(AravisGv, OpensTheRigFixture) {
+    auto rig = loadRig(test::fixturesDir() / "rigs" / "aravis_simulator.yaml");
+    ASSERT_TRUE(rig) << rig.status().toString();
+    const std::vector<DeviceConfig> configs = rig->deviceConfigs();
+    ASSERT_EQ(configs.size(), 1u);
+    ASSERT_TRUE(simulator_.start());
+    const Status opened = open(configs[0]);
+    ASSERT_TRUE(opened) << opened.toString();
+    EXPECT_EQ(device_->streamInfo().name, "gv/mono");
+    EXPECT_EQ(device_->streamInfo().format, ImageDesc::packed(PixelFormat::kMono8, 256, 128));
+    EXPECT_DOUBLE_EQ(device_->streamInfo().nominal_fps, 50);
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(5);
+    graph_.stop();
+    ASSERT_EQ(frames.size(), 5u);
+    EXPECT_EQ(frames[4].meta().sequence, frames[0].meta().sequence + 4);
+}
+
+// The simulator drops 3% of its packets: the frames that lost some are published as
+// incomplete, and the statistics count the lost packets.
+TEST_F(AravisGv, LostPacketsAreResentOrReported) {
+    ASSERT_TRUE(simulator_.start(30));
+    ASSERT_TRUE(open(configOf(
+        {{"fps", "50"}, {"packet_size", "1400"}, {"packet_resend", "false"}, {"buffers", "64"}})));
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(30);
+    graph_.stop();
+    AravisStats stats = device_->stats();
+    ASSERT_EQ(frames.size(), 30u) << "published " << stats.published << " failed " << stats.failed
+                                  << " incomplete " << stats.incomplete << " pool exhausted "
+                                  << stats.pool_exhausted << " underruns " << stats.underruns
+                                  << " missing packets " << stats.missing_packets << " received "
+                                  << stats.received_packets;
+    EXPECT_GT(stats.missing_packets, 0u);
+    EXPECT_EQ(stats.resent_packets, 0u);
+    EXPECT_EQ(stats.resend_requests, 0u);
+    size_t incomplete = 0;
+    for (const FrameRef& f : frames) {
+        incomplete += f.meta().status == FrameStatus::kIncomplete;
+        EXPECT_EQ(f.image().desc, ImageDesc::packed(PixelFormat::kMono8, 512, 512));
+    }
+    EXPECT_GT(incomplete, 0u);
+    EXPECT_LE(incomplete, stats.incomplete);
+}
+
+// With resend on, the backend asks for every lost packet. The simulator (Aravis 0.8.26) does
+// not answer resend requests, so the frames stay incomplete and are published as such.
+TEST_F(AravisGv, LostPacketsAreRequestedAgain) {
+    ASSERT_TRUE(simulator_.start(30));
+    ASSERT_TRUE(open(configOf({{"fps", "50"}, {"packet_size", "1400"}, {"buffers", "64"}})));
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(30);
+    graph_.stop();
+    ASSERT_EQ(frames.size(), 30u);
+    const AravisStats stats = device_->stats();
+    EXPECT_GT(stats.resend_requests, 0u);
+    EXPECT_GT(stats.missing_packets, 0u);
+    size_t incomplete = 0;
+    for (const FrameRef& f : frames)
+        incomplete += f.meta().status == FrameStatus::kIncomplete;
+    EXPECT_GT(incomplete, 0u);
+    EXPECT_LE(incomplete, stats.incomplete);
+}
+
+// Killing the camera mid-stream: the device reports the loss, the graph keeps running, and
+// frames resume on the same stream once the camera is back.
+TEST_F(AravisGv, RecoversWhenTheCameraComesBack) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"fps", "50"},
+                               {"packet_size", "8000"},
+                               {"lost_timeout_ms", "500"},
+                               {"reconnect_ms", "200"}})));
+    ASSERT_TRUE(graph_.start());
+    auto before = take(10);
+    ASSERT_EQ(before.size(), 10u);
+    EXPECT_TRUE(device_->stats().connected);
+
+    simulator_.kill();
+    ASSERT_TRUE(eventually([&] { return device_->stats().connection_losses >= 1; }, 30));
+    EXPECT_FALSE(device_->stats().connected);
+    EXPECT_TRUE(graph_.running());
+    uint64_t last_sequence = before.back().meta().sequence;
+    while (auto late = queue_->tryPop())
+        last_sequence = late->meta().sequence;
+    const uint64_t published_before = device_->stats().published;
+
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(eventually([&] { return device_->stats().reconnects >= 1; }, 30));
+    auto frames = take(10);
+    ASSERT_EQ(frames.size(), 10u);
+    for (const FrameRef& f : frames)
+        EXPECT_EQ(f.image().desc, device_->streamInfo().format);
+    for (const FrameRef& f : frames)
+        EXPECT_GT(f.meta().sequence, last_sequence);
+    const AravisStats stats = device_->stats();
+    EXPECT_TRUE(stats.connected);
+    EXPECT_GT(stats.published, published_before);
+    graph_.stop();
+}
+
+// Stopping while the camera is gone and the device keeps trying to reopen it: stop() returns
+// and nothing is published after it.
+TEST_F(AravisGv, StopsWhileTheCameraIsGone) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"fps", "50"},
+                               {"packet_size", "8000"},
+                               {"lost_timeout_ms", "500"},
+                               {"reconnect_ms", "100"}})));
+    ASSERT_TRUE(graph_.start());
+    ASSERT_EQ(take(3).size(), 3u);
+    simulator_.kill();
+    ASSERT_TRUE(eventually([&] { return device_->stats().connection_losses >= 1; }, 30));
+    graph_.stop();
+    const AravisStats stats = device_->stats();
+    EXPECT_FALSE(stats.connected);
+    EXPECT_EQ(stats.reconnects, 0u);
+    EXPECT_FALSE(graph_.running());
+}
+
+}  // namespace
+}  // namespace mixray::aravis
