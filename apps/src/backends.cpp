@@ -6,6 +6,7 @@
 
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/replay/replay_backend.h"
+#include "mixray/v4l2/v4l2_backend.h"
 
 namespace mixray::cli {
 
@@ -14,6 +15,7 @@ BackendRegistry makeBackendRegistry() {
     // Names are distinct by construction; add() cannot fail here.
     (void)registry.add(std::make_unique<replay::ReplayBackend>());
     (void)registry.add(std::make_unique<pattern::PatternBackend>());
+    (void)registry.add(std::make_unique<v4l2::V4l2Backend>());
     return registry;
 }
 
