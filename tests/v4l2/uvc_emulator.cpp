@@ -38,8 +38,8 @@ const std::vector<Control>& controlTable() {
          2800, 6500, 1, 4600},
         {V4L2_CID_EXPOSURE_AUTO, "Auto Exposure", V4L2_CTRL_TYPE_MENU, 0, 3, 1,
          V4L2_EXPOSURE_APERTURE_PRIORITY},
-        {V4L2_CID_EXPOSURE_ABSOLUTE, "Exposure Time, Absolute", V4L2_CTRL_TYPE_INTEGER, 1, 5000,
-         1, 156},
+        {V4L2_CID_EXPOSURE_ABSOLUTE, "Exposure Time, Absolute", V4L2_CTRL_TYPE_INTEGER, 1, 5000, 1,
+         156},
     };
     return kControls;
 }
@@ -60,7 +60,7 @@ struct UvcEmulator::State {
     std::deque<Queued> queue;
     bool streaming = false;
     int64_t t0_ns = 0;
-    uint64_t next_frame = 0;   // frames produced since STREAMON
+    uint64_t next_frame = 0;  // frames produced since STREAMON
     uint64_t next_sequence = 0;
     std::set<uint64_t> error_frames;
     std::set<uint64_t> skipped_frames;
@@ -81,7 +81,7 @@ namespace {
 
 const std::vector<Size>& sizesOf(uint32_t fourcc) {
     static const std::vector<Size> kYuyv = {{320, 240}, {640, 480}};
-    static const std::vector<Size> kMjpeg = {{320, 240}};
+    static const std::vector<Size> kMjpeg = {{320, 240}, {1280, 720}};
     return fourcc == V4L2_PIX_FMT_MJPEG ? kMjpeg : kYuyv;
 }
 
@@ -176,8 +176,8 @@ int dequeue(UvcEmulator::State& s, UMockdevIoctlData* data, v4l2_buffer* b) {
         }
         used = s.sizeImage();
     } else {
-        const auto jpeg = mjpegFrame(seq, static_cast<int>(s.size.width),
-                                     static_cast<int>(s.size.height));
+        const auto jpeg =
+            mjpegFrame(seq, static_cast<int>(s.size.width), static_cast<int>(s.size.height));
         std::memcpy(pixels->data, jpeg.data(), std::min<size_t>(jpeg.size(), q.length));
         used = jpeg.size();
     }
@@ -187,9 +187,8 @@ int dequeue(UvcEmulator::State& s, UMockdevIoctlData* data, v4l2_buffer* b) {
     b->field = V4L2_FIELD_NONE;
     b->sequence = static_cast<uint32_t>(seq);
     b->length = q.length;
-    b->flags = V4L2_BUF_FLAG_TSTAMP_SRC_SOE |
-               (s.unknown_clock ? V4L2_BUF_FLAG_TIMESTAMP_UNKNOWN
-                                : V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC);
+    b->flags = V4L2_BUF_FLAG_TSTAMP_SRC_SOE | (s.unknown_clock ? V4L2_BUF_FLAG_TIMESTAMP_UNKNOWN
+                                                               : V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC);
     if (s.error_frames.count(seq))
         b->flags |= V4L2_BUF_FLAG_ERROR;
     const int64_t stamp = s.unknown_clock ? ready - s.t0_ns : ready;
@@ -204,205 +203,208 @@ int dequeue(UvcEmulator::State& s, UMockdevIoctlData* data, v4l2_buffer* b) {
 int handleCapture(UvcEmulator::State& s, unsigned long request, UMockdevIoctlClient* client) {
     UMockdevIoctlData* data = nullptr;
     switch (request) {
-    case VIDIOC_QUERYCAP: {
-        auto* cap = argument<v4l2_capability>(client, &data);
-        if (!cap)
-            return EFAULT;
-        std::memset(cap, 0, sizeof(*cap));
-        std::snprintf(reinterpret_cast<char*>(cap->driver), sizeof(cap->driver), "uvcvideo");
-        std::snprintf(reinterpret_cast<char*>(cap->card), sizeof(cap->card),
-                      "mixray UVC emulator");
-        std::snprintf(reinterpret_cast<char*>(cap->bus_info), sizeof(cap->bus_info),
-                      "usb-0000:00:14.0-1");
-        cap->version = 0x060100;
-        cap->device_caps = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING | V4L2_CAP_EXT_PIX_FORMAT;
-        cap->capabilities = cap->device_caps | V4L2_CAP_META_CAPTURE | V4L2_CAP_DEVICE_CAPS;
-        return 0;
-    }
-    case VIDIOC_ENUM_FMT: {
-        auto* f = argument<v4l2_fmtdesc>(client, &data);
-        if (!f)
-            return EFAULT;
-        if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || f->index > 1)
-            return EINVAL;
-        const uint32_t index = f->index;
-        std::memset(f, 0, sizeof(*f));
-        f->index = index;
-        f->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-        f->pixelformat = index == 0 ? V4L2_PIX_FMT_YUYV : V4L2_PIX_FMT_MJPEG;
-        f->flags = index == 1 ? V4L2_FMT_FLAG_COMPRESSED : 0;
-        std::snprintf(reinterpret_cast<char*>(f->description), sizeof(f->description), "%s",
-                      index == 0 ? "YUYV 4:2:2" : "Motion-JPEG");
-        return 0;
-    }
-    case VIDIOC_ENUM_FRAMESIZES: {
-        auto* f = argument<v4l2_frmsizeenum>(client, &data);
-        if (!f)
-            return EFAULT;
-        if (f->pixel_format != V4L2_PIX_FMT_YUYV && f->pixel_format != V4L2_PIX_FMT_MJPEG)
-            return EINVAL;
-        const auto& sizes = sizesOf(f->pixel_format);
-        if (f->index >= sizes.size())
-            return EINVAL;
-        f->type = V4L2_FRMSIZE_TYPE_DISCRETE;
-        f->discrete.width = sizes[f->index].width;
-        f->discrete.height = sizes[f->index].height;
-        return 0;
-    }
-    case VIDIOC_ENUM_FRAMEINTERVALS: {
-        auto* f = argument<v4l2_frmivalenum>(client, &data);
-        if (!f)
-            return EFAULT;
-        if (f->index > 1)
-            return EINVAL;
-        f->type = V4L2_FRMIVAL_TYPE_DISCRETE;
-        f->discrete.numerator = 1;
-        f->discrete.denominator = f->index == 0 ? 30 : 15;
-        return 0;
-    }
-    case VIDIOC_G_FMT: {
-        auto* f = argument<v4l2_format>(client, &data);
-        return f ? fillFormat(s, f) : EFAULT;
-    }
-    case VIDIOC_TRY_FMT:
-    case VIDIOC_S_FMT: {
-        auto* f = argument<v4l2_format>(client, &data);
-        if (!f)
-            return EFAULT;
-        if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
-            return EINVAL;
-        if (request == VIDIOC_S_FMT && s.buffer_count > 0)
-            return EBUSY;
-        UvcEmulator::State probe;
-        adjustFormat(f, &probe.fourcc, &probe.size);
-        if (request == VIDIOC_S_FMT) {
-            s.fourcc = probe.fourcc;
-            s.size = probe.size;
+        case VIDIOC_QUERYCAP: {
+            auto* cap = argument<v4l2_capability>(client, &data);
+            if (!cap)
+                return EFAULT;
+            std::memset(cap, 0, sizeof(*cap));
+            std::snprintf(reinterpret_cast<char*>(cap->driver), sizeof(cap->driver), "uvcvideo");
+            std::snprintf(reinterpret_cast<char*>(cap->card), sizeof(cap->card),
+                          "mixray UVC emulator");
+            std::snprintf(reinterpret_cast<char*>(cap->bus_info), sizeof(cap->bus_info),
+                          "usb-0000:00:14.0-1");
+            cap->version = 0x060100;
+            cap->device_caps =
+                V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING | V4L2_CAP_EXT_PIX_FORMAT;
+            cap->capabilities = cap->device_caps | V4L2_CAP_META_CAPTURE | V4L2_CAP_DEVICE_CAPS;
+            return 0;
         }
-        return fillFormat(request == VIDIOC_S_FMT ? s : probe, f);
-    }
-    case VIDIOC_G_PARM:
-    case VIDIOC_S_PARM: {
-        auto* p = argument<v4l2_streamparm>(client, &data);
-        if (!p)
-            return EFAULT;
-        if (p->type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
-            return EINVAL;
-        if (request == VIDIOC_S_PARM) {
-            const auto& t = p->parm.capture.timeperframe;
-            const double fps = t.numerator ? static_cast<double>(t.denominator) / t.numerator : 30;
-            s.fps = fps > 22.5 ? 30 : 15;
-        }
-        std::memset(&p->parm, 0, sizeof(p->parm));
-        p->parm.capture.capability = V4L2_CAP_TIMEPERFRAME;
-        p->parm.capture.timeperframe = {1, s.fps};
-        return 0;
-    }
-    case VIDIOC_QUERYCTRL: {
-        auto* q = argument<v4l2_queryctrl>(client, &data);
-        if (!q)
-            return EFAULT;
-        const bool next = (q->id & V4L2_CTRL_FLAG_NEXT_CTRL) != 0;
-        const uint32_t id = q->id & ~(V4L2_CTRL_FLAG_NEXT_CTRL | V4L2_CTRL_FLAG_NEXT_COMPOUND);
-        const Control* found = nullptr;
-        for (const auto& c : controlTable()) {
-            if ((next && c.id > id && (!found || c.id < found->id)) || (!next && c.id == id))
-                found = &c;
-        }
-        if (!found)
-            return EINVAL;
-        std::memset(q, 0, sizeof(*q));
-        q->id = found->id;
-        q->type = found->type;
-        std::snprintf(reinterpret_cast<char*>(q->name), sizeof(q->name), "%s", found->name);
-        q->minimum = found->minimum;
-        q->maximum = found->maximum;
-        q->step = found->step;
-        q->default_value = found->default_value;
-        return 0;
-    }
-    case VIDIOC_G_CTRL:
-    case VIDIOC_S_CTRL: {
-        auto* c = argument<v4l2_control>(client, &data);
-        if (!c)
-            return EFAULT;
-        auto it = s.values.find(c->id);
-        if (it == s.values.end())
-            return EINVAL;
-        if (request == VIDIOC_S_CTRL) {
-            for (const auto& info : controlTable()) {
-                if (info.id == c->id && (c->value < info.minimum || c->value > info.maximum))
-                    return ERANGE;
-            }
-            // uvcvideo refuses manual values while their automatic control is on.
-            if (c->id == V4L2_CID_EXPOSURE_ABSOLUTE &&
-                s.values[V4L2_CID_EXPOSURE_AUTO] != V4L2_EXPOSURE_MANUAL)
-                return EACCES;
-            if (c->id == V4L2_CID_WHITE_BALANCE_TEMPERATURE && s.values[V4L2_CID_AUTO_WHITE_BALANCE])
-                return EACCES;
-            it->second = c->value;
-        } else {
-            c->value = it->second;
-        }
-        return 0;
-    }
-    case VIDIOC_REQBUFS: {
-        auto* r = argument<v4l2_requestbuffers>(client, &data);
-        if (!r)
-            return EFAULT;
-        if (r->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || r->memory != V4L2_MEMORY_USERPTR)
-            return EINVAL;
-        if (s.streaming)
-            return EBUSY;
-        s.queue.clear();
-        s.buffer_count = std::min<uint32_t>(r->count, 32);
-        r->count = s.buffer_count;
-        return 0;
-    }
-    case VIDIOC_QBUF: {
-        auto* b = argument<v4l2_buffer>(client, &data);
-        if (!b)
-            return EFAULT;
-        if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_USERPTR ||
-            b->index >= s.buffer_count || b->m.userptr == 0 || b->length < s.sizeImage())
-            return EINVAL;
-        for (const auto& q : s.queue) {
-            if (q.index == b->index)
+        case VIDIOC_ENUM_FMT: {
+            auto* f = argument<v4l2_fmtdesc>(client, &data);
+            if (!f)
+                return EFAULT;
+            if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || f->index > 1)
                 return EINVAL;
+            const uint32_t index = f->index;
+            std::memset(f, 0, sizeof(*f));
+            f->index = index;
+            f->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+            f->pixelformat = index == 0 ? V4L2_PIX_FMT_YUYV : V4L2_PIX_FMT_MJPEG;
+            f->flags = index == 1 ? V4L2_FMT_FLAG_COMPRESSED : 0;
+            std::snprintf(reinterpret_cast<char*>(f->description), sizeof(f->description), "%s",
+                          index == 0 ? "YUYV 4:2:2" : "Motion-JPEG");
+            return 0;
         }
-        s.queue.push_back({b->index, b->m.userptr, b->length});
-        b->flags |= V4L2_BUF_FLAG_QUEUED;
-        return 0;
-    }
-    case VIDIOC_DQBUF: {
-        auto* b = argument<v4l2_buffer>(client, &data);
-        return b ? dequeue(s, data, b) : EFAULT;
-    }
-    case VIDIOC_STREAMON:
-    case VIDIOC_STREAMOFF: {
-        auto* type = argument<int>(client, &data);
-        if (!type)
-            return EFAULT;
-        if (*type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
-            return EINVAL;
-        if (request == VIDIOC_STREAMON) {
-            if (s.buffer_count == 0)
+        case VIDIOC_ENUM_FRAMESIZES: {
+            auto* f = argument<v4l2_frmsizeenum>(client, &data);
+            if (!f)
+                return EFAULT;
+            if (f->pixel_format != V4L2_PIX_FMT_YUYV && f->pixel_format != V4L2_PIX_FMT_MJPEG)
                 return EINVAL;
-            if (!s.streaming) {
-                s.streaming = true;
-                ++s.stream_on_count;
-                s.t0_ns = monotonicNs();
-                s.next_frame = 0;
-                s.next_sequence = 0;
+            const auto& sizes = sizesOf(f->pixel_format);
+            if (f->index >= sizes.size())
+                return EINVAL;
+            f->type = V4L2_FRMSIZE_TYPE_DISCRETE;
+            f->discrete.width = sizes[f->index].width;
+            f->discrete.height = sizes[f->index].height;
+            return 0;
+        }
+        case VIDIOC_ENUM_FRAMEINTERVALS: {
+            auto* f = argument<v4l2_frmivalenum>(client, &data);
+            if (!f)
+                return EFAULT;
+            if (f->index > 1)
+                return EINVAL;
+            f->type = V4L2_FRMIVAL_TYPE_DISCRETE;
+            f->discrete.numerator = 1;
+            f->discrete.denominator = f->index == 0 ? 30 : 15;
+            return 0;
+        }
+        case VIDIOC_G_FMT: {
+            auto* f = argument<v4l2_format>(client, &data);
+            return f ? fillFormat(s, f) : EFAULT;
+        }
+        case VIDIOC_TRY_FMT:
+        case VIDIOC_S_FMT: {
+            auto* f = argument<v4l2_format>(client, &data);
+            if (!f)
+                return EFAULT;
+            if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
+                return EINVAL;
+            if (request == VIDIOC_S_FMT && s.buffer_count > 0)
+                return EBUSY;
+            UvcEmulator::State probe;
+            adjustFormat(f, &probe.fourcc, &probe.size);
+            if (request == VIDIOC_S_FMT) {
+                s.fourcc = probe.fourcc;
+                s.size = probe.size;
             }
-        } else {
-            s.streaming = false;
+            return fillFormat(request == VIDIOC_S_FMT ? s : probe, f);
+        }
+        case VIDIOC_G_PARM:
+        case VIDIOC_S_PARM: {
+            auto* p = argument<v4l2_streamparm>(client, &data);
+            if (!p)
+                return EFAULT;
+            if (p->type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
+                return EINVAL;
+            if (request == VIDIOC_S_PARM) {
+                const auto& t = p->parm.capture.timeperframe;
+                const double fps =
+                    t.numerator ? static_cast<double>(t.denominator) / t.numerator : 30;
+                s.fps = fps > 22.5 ? 30 : 15;
+            }
+            std::memset(&p->parm, 0, sizeof(p->parm));
+            p->parm.capture.capability = V4L2_CAP_TIMEPERFRAME;
+            p->parm.capture.timeperframe = {1, s.fps};
+            return 0;
+        }
+        case VIDIOC_QUERYCTRL: {
+            auto* q = argument<v4l2_queryctrl>(client, &data);
+            if (!q)
+                return EFAULT;
+            const bool next = (q->id & V4L2_CTRL_FLAG_NEXT_CTRL) != 0;
+            const uint32_t id = q->id & ~(V4L2_CTRL_FLAG_NEXT_CTRL | V4L2_CTRL_FLAG_NEXT_COMPOUND);
+            const Control* found = nullptr;
+            for (const auto& c : controlTable()) {
+                if ((next && c.id > id && (!found || c.id < found->id)) || (!next && c.id == id))
+                    found = &c;
+            }
+            if (!found)
+                return EINVAL;
+            std::memset(q, 0, sizeof(*q));
+            q->id = found->id;
+            q->type = found->type;
+            std::snprintf(reinterpret_cast<char*>(q->name), sizeof(q->name), "%s", found->name);
+            q->minimum = found->minimum;
+            q->maximum = found->maximum;
+            q->step = found->step;
+            q->default_value = found->default_value;
+            return 0;
+        }
+        case VIDIOC_G_CTRL:
+        case VIDIOC_S_CTRL: {
+            auto* c = argument<v4l2_control>(client, &data);
+            if (!c)
+                return EFAULT;
+            auto it = s.values.find(c->id);
+            if (it == s.values.end())
+                return EINVAL;
+            if (request == VIDIOC_S_CTRL) {
+                for (const auto& info : controlTable()) {
+                    if (info.id == c->id && (c->value < info.minimum || c->value > info.maximum))
+                        return ERANGE;
+                }
+                // uvcvideo refuses manual values while their automatic control is on.
+                if (c->id == V4L2_CID_EXPOSURE_ABSOLUTE &&
+                    s.values[V4L2_CID_EXPOSURE_AUTO] != V4L2_EXPOSURE_MANUAL)
+                    return EACCES;
+                if (c->id == V4L2_CID_WHITE_BALANCE_TEMPERATURE &&
+                    s.values[V4L2_CID_AUTO_WHITE_BALANCE])
+                    return EACCES;
+                it->second = c->value;
+            } else {
+                c->value = it->second;
+            }
+            return 0;
+        }
+        case VIDIOC_REQBUFS: {
+            auto* r = argument<v4l2_requestbuffers>(client, &data);
+            if (!r)
+                return EFAULT;
+            if (r->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || r->memory != V4L2_MEMORY_USERPTR)
+                return EINVAL;
+            if (s.streaming)
+                return EBUSY;
             s.queue.clear();
+            s.buffer_count = std::min<uint32_t>(r->count, 32);
+            r->count = s.buffer_count;
+            return 0;
         }
-        return 0;
-    }
-    default:
-        return ENOTTY;
+        case VIDIOC_QBUF: {
+            auto* b = argument<v4l2_buffer>(client, &data);
+            if (!b)
+                return EFAULT;
+            if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_USERPTR ||
+                b->index >= s.buffer_count || b->m.userptr == 0 || b->length < s.sizeImage())
+                return EINVAL;
+            for (const auto& q : s.queue) {
+                if (q.index == b->index)
+                    return EINVAL;
+            }
+            s.queue.push_back({b->index, b->m.userptr, b->length});
+            b->flags |= V4L2_BUF_FLAG_QUEUED;
+            return 0;
+        }
+        case VIDIOC_DQBUF: {
+            auto* b = argument<v4l2_buffer>(client, &data);
+            return b ? dequeue(s, data, b) : EFAULT;
+        }
+        case VIDIOC_STREAMON:
+        case VIDIOC_STREAMOFF: {
+            auto* type = argument<int>(client, &data);
+            if (!type)
+                return EFAULT;
+            if (*type != V4L2_BUF_TYPE_VIDEO_CAPTURE)
+                return EINVAL;
+            if (request == VIDIOC_STREAMON) {
+                if (s.buffer_count == 0)
+                    return EINVAL;
+                if (!s.streaming) {
+                    s.streaming = true;
+                    ++s.stream_on_count;
+                    s.t0_ns = monotonicNs();
+                    s.next_frame = 0;
+                    s.next_sequence = 0;
+                }
+            } else {
+                s.streaming = false;
+                s.queue.clear();
+            }
+            return 0;
+        }
+        default:
+            return ENOTTY;
     }
 }
 
@@ -416,8 +418,8 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
             err = ENODEV;
         } else if (h->metadata_node) {
             UMockdevIoctlData* data = nullptr;
-            auto* cap = request == VIDIOC_QUERYCAP ? argument<v4l2_capability>(client, &data)
-                                                   : nullptr;
+            auto* cap =
+                request == VIDIOC_QUERYCAP ? argument<v4l2_capability>(client, &data) : nullptr;
             if (cap) {
                 std::memset(cap, 0, sizeof(*cap));
                 std::snprintf(reinterpret_cast<char*>(cap->driver), sizeof(cap->driver),
@@ -425,8 +427,8 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
                 std::snprintf(reinterpret_cast<char*>(cap->card), sizeof(cap->card),
                               "mixray UVC emulator");
                 cap->device_caps = V4L2_CAP_META_CAPTURE | V4L2_CAP_STREAMING;
-                cap->capabilities = cap->device_caps | V4L2_CAP_VIDEO_CAPTURE |
-                                    V4L2_CAP_DEVICE_CAPS;
+                cap->capabilities =
+                    cap->device_caps | V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_DEVICE_CAPS;
             } else {
                 err = ENOTTY;
             }

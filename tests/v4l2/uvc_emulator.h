@@ -20,9 +20,9 @@ uint8_t yuyvByte(uint64_t sequence, int x_byte, int y);
 std::vector<uint8_t> mjpegFrame(uint64_t sequence, int width, int height,
                                 std::vector<uint8_t>* rgb = nullptr);
 
-// One emulated camera at /dev/video0 (capture: YUYV 320x240 and 640x480, MJPEG 320x240; 30
-// and 15 fps; controls brightness, auto exposure, exposure time, auto white balance, white
-// balance temperature, with uvcvideo's rule that a manual value of an automatic control is
+// One emulated camera at /dev/video0 (capture: YUYV 320x240 and 640x480, MJPEG 320x240 and
+// 1280x720; 30 and 15 fps; controls brightness, auto exposure, exposure time, auto white balance,
+// white balance temperature, with uvcvideo's rule that a manual value of an automatic control is
 // refused with EACCES) and its UVC metadata node /dev/video1 (no video capture). Buffers:
 // USERPTR only (REQBUFS for MMAP fails with EINVAL: umockdev cannot map a device).
 // Frame k is ready at STREAMON + (k + 1) / fps on CLOCK_MONOTONIC and carries that stamp

@@ -15,8 +15,10 @@
 #include <vector>
 
 #include "mixray/graph/clock.h"
+#include "mixray/graph/rig.h"
 #include "mixray/v4l2/mjpeg.h"
 #include "mixray/v4l2/v4l2_backend.h"
+#include "test_data.h"
 #include "uvc_emulator.h"
 
 namespace mixray::v4l2 {
@@ -39,12 +41,12 @@ std::unique_ptr<UvcEmulator> emulator() {
     return e;
 }
 
-#define MIXRAY_REQUIRE_EMULATOR(e)                                                       \
-    auto e = emulator();                                                                 \
-    if (!e) {                                                                            \
-        if (::testing::Test::HasFailure())                                               \
-            return;                                                                      \
-        GTEST_SKIP() << "umockdev's preload library (" << kPreload                       \
+#define MIXRAY_REQUIRE_EMULATOR(e)                                                          \
+    auto e = emulator();                                                                    \
+    if (!e) {                                                                               \
+        if (::testing::Test::HasFailure())                                                  \
+            return;                                                                         \
+        GTEST_SKIP() << "umockdev's preload library (" << kPreload                          \
                      << ") is not installed (Debian package umockdev): no emulated camera"; \
     }
 
@@ -80,8 +82,8 @@ std::unique_ptr<Capture> capture(const DeviceConfig& c) {
         return nullptr;
     cap->device = device.get();
     EXPECT_TRUE(cap->graph.addNode(std::move(device)));
-    auto queue = cap->graph.subscribe(cap->device->streamId(),
-                                      {64, QueuePolicy::kLossless, "v4l2_test"});
+    auto queue =
+        cap->graph.subscribe(cap->device->streamId(), {64, QueuePolicy::kLossless, "v4l2_test"});
     EXPECT_TRUE(queue);
     if (!queue)
         return nullptr;
@@ -114,7 +116,7 @@ TEST(V4l2Backend, EnumeratesTheCaptureNodeOnly) {
     EXPECT_EQ(d.model, "mixray UVC emulator");
     EXPECT_EQ(d.location, "usb-0000:00:14.0-1");
     EXPECT_EQ(d.modes, (std::vector<std::string>{"yuyv 320x240@30", "yuyv 640x480@30",
-                                                  "mjpeg 320x240@30"}));
+                                                 "mjpeg 320x240@30", "mjpeg 1280x720@30"}));
     auto meta = describeNode("/dev/video1");
     ASSERT_FALSE(meta);
     EXPECT_EQ(meta.status().code(), ErrorCode::kUnsupported);
@@ -133,10 +135,20 @@ TEST(V4l2Backend, EnumeratesTheCaptureNodeOnly) {
 TEST(V4l2Options, RefusesBadValuesAndUnknownKeys) {
     EXPECT_TRUE(V4l2Options::fromConfig(config({})));
     const std::vector<std::map<std::string, std::string>> bad = {
-        {{"format", "rgb"}},       {{"width", "7"}},          {{"io", "dma"}},
-        {{"decode", "rgb"}},       {{"buffers", "1"}},        {{"fps", "-3"}},
-        {{"role", "sun"}},         {{"ctrl.Exposure", "1"}},  {{"ctrl.brightness", "x"}},
-        {{"exposure", "100"}},     {{"width", "321"}},
+        {{"color.format", "bgr8"}},
+        {{"color.width", "7"}},
+        {{"io", "dma"}},
+        {{"width", "640"}},
+        {{"buffers", "1"}},
+        {{"color.fps", "-3"}},
+        {{"role", "sun"}},
+        {{"ctrl.Exposure", "1"}},
+        {{"ctrl.brightness", "x"}},
+        {{"exposure", "100"}},
+        {{"color.width", "321"}},
+        {{"exposure_us", "0"}},
+        {{"auto_white_balance", "maybe"}},
+        {{"role", "environment"}, {"auto_white_balance", "true"}},
     };
     for (const auto& options : bad) {
         auto o = V4l2Options::fromConfig(config(options));
@@ -144,8 +156,8 @@ TEST(V4l2Options, RefusesBadValuesAndUnknownKeys) {
         EXPECT_EQ(o.status().code(), ErrorCode::kInvalidArgument);
         EXPECT_NE(o.status().message().find("webcam"), std::string::npos);
     }
-    auto o = V4l2Options::fromConfig(config({{"format", "mjpeg"}, {"decode", "rgb"},
-                                             {"io", "userptr"}, {"ctrl.brightness", "-5"}}));
+    auto o = V4l2Options::fromConfig(
+        config({{"color.format", "rgb8"}, {"io", "userptr"}, {"ctrl.brightness", "-5"}}));
     ASSERT_TRUE(o) << o.status().toString();
     EXPECT_EQ(o->fourcc, V4L2_PIX_FMT_MJPEG);
     EXPECT_TRUE(o->decode_rgb);
@@ -157,26 +169,31 @@ TEST(V4l2Options, RefusesBadValuesAndUnknownKeys) {
 TEST(V4l2Device, RefusesAModeTheCameraDoesNotHave) {
     MIXRAY_REQUIRE_EMULATOR(e);
     V4l2Backend backend;
-    auto device = backend.open(config({{"width", "1280"}, {"height", "720"}}));
+    auto device = backend.open(config({{"color.width", "1280"}, {"color.height", "960"}}));
     ASSERT_FALSE(device);
     EXPECT_EQ(device.status().code(), ErrorCode::kUnsupported);
     EXPECT_NE(device.status().message().find("yuyv 640x480@30"), std::string::npos)
         << device.status().message();
-    auto rate = backend.open(config({{"fps", "60"}, {"width", "320"}, {"height", "240"}}));
+    auto rate = backend.open(
+        config({{"color.fps", "60"}, {"color.width", "320"}, {"color.height", "240"}}));
     ASSERT_FALSE(rate);
     EXPECT_EQ(rate.status().code(), ErrorCode::kUnsupported);
 }
 
 TEST(V4l2Device, StreamsYuyvThroughUserPtrBuffers) {
     MIXRAY_REQUIRE_EMULATOR(e);
-    auto cap = capture(config(
-        {{"io", "userptr"}, {"width", "320"}, {"height", "240"}, {"fps", "30"}, {"pool", "16"}}));
+    auto cap = capture(config({{"io", "userptr"},
+                               {"color.width", "320"},
+                               {"color.height", "240"},
+                               {"color.fps", "30"},
+                               {"pool", "16"}}));
     ASSERT_TRUE(cap);
     const StreamInfo info = cap->graph.stream(cap->device->streamId());
     EXPECT_EQ(info.name, "webcam/color");
     EXPECT_EQ(info.kind, StreamKind::kColor);
     EXPECT_EQ(info.format, (ImageDesc{PixelFormat::kYUYV, 320, 240, 640}));
     EXPECT_EQ(info.clock_domain, kHostClockDomain);
+    EXPECT_EQ(info.nominal_fps, 30.0);
 
     // Two start/stop cycles of the device: buffers are requested, queued and freed each time
     // (the graph's own stop closes its queues for good).
@@ -232,8 +249,11 @@ TEST(V4l2Device, StreamsYuyvThroughUserPtrBuffers) {
 TEST(V4l2Device, KeepsMjpegCompressedOrDecodesIt) {
     MIXRAY_REQUIRE_EMULATOR(e);
     {
-        auto cap = capture(config({{"io", "userptr"}, {"format", "mjpeg"}, {"width", "320"},
-                                   {"height", "240"}, {"pool", "16"}}));
+        auto cap = capture(config({{"io", "userptr"},
+                                   {"color.format", "mjpeg"},
+                                   {"color.width", "320"},
+                                   {"color.height", "240"},
+                                   {"pool", "16"}}));
         ASSERT_TRUE(cap);
         EXPECT_EQ(cap->device->format().format, PixelFormat::kMJPEG);
         ASSERT_TRUE(cap->graph.start());
@@ -251,8 +271,11 @@ TEST(V4l2Device, KeepsMjpegCompressedOrDecodesIt) {
             EXPECT_EQ(size->height, 240);
         }
     }
-    auto cap = capture(config({{"io", "userptr"}, {"format", "mjpeg"}, {"decode", "rgb"},
-                               {"width", "320"}, {"height", "240"}, {"pool", "16"}}));
+    auto cap = capture(config({{"io", "userptr"},
+                               {"color.format", "rgb8"},
+                               {"color.width", "320"},
+                               {"color.height", "240"},
+                               {"pool", "16"}}));
     ASSERT_TRUE(cap);
     EXPECT_EQ(cap->device->format(), ImageDesc::packed(PixelFormat::kRGB8, 320, 240));
     ASSERT_TRUE(cap->graph.start());
@@ -316,12 +339,56 @@ TEST(V4l2Device, EnvironmentCameraLocksExposureAndWhiteBalance) {
     EXPECT_EQ(*device->control("auto_exposure"), V4L2_EXPOSURE_MANUAL);
 }
 
+// The fish-eye environment camera of the tabletop rig fixture, as the rig file asks for it:
+// 1280x720@30 MJPEG, exposure 8 ms, automatic white balance off.
+TEST(V4l2Device, OpensTheRigFixturesEnvironmentCamera) {
+    MIXRAY_REQUIRE_EMULATOR(e);
+    auto rig = loadRig(mixray::test::fixturesDir() / "rigs" / "kinect_env.yaml");
+    ASSERT_TRUE(rig) << rig.status().toString();
+    const RigDevice* env = nullptr;
+    for (const auto& d : rig->devices) {
+        if (d.config.name == "env")
+            env = &d;
+    }
+    ASSERT_NE(env, nullptr);
+    DeviceConfig c = env->config;
+    EXPECT_EQ(c.id, "/dev/video2");
+    c.id = "/dev/video0";  // the emulated camera's node
+    c.options["io"] = "userptr";
+    BackendRegistry registry;
+    ASSERT_TRUE(registry.add(std::make_unique<V4l2Backend>()));
+    auto opened = registry.open(c);
+    ASSERT_TRUE(opened) << opened.status().toString();
+    Graph graph;
+    auto* device = static_cast<V4l2Device*>(opened->get());
+    ASSERT_TRUE(graph.addNode(std::move(*opened)));
+    EXPECT_EQ(e->control(V4L2_CID_EXPOSURE_AUTO), V4L2_EXPOSURE_MANUAL);
+    EXPECT_EQ(e->control(V4L2_CID_EXPOSURE_ABSOLUTE), 80);
+    EXPECT_EQ(e->control(V4L2_CID_AUTO_WHITE_BALANCE), 0);
+    const auto stream = graph.findStream("env/color");
+    ASSERT_TRUE(stream);
+    EXPECT_EQ(graph.stream(*stream).format, (ImageDesc{PixelFormat::kMJPEG, 1280, 720, 0}));
+    EXPECT_EQ(graph.stream(*stream).nominal_fps, 30.0);
+    auto queue = graph.subscribe(*stream, {8, QueuePolicy::kLossless, "v4l2_test"});
+    ASSERT_TRUE(queue);
+    ASSERT_TRUE(graph.start());
+    const auto frames = take(**queue, 2);
+    graph.stop();
+    ASSERT_EQ(frames.size(), 2u) << device->error().toString();
+    for (const auto& f : frames) {
+        EXPECT_EQ(f.meta().exposure_us, 8000);
+        const auto jpeg = test::mjpegFrame(f.meta().sequence, 1280, 720);
+        ASSERT_EQ(f.image().size_bytes, jpeg.size());
+        EXPECT_EQ(std::memcmp(f.image().data, jpeg.data(), jpeg.size()), 0);
+    }
+}
+
 TEST(V4l2Device, FlagsDriverErrorsAndCountsLostFrames) {
     MIXRAY_REQUIRE_EMULATOR(e);
     e->setErrorFrames({2});
     e->setSkippedFrames({4});
-    auto cap = capture(config({{"io", "userptr"}, {"width", "320"}, {"height", "240"},
-                               {"pool", "16"}}));
+    auto cap = capture(config(
+        {{"io", "userptr"}, {"color.width", "320"}, {"color.height", "240"}, {"pool", "16"}}));
     ASSERT_TRUE(cap);
     ASSERT_TRUE(cap->graph.start());
     const auto frames = take(*cap->queue, 6);
@@ -340,8 +407,8 @@ TEST(V4l2Device, FlagsDriverErrorsAndCountsLostFrames) {
 TEST(V4l2Device, StampsThatAreNotMonotonicGetAClockDomain) {
     MIXRAY_REQUIRE_EMULATOR(e);
     e->setUnknownClock(true);
-    auto cap = capture(config({{"io", "userptr"}, {"width", "320"}, {"height", "240"},
-                               {"pool", "16"}}));
+    auto cap = capture(config(
+        {{"io", "userptr"}, {"color.width", "320"}, {"color.height", "240"}, {"pool", "16"}}));
     ASSERT_TRUE(cap);
     ASSERT_TRUE(cap->graph.start());
     const auto frames = take(*cap->queue, 4);
@@ -362,7 +429,7 @@ TEST(V4l2Device, StampsThatAreNotMonotonicGetAClockDomain) {
 
 TEST(V4l2Device, MmapNeedsRealHardware) {
     MIXRAY_REQUIRE_EMULATOR(e);
-    auto cap = capture(config({{"io", "mmap"}, {"width", "320"}, {"height", "240"}}));
+    auto cap = capture(config({{"io", "mmap"}, {"color.width", "320"}, {"color.height", "240"}}));
     ASSERT_TRUE(cap);
     const Status s = cap->graph.start();
     ASSERT_FALSE(s);
@@ -372,8 +439,8 @@ TEST(V4l2Device, MmapNeedsRealHardware) {
 
 TEST(V4l2Device, AnUnpluggedCameraEndsItsStream) {
     MIXRAY_REQUIRE_EMULATOR(e);
-    auto cap = capture(config({{"io", "userptr"}, {"width", "320"}, {"height", "240"},
-                               {"pool", "16"}}));
+    auto cap = capture(config(
+        {{"io", "userptr"}, {"color.width", "320"}, {"color.height", "240"}, {"pool", "16"}}));
     ASSERT_TRUE(cap);
     ASSERT_TRUE(cap->graph.start());
     ASSERT_EQ(take(*cap->queue, 2).size(), 2u);

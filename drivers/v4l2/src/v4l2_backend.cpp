@@ -60,7 +60,8 @@ std::string fourccText(uint32_t fourcc) {
 }
 
 std::string cString(const uint8_t* text, size_t max) {
-    return std::string(reinterpret_cast<const char*>(text), strnlen(reinterpret_cast<const char*>(text), max));
+    return std::string(reinterpret_cast<const char*>(text),
+                       strnlen(reinterpret_cast<const char*>(text), max));
 }
 
 std::string formatFps(double fps) {
@@ -88,7 +89,8 @@ std::vector<double> frameRates(int fd, uint32_t fourcc, uint32_t width, uint32_t
     for (ival.index = 0; xioctl(fd, VIDIOC_ENUM_FRAMEINTERVALS, &ival) == 0; ++ival.index) {
         if (ival.type == V4L2_FRMIVAL_TYPE_DISCRETE) {
             if (ival.discrete.numerator > 0)
-                out.push_back(static_cast<double>(ival.discrete.denominator) / ival.discrete.numerator);
+                out.push_back(static_cast<double>(ival.discrete.denominator) /
+                              ival.discrete.numerator);
         } else {
             // Continuous or stepwise ranges: the fastest rate says what the mode can do.
             if (ival.stepwise.min.numerator > 0) {
@@ -210,7 +212,8 @@ public:
         return &it->second;
     }
 
-    Status error(const std::string& key, const std::string& value, std::string_view expected) const {
+    Status error(const std::string& key, const std::string& value,
+                 std::string_view expected) const {
         return {ErrorCode::kInvalidArgument, "v4l2 device '" + config_.name + "': option '" + key +
                                                  "': expected " + std::string(expected) +
                                                  ", got '" + value + "'"};
@@ -266,8 +269,9 @@ public:
                 continue;
             return {ErrorCode::kInvalidArgument,
                     "v4l2 device '" + config_.name + "': unknown option '" + key +
-                        "' (known: format, width, height, fps, decode, io, buffers, pool, role, "
-                        "clock, ctrl.<key>)"};
+                        "' (known: color.format, color.width, color.height, color.fps, io, "
+                        "buffers, pool, role, clock, exposure_us, auto_white_balance, "
+                        "white_balance_k, ctrl.<key>)"};
         }
         return Status::ok();
     }
@@ -300,30 +304,49 @@ Result<V4l2Options> V4l2Options::fromConfig(const DeviceConfig& config) {
     V4l2Options o;
     o.fourcc = V4L2_PIX_FMT_YUYV;
     OptionReader reader(config);
-    MIXRAY_RETURN_IF_ERROR(reader.choice<uint32_t>(
-        "format", o.fourcc, {{"yuyv", V4L2_PIX_FMT_YUYV}, {"mjpeg", V4L2_PIX_FMT_MJPEG}},
-        "yuyv or mjpeg"));
-    MIXRAY_RETURN_IF_ERROR(reader.integer("width", o.width, 16, 16384, "an integer in [16, 16384]"));
-    MIXRAY_RETURN_IF_ERROR(reader.integer("height", o.height, 8, 16384, "an integer in [8, 16384]"));
-    if (const std::string* text = reader.find("fps")) {
+    if (const std::string* text = reader.find("color.format")) {
+        if (*text == "yuyv") {
+            o.fourcc = V4L2_PIX_FMT_YUYV;
+        } else if (*text == "mjpeg" || *text == "rgb8") {
+            o.fourcc = V4L2_PIX_FMT_MJPEG;
+            o.decode_rgb = *text == "rgb8";
+        } else {
+            return reader.error("color.format", *text, "yuyv, mjpeg or rgb8 (mjpeg decoded)");
+        }
+    }
+    MIXRAY_RETURN_IF_ERROR(
+        reader.integer("color.width", o.width, 16, 16384, "an integer in [16, 16384]"));
+    MIXRAY_RETURN_IF_ERROR(
+        reader.integer("color.height", o.height, 8, 16384, "an integer in [8, 16384]"));
+    if (const std::string* text = reader.find("color.fps")) {
         const char* end = text->data() + text->size();
         auto [ptr, ec] = std::from_chars(text->data(), end, o.fps);
         if (ec != std::errc() || ptr != end || !std::isfinite(o.fps) || o.fps < 0 || o.fps > 1e4)
-            return reader.error("fps", *text, "a rate in [0, 10000] (0: the driver's)");
+            return reader.error("color.fps", *text, "a rate in [0, 10000] (0: the driver's)");
     }
-    MIXRAY_RETURN_IF_ERROR(
-        reader.choice<bool>("decode", o.decode_rgb, {{"none", false}, {"rgb", true}}, "none or rgb"));
     MIXRAY_RETURN_IF_ERROR(reader.choice<IoMethod>(
-        "io", o.io, {{"mmap", IoMethod::kMmap}, {"userptr", IoMethod::kUserPtr}}, "mmap or userptr"));
+        "io", o.io, {{"mmap", IoMethod::kMmap}, {"userptr", IoMethod::kUserPtr}},
+        "mmap or userptr"));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer<uint32_t>("buffers", o.buffers, 2, 32, "an integer in [2, 32]"));
-    MIXRAY_RETURN_IF_ERROR(reader.integer<size_t>("pool", o.pool, 1, 1024, "an integer in [1, 1024]"));
+    MIXRAY_RETURN_IF_ERROR(
+        reader.integer<size_t>("pool", o.pool, 1, 1024, "an integer in [1, 1024]"));
     MIXRAY_RETURN_IF_ERROR(reader.choice<Role>(
         "role", o.role, {{"camera", Role::kCamera}, {"environment", Role::kEnvironment}},
         "camera or environment"));
     MIXRAY_RETURN_IF_ERROR(reader.choice<ClockMode>(
         "clock", o.clock, {{"auto", ClockMode::kAuto}, {"device", ClockMode::kDevice}},
         "auto or device"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer<int32_t>("exposure_us", o.exposure_us, 1, 100'000'000,
+                                                   "microseconds in [1, 1e8]"));
+    if (reader.find("auto_white_balance")) {
+        bool on = true;
+        MIXRAY_RETURN_IF_ERROR(reader.choice<bool>(
+            "auto_white_balance", on, {{"true", true}, {"false", false}}, "true or false"));
+        o.auto_white_balance = on ? 1 : 0;
+    }
+    MIXRAY_RETURN_IF_ERROR(reader.integer<int32_t>("white_balance_k", o.white_balance_k, 1000,
+                                                   20000, "kelvin in [1000, 20000]"));
     MIXRAY_RETURN_IF_ERROR(reader.controls(o.controls));
     MIXRAY_RETURN_IF_ERROR(reader.leftovers());
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("v4l2 device '" + config.name + "'"));
@@ -334,7 +357,11 @@ Status V4l2Options::validate() const {
     if (fourcc != V4L2_PIX_FMT_YUYV && fourcc != V4L2_PIX_FMT_MJPEG)
         return {ErrorCode::kInvalidArgument, "format must be yuyv or mjpeg"};
     if (decode_rgb && fourcc != V4L2_PIX_FMT_MJPEG)
-        return {ErrorCode::kInvalidArgument, "decode=rgb needs format=mjpeg"};
+        return {ErrorCode::kInvalidArgument, "rgb8 frames are decoded from mjpeg"};
+    if (role == Role::kEnvironment && auto_white_balance == 1) {
+        return {ErrorCode::kInvalidArgument,
+                "role=environment locks white balance: auto_white_balance=true contradicts it"};
+    }
     if (fourcc == V4L2_PIX_FMT_YUYV && width % 2 != 0)
         return {ErrorCode::kInvalidArgument, "yuyv needs an even width"};
     if (buffers < 2 || pool < 1)
@@ -449,6 +476,13 @@ Status V4l2Device::negotiate() {
                                                  formatFps(got) + ")"};
         }
     }
+    // The rate the driver will run at, for the stream's nominal_fps (0 when it does not say).
+    v4l2_streamparm parm{};
+    parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    if (xioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.numerator > 0) {
+        const auto& tpf = parm.parm.capture.timeperframe;
+        nominal_fps_ = static_cast<double>(tpf.denominator) / tpf.numerator;
+    }
     return Status::ok();
 }
 
@@ -466,8 +500,8 @@ Result<int32_t> V4l2Device::control(std::string_view key) const {
         std::string known;
         for (const auto& k : controls_)
             known += (known.empty() ? "" : ", ") + k.key;
-        return {ErrorCode::kNotFound, path_ + " has no control '" + std::string(key) +
-                                          "' (it has: " + known + ")"};
+        return {ErrorCode::kNotFound,
+                path_ + " has no control '" + std::string(key) + "' (it has: " + known + ")"};
     }
     v4l2_control ctrl{};
     ctrl.id = c->id;
@@ -505,35 +539,65 @@ Status V4l2Device::setControl(std::string_view key, int32_t value) {
                                          std::to_string(value) + " reads back " +
                                          std::to_string(*readback)};
     }
+    if (c.id == V4L2_CID_EXPOSURE_AUTO || c.id == V4L2_CID_EXPOSURE_ABSOLUTE)
+        updateExposure();
     return Status::ok();
 }
 
+const ControlInfo* V4l2Device::findControlById(uint32_t id) const {
+    for (const auto& c : controls_) {
+        if (c.id == id)
+            return &c;
+    }
+    return nullptr;
+}
+
+Status V4l2Device::setControlById(uint32_t id, int32_t value, std::string_view what) {
+    const ControlInfo* c = findControlById(id);
+    if (!c)
+        return {ErrorCode::kUnsupported, path_ + " has no control for " + std::string(what)};
+    return setControl(c->key, value);
+}
+
 Status V4l2Device::applyControls() {
-    if (options_.role == V4l2Options::Role::kEnvironment) {
-        // Light estimation compares frame brightness and colour over time: the camera must not
-        // rescale either on its own. UVC names: "Auto Exposure" menu (1 = manual) and "White
-        // Balance, Automatic" (older drivers: "White Balance Temperature, Auto").
-        bool exposure = false;
-        bool white = false;
-        for (const auto& c : controls_) {
-            if (c.id == V4L2_CID_EXPOSURE_AUTO) {
-                MIXRAY_RETURN_IF_ERROR(setControl(c.key, V4L2_EXPOSURE_MANUAL));
-                exposure = true;
-            } else if (c.id == V4L2_CID_AUTO_WHITE_BALANCE) {
-                MIXRAY_RETURN_IF_ERROR(setControl(c.key, 0));
-                white = true;
-            }
-        }
-        if (!exposure || !white) {
-            return {ErrorCode::kUnsupported,
-                    path_ + ": role=environment needs controls to lock " +
-                        std::string(!exposure ? "exposure" : "white balance") +
-                        " to manual, and the device has none"};
-        }
+    const bool environment = options_.role == V4l2Options::Role::kEnvironment;
+    // Light estimation compares frame brightness and colour over time: the environment camera
+    // must not rescale either on its own. Manual values are refused by uvcvideo while their
+    // automatic control is on, so the automatic ones are switched first.
+    if (environment || options_.exposure_us > 0) {
+        MIXRAY_RETURN_IF_ERROR(
+            setControlById(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, "manual exposure"));
+    }
+    if (options_.exposure_us > 0) {
+        // UVC exposure times are in units of 100 µs.
+        MIXRAY_RETURN_IF_ERROR(setControlById(V4L2_CID_EXPOSURE_ABSOLUTE,
+                                              (options_.exposure_us + 50) / 100, "exposure_us"));
+    }
+    if (environment || options_.auto_white_balance >= 0 || options_.white_balance_k > 0) {
+        const int32_t on = options_.auto_white_balance == 1 ? 1 : 0;
+        MIXRAY_RETURN_IF_ERROR(
+            setControlById(V4L2_CID_AUTO_WHITE_BALANCE, on, "automatic white balance"));
+    }
+    if (options_.white_balance_k > 0) {
+        MIXRAY_RETURN_IF_ERROR(setControlById(V4L2_CID_WHITE_BALANCE_TEMPERATURE,
+                                              options_.white_balance_k, "white_balance_k"));
     }
     for (const auto& [key, value] : options_.controls)
         MIXRAY_RETURN_IF_ERROR(setControl(key, value));
     return Status::ok();
+}
+
+void V4l2Device::updateExposure() {
+    int64_t exposure_us = -1;
+    const ControlInfo* mode = findControlById(V4L2_CID_EXPOSURE_AUTO);
+    const ControlInfo* time = findControlById(V4L2_CID_EXPOSURE_ABSOLUTE);
+    if (mode && time) {
+        auto m = control(mode->key);
+        auto t = control(time->key);
+        if (m && t && *m == V4L2_EXPOSURE_MANUAL)
+            exposure_us = static_cast<int64_t>(*t) * 100;
+    }
+    exposure_us_.store(exposure_us);
 }
 
 Status V4l2Device::connect(Graph& graph) {
@@ -544,7 +608,7 @@ Status V4l2Device::connect(Graph& graph) {
     info.device = name_;
     info.kind = StreamKind::kColor;
     info.format = desc_;
-    info.nominal_fps = options_.fps;
+    info.nominal_fps = nominal_fps_;
     clock_domain_ = kHostClockDomain;
     if (options_.clock == V4l2Options::ClockMode::kDevice)
         clock_domain_ = hashDomain(name_);
@@ -571,8 +635,7 @@ Status V4l2Device::connect(Graph& graph) {
 }
 
 Status V4l2Device::allocateBuffers() {
-    const uint32_t memory =
-        options_.io == IoMethod::kMmap ? V4L2_MEMORY_MMAP : V4L2_MEMORY_USERPTR;
+    const uint32_t memory = options_.io == IoMethod::kMmap ? V4L2_MEMORY_MMAP : V4L2_MEMORY_USERPTR;
     v4l2_requestbuffers req{};
     req.count = options_.buffers;
     req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -596,8 +659,8 @@ Status V4l2Device::allocateBuffers() {
         if (options_.io == IoMethod::kMmap) {
             if (xioctl(fd_, VIDIOC_QUERYBUF, &buf) != 0)
                 return {ErrorCode::kIoError, path_ + ": VIDIOC_QUERYBUF: " + errnoText(errno)};
-            void* p = ::mmap(nullptr, buf.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_,
-                             buf.m.offset);
+            void* p =
+                ::mmap(nullptr, buf.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, buf.m.offset);
             if (p == MAP_FAILED)
                 return {ErrorCode::kIoError, path_ + ": mmap of a buffer: " + errnoText(errno)};
             buffers_[i] = {static_cast<uint8_t*>(p), buf.length, true};
@@ -695,8 +758,7 @@ void V4l2Device::fail(Status status) {
 }
 
 void V4l2Device::run() {
-    const uint32_t memory =
-        options_.io == IoMethod::kMmap ? V4L2_MEMORY_MMAP : V4L2_MEMORY_USERPTR;
+    const uint32_t memory = options_.io == IoMethod::kMmap ? V4L2_MEMORY_MMAP : V4L2_MEMORY_USERPTR;
     while (!stop_requested_.load()) {
         // The timeout bounds the wait on nodes whose poll never reports POLLIN (umockdev's
         // emulated nodes); a driver that does wakes us when a buffer is done. Either way the
@@ -767,13 +829,14 @@ void V4l2Device::run() {
                 meta.device_stamp_ns = static_cast<int64_t>(buf.timestamp.tv_sec) * 1'000'000'000 +
                                        static_cast<int64_t>(buf.timestamp.tv_usec) * 1000;
                 meta.host_stamp_ns = host_ns;
-                const bool monotonic = (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) ==
-                                       V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+                meta.exposure_us = exposure_us_.load(std::memory_order_relaxed);
+                const bool monotonic =
+                    (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
                 // Kernel stamps on CLOCK_MONOTONIC are host time already; any other stamp
                 // needs the clock model of a domain of its own.
                 meta.clock_domain = monotonic ? clock_domain_ : hashDomain(name_);
-                meta.status = (buf.flags & V4L2_BUF_FLAG_ERROR) ? FrameStatus::kIncomplete
-                                                                : FrameStatus::kOk;
+                meta.status =
+                    (buf.flags & V4L2_BUF_FLAG_ERROR) ? FrameStatus::kIncomplete : FrameStatus::kOk;
                 graph_->publish(std::move(frame).publish());
                 published_.fetch_add(1, std::memory_order_relaxed);
             }
@@ -863,6 +926,7 @@ Result<std::unique_ptr<Device>> V4l2Backend::open(const DeviceConfig& config) {
     MIXRAY_RETURN_IF_ERROR(device->openNode().withContext(context));
     MIXRAY_RETURN_IF_ERROR(device->negotiate().withContext(context));
     MIXRAY_RETURN_IF_ERROR(device->applyControls().withContext(context));
+    device->updateExposure();
     return std::unique_ptr<Device>(std::move(device));
 }
 

@@ -23,8 +23,8 @@ enum class IoMethod : uint8_t { kMmap, kUserPtr };
 // What a V4L2 control is, as VIDIOC_QUERYCTRL describes it.
 struct ControlInfo {
     uint32_t id = 0;
-    std::string name;  // as the driver names it: "Exposure, Auto"
-    std::string key;   // the rig option key: lowercase, runs of other characters as '_'
+    std::string name;   // as the driver names it: "Exposure, Auto"
+    std::string key;    // the rig option key: lowercase, runs of other characters as '_'
     uint32_t type = 0;  // V4L2_CTRL_TYPE_*
     int32_t minimum = 0;
     int32_t maximum = 0;
@@ -36,28 +36,32 @@ struct ControlInfo {
 // "Exposure, Auto" -> "exposure_auto" (the names v4l2-ctl uses).
 std::string controlKey(std::string_view name);
 
-// How a V4L2 device is opened. Parsed from DeviceConfig::options (all values are strings):
-//   format      yuyv | mjpeg (default yuyv)
-//   width, height   frame size the device lists for the format (default 640x480)
-//   fps         frame rate set with VIDIOC_S_PARM, 0 = the driver's (default 0)
-//   decode      none | rgb: MJPEG frames kept compressed (kMJPEG, for recording) or decoded
-//               to kRGB8 with libjpeg-turbo (default none)
-//   io          mmap | userptr (default mmap)
-//   buffers     driver buffers, 2..32 (default 4)
-//   pool        graph buffers of the stream, 1..1024 (default 8)
-//   role        camera | environment: the environment camera's auto exposure and auto white
-//               balance are switched off when it starts, so that light estimation sees fixed
-//               exposure and colour gains (default camera)
-//   clock       auto | device: kernel stamps flagged CLOCK_MONOTONIC are host time already
-//               (kHostClockDomain); `device` (or a driver whose stamps are not monotonic)
-//               gives the device its own clock domain for the graph's ClockModel (default auto)
-//   ctrl.<key>  a control value (integer; booleans and menus as their numbers), e.g.
-//               ctrl.exposure_absolute=150; set in option order... after `role`
+// How a V4L2 device is opened. Parsed from DeviceConfig::options (all values are strings; a
+// rig's `color: 1280x720@30 mjpeg` mode arrives as color.width/height/fps/format):
+//   color.format   yuyv (kYUYV) | mjpeg (kept compressed, kMJPEG, for recording) | rgb8 (the
+//                  camera's MJPEG decoded with libjpeg-turbo) (default yuyv)
+//   color.width, color.height   a frame size the device lists (default 640x480)
+//   color.fps      frame rate set with VIDIOC_S_PARM, 0 = the driver's (default 0)
+//   io             mmap | userptr (default mmap)
+//   buffers        driver buffers, 2..32 (default 4)
+//   pool           graph buffers of the stream, 1..1024 (default 8)
+//   role           camera | environment: the environment camera's exposure and white balance
+//                  are locked to manual, so that light estimation sees fixed exposure and
+//                  colour gains (default camera)
+//   exposure_us    manual exposure time (auto exposure off; UVC counts 100 µs units)
+//   auto_white_balance   true | false
+//   white_balance_k      manual white balance temperature in kelvin
+//   clock          auto | device: kernel stamps flagged CLOCK_MONOTONIC are host time already
+//                  (kHostClockDomain); `device`, or a driver whose stamps are not monotonic,
+//                  gives the device a clock domain of its own for the graph's ClockModel
+//                  (default auto)
+//   ctrl.<key>     any control by its key (integer; booleans and menus as their numbers),
+//                  e.g. ctrl.brightness=10; set after the settings above, in key order
 struct V4l2Options {
     enum class Role : uint8_t { kCamera, kEnvironment };
     enum class ClockMode : uint8_t { kAuto, kDevice };
 
-    uint32_t fourcc = 0;  // V4L2_PIX_FMT_YUYV or V4L2_PIX_FMT_MJPEG
+    uint32_t fourcc = 0x56595559;  // V4L2_PIX_FMT_YUYV, or V4L2_PIX_FMT_MJPEG
     int width = 640;
     int height = 480;
     double fps = 0;
@@ -67,6 +71,9 @@ struct V4l2Options {
     size_t pool = 8;
     Role role = Role::kCamera;
     ClockMode clock = ClockMode::kAuto;
+    int32_t exposure_us = 0;                  // 0: not set
+    int32_t auto_white_balance = -1;          // -1: not set, else 0 or 1
+    int32_t white_balance_k = 0;              // 0: not set
     std::map<std::string, int32_t> controls;  // by key
 
     // kInvalidArgument naming the device and the option for unknown keys and bad values.
@@ -78,7 +85,8 @@ struct V4l2Options {
 // "<name>/color": kYUYV, kMJPEG or kRGB8 at the negotiated size. The driver's sequence numbers
 // become frame sequences (a gap is a frame the driver lost); the kernel buffer timestamp is
 // the device stamp, the host CLOCK_MONOTONIC at dequeue the host stamp. Buffers the driver
-// flags V4L2_BUF_FLAG_ERROR are published as FrameStatus::kIncomplete. A frame is copied (or
+// flags V4L2_BUF_FLAG_ERROR are published as FrameStatus::kIncomplete; exposure_us is set
+// while exposure is manual (-1 otherwise). A frame is copied (or
 // decoded) from the driver's buffer into the stream's pool and the buffer is queued again at
 // once; when the pool is empty the frame is dropped (counted), as a camera does not wait.
 // open() (through V4l2Backend) opens the node, checks it captures and streams, negotiates the
@@ -105,7 +113,7 @@ public:
     ClockDomainId clockDomain() const { return clock_domain_; }
 
     std::vector<ControlInfo> controls() const { return controls_; }
-    // By key ("exposure_absolute"); kNotFound naming the known keys.
+    // By key ("exposure_time_absolute"); kNotFound naming the known keys.
     Result<int32_t> control(std::string_view key) const;
     // Sets and reads back; kInvalidArgument outside the control's range, kIoError when the
     // driver refuses or reports another value.
@@ -124,6 +132,11 @@ private:
     Status openNode();
     Status negotiate();
     Status applyControls();
+    const ControlInfo* findControlById(uint32_t id) const;
+    Status setControlById(uint32_t id, int32_t value, std::string_view what);
+    // Caches the exposure time frames report (FrameMetadata::exposure_us): known only while
+    // exposure is manual.
+    void updateExposure();
     Status allocateBuffers();
     void freeBuffers();
     void run();
@@ -141,9 +154,10 @@ private:
     V4l2Options options_;
     DeviceDescriptor descriptor_;
     int fd_ = -1;
-    int wake_fd_ = -1;  // eventfd that interrupts the capture thread's poll
-    ImageDesc desc_;        // what the graph sees
+    int wake_fd_ = -1;        // eventfd that interrupts the capture thread's poll
+    ImageDesc desc_;          // what the graph sees
     uint32_t sizeimage_ = 0;  // bytes of one driver buffer
+    double nominal_fps_ = 0;
     std::vector<ControlInfo> controls_;
     std::vector<Buffer> buffers_;
     bool streaming_ = false;
@@ -161,15 +175,16 @@ private:
     std::atomic<uint64_t> exhausted_{0};
     std::atomic<uint64_t> decode_errors_{0};
     std::atomic<uint64_t> gaps_{0};
+    std::atomic<int64_t> exposure_us_{-1};
     mutable std::mutex error_mutex_;
     Status error_;
 };
 
-// Lists the capture nodes under `dev_dir` whose names start with "video" (from
-// /sys/class/video4linux when it exists, else from the directory itself), with their formats,
-// frame sizes and rates. Nodes that do not capture (UVC metadata nodes) are left out.
-// The "v4l2" backend: DeviceConfig::id is a node path ("/dev/video0"), a node name
-// ("video0") or a card name ("HD Webcam"); empty opens the first capture node.
+// The "v4l2" backend. enumerate() lists the /dev/videoN nodes (named by /sys/class/video4linux
+// when it exists, else by /dev) that capture video and stream, with their formats, frame sizes
+// and fastest rates; other nodes (UVC metadata nodes) are left out. DeviceConfig::id is a node
+// path ("/dev/video0"), a node name ("video0") or a card name ("HD Webcam"); empty opens the
+// first capture node.
 // Thread-bound, like every DeviceBackend.
 class V4l2Backend : public DeviceBackend {
 public:
@@ -178,8 +193,8 @@ public:
     Result<std::unique_ptr<Device>> open(const DeviceConfig& config) override;
 };
 
-// The descriptor of one node (its modes as "yuyv 640x480@30 yuyv", "mjpeg 1280x720@30
-// mjpeg"); kNotFound or kUnsupported when it is no capture device.
+// The descriptor of one node, its modes as "yuyv 640x480@30", "mjpeg 1280x720@30"; kNotFound
+// or kUnsupported when it is no capture device.
 Result<DeviceDescriptor> describeNode(const std::string& path);
 
 }  // namespace mixray::v4l2
