@@ -180,6 +180,14 @@ TEST(V4l2Device, RefusesAModeTheCameraDoesNotHave) {
     EXPECT_EQ(rate.status().code(), ErrorCode::kUnsupported);
 }
 
+TEST(V4l2Device, SetsTheFrameRate) {
+    MIXRAY_REQUIRE_EMULATOR(e);
+    auto cap = capture(config({{"color.fps", "15"}}));
+    ASSERT_TRUE(cap);
+    EXPECT_EQ(cap->graph.stream(cap->device->streamId()).nominal_fps, 15.0);
+    EXPECT_EQ(cap->device->format(), (ImageDesc{PixelFormat::kYUYV, 640, 480, 1280}));
+}
+
 TEST(V4l2Device, StreamsYuyvThroughUserPtrBuffers) {
     MIXRAY_REQUIRE_EMULATOR(e);
     auto cap = capture(config({{"io", "userptr"},
@@ -220,6 +228,7 @@ TEST(V4l2Device, StreamsYuyvThroughUserPtrBuffers) {
             ASSERT_EQ(m.sequence, i);
             EXPECT_EQ(m.status, FrameStatus::kOk);
             EXPECT_EQ(m.clock_domain, kHostClockDomain);
+            EXPECT_EQ(m.exposure_us, -1);  // auto exposure: the time is the camera's secret
             ASSERT_TRUE(stamps.count(m.sequence));
             EXPECT_EQ(m.device_stamp_ns, stamps.at(m.sequence));
             // The kernel stamps capture; the frame is dequeued later, and before the test's
