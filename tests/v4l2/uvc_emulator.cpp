@@ -558,6 +558,20 @@ void UvcEmulator::unplug() {
     state_->unplugged = true;
 }
 
+void UvcEmulator::replug() {
+    std::lock_guard lock(state_->mutex);
+    State& s = *state_;
+    s.unplugged = false;
+    s.streaming = false;
+    s.queue.clear();
+    s.buffer_count = 0;
+    s.fourcc = V4L2_PIX_FMT_YUYV;
+    s.size = {320, 240};
+    s.fps = 30;
+    for (const auto& c : controlTable())
+        s.values[c.id] = c.default_value;
+}
+
 std::map<uint64_t, int64_t> UvcEmulator::stamps() const {
     std::lock_guard lock(state_->mutex);
     return state_->stamps;

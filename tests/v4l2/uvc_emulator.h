@@ -42,6 +42,9 @@ public:
     void setUnknownClock(bool unknown);
     // From now on every ioctl fails with ENODEV, as after an unplug.
     void unplug();
+    // The camera is back, as a camera freshly plugged in: not streaming, no buffers, default
+    // format and control values.
+    void replug();
 
     // Stamps (ns) of the frames dequeued, by sequence.
     std::map<uint64_t, int64_t> stamps() const;

@@ -446,10 +446,13 @@ TEST(V4l2Device, MmapNeedsRealHardware) {
     EXPECT_NE(s.message().find("VIDIOC_REQBUFS (mmap)"), std::string::npos) << s.message();
 }
 
-TEST(V4l2Device, AnUnpluggedCameraEndsItsStream) {
+TEST(V4l2Device, AnUnpluggedCameraEndsItsStreamWithoutReconnect) {
     MIXRAY_REQUIRE_EMULATOR(e);
-    auto cap = capture(config(
-        {{"io", "userptr"}, {"color.width", "320"}, {"color.height", "240"}, {"pool", "16"}}));
+    auto cap = capture(config({{"io", "userptr"},
+                               {"color.width", "320"},
+                               {"color.height", "240"},
+                               {"pool", "16"},
+                               {"reconnect", "false"}}));
     ASSERT_TRUE(cap);
     ASSERT_TRUE(cap->graph.start());
     ASSERT_EQ(take(*cap->queue, 2).size(), 2u);
@@ -460,6 +463,55 @@ TEST(V4l2Device, AnUnpluggedCameraEndsItsStream) {
     const Status error = cap->device->error();
     EXPECT_EQ(error.code(), ErrorCode::kUnavailable) << error.toString();
     cap->graph.stop();
+}
+
+// Waits until `done` holds, for at most 10 s (a bound against a hang, not a timing check).
+template <typename Predicate>
+bool eventually(Predicate done) {
+    const auto deadline = std::chrono::steady_clock::now() + seconds(10);
+    while (!done()) {
+        if (std::chrono::steady_clock::now() > deadline)
+            return false;
+        usleep(2000);
+    }
+    return true;
+}
+
+TEST(V4l2Device, AnUnpluggedCameraResumesWhenItComesBack) {
+    MIXRAY_REQUIRE_EMULATOR(e);
+    auto cap = capture(config({{"io", "userptr"},
+                               {"color.width", "640"},
+                               {"color.height", "480"},
+                               {"pool", "16"},
+                               {"ctrl.brightness", "12"}}));
+    ASSERT_TRUE(cap);
+    ASSERT_TRUE(cap->graph.start());
+    ASSERT_EQ(take(*cap->queue, 3).size(), 3u);
+    e->unplug();
+    ASSERT_TRUE(eventually([&] { return !cap->device->error().isOk(); }));
+    EXPECT_EQ(cap->device->error().code(), ErrorCode::kUnavailable);
+    EXPECT_NE(cap->device->error().message().find("lost"), std::string::npos);
+    // Frames dequeued before the loss may still be queued; the stream itself goes on.
+    while (cap->queue->tryPop()) {
+    }
+    EXPECT_FALSE(cap->queue->closed());
+
+    // Plugged in again, the camera has forgotten its format and controls: both are set again.
+    e->replug();
+    const auto frames = take(*cap->queue, 3);
+    ASSERT_EQ(frames.size(), 3u) << cap->device->error().toString();
+    EXPECT_TRUE(cap->device->error()) << cap->device->error().toString();
+    EXPECT_EQ(cap->device->reconnects(), 1u);
+    EXPECT_EQ(e->control(V4L2_CID_BRIGHTNESS), 12);
+    EXPECT_EQ(e->streamOnCount(), 2u);
+    for (size_t i = 0; i < frames.size(); ++i) {
+        // The driver counts from 0 again after the replug.
+        EXPECT_EQ(frames[i].meta().sequence, i);
+        EXPECT_EQ(frames[i].image().desc, (ImageDesc{PixelFormat::kYUYV, 640, 480, 1280}));
+        EXPECT_EQ(frames[i].image().data[640 * 2 * 7 + 100], test::yuyvByte(i, 100, 7));
+    }
+    cap->graph.stop();
+    EXPECT_FALSE(e->streaming());
 }
 
 TEST(Mjpeg, RefusesWhatIsNotAJpeg) {

@@ -27,6 +27,8 @@ namespace {
 
 // Longest wait for a frame before asking the driver again (see V4l2Device::run).
 constexpr int kPollTimeoutMs = 5;
+// How often a lost camera's node is tried again.
+constexpr int kReconnectIntervalMs = 200;
 
 int xioctl(int fd, unsigned long request, void* arg) {
     int r;
@@ -271,7 +273,7 @@ public:
                     "v4l2 device '" + config_.name + "': unknown option '" + key +
                         "' (known: color.format, color.width, color.height, color.fps, io, "
                         "buffers, pool, role, clock, exposure_us, auto_white_balance, "
-                        "white_balance_k, ctrl.<key>)"};
+                        "white_balance_k, reconnect, ctrl.<key>)"};
         }
         return Status::ok();
     }
@@ -347,6 +349,9 @@ Result<V4l2Options> V4l2Options::fromConfig(const DeviceConfig& config) {
     }
     MIXRAY_RETURN_IF_ERROR(reader.integer<int32_t>("white_balance_k", o.white_balance_k, 1000,
                                                    20000, "kelvin in [1000, 20000]"));
+    MIXRAY_RETURN_IF_ERROR(reader.choice<bool>("reconnect", o.reconnect,
+                                               {{"true", true}, {"false", false}},
+                                               "true or false"));
     MIXRAY_RETURN_IF_ERROR(reader.controls(o.controls));
     MIXRAY_RETURN_IF_ERROR(reader.leftovers());
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("v4l2 device '" + config.name + "'"));
@@ -740,8 +745,10 @@ void V4l2Device::stop() {
         int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
         (void)xioctl(fd_, VIDIOC_STREAMOFF, &type);
         streaming_ = false;
-        freeBuffers();
     }
+    // Also after a reconnection that failed half-way.
+    if (!buffers_.empty())
+        freeBuffers();
 }
 
 Status V4l2Device::error() const {
@@ -749,12 +756,75 @@ Status V4l2Device::error() const {
     return error_;
 }
 
+void V4l2Device::setError(Status status) {
+    std::lock_guard lock(error_mutex_);
+    error_ = status.isOk() ? status : status.withContext("v4l2 device '" + name_ + "'");
+}
+
 void V4l2Device::fail(Status status) {
-    {
-        std::lock_guard lock(error_mutex_);
-        error_ = status.withContext("v4l2 device '" + name_ + "'");
-    }
+    setError(std::move(status));
     graph_->endStream(stream_);
+}
+
+void V4l2Device::releaseNode() {
+    freeBuffers();
+    streaming_ = false;
+    if (fd_ >= 0)
+        ::close(fd_);
+    fd_ = -1;
+}
+
+Status V4l2Device::reopen() {
+    const int fd = ::open(path_.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return {ErrorCode::kUnavailable, "cannot open " + path_ + ": " + errnoText(errno)};
+    fd_ = fd;
+    auto info = queryNode(fd, path_);
+    if (!info)
+        return info.status();
+    const ImageDesc before = desc_;
+    MIXRAY_RETURN_IF_ERROR(negotiate());
+    if (!(desc_ == before)) {
+        // The pool holds the old layout: frames of the new one would not fit its buffers.
+        desc_ = before;
+        return {ErrorCode::kUnsupported, path_ + " came back with another frame layout"};
+    }
+    MIXRAY_RETURN_IF_ERROR(applyControls());
+    MIXRAY_RETURN_IF_ERROR(allocateBuffers());
+    int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    if (xioctl(fd_, VIDIOC_STREAMON, &type) != 0)
+        return {ErrorCode::kIoError, path_ + ": VIDIOC_STREAMON: " + errnoText(errno)};
+    streaming_ = true;
+    return Status::ok();
+}
+
+bool V4l2Device::recover(Status lost) {
+    if (!options_.reconnect) {
+        fail(std::move(lost));
+        return false;
+    }
+    setError({ErrorCode::kUnavailable, lost.message() + "; reopening it when it answers"});
+    // Nothing of the old node can be trusted: its buffers and its file go.
+    releaseNode();
+    while (!stop_requested_.load()) {
+        pollfd wake = {wake_fd_, POLLIN, 0};
+        (void)::poll(&wake, 1, kReconnectIntervalMs);
+        if (stop_requested_.load())
+            return false;
+        const Status s = reopen();
+        if (s.isOk()) {
+            have_sequence_ = false;
+            reconnects_.fetch_add(1, std::memory_order_relaxed);
+            setError(Status::ok());
+            return true;
+        }
+        releaseNode();
+        if (s.code() == ErrorCode::kUnsupported) {
+            fail(s);
+            return false;
+        }
+    }
+    return false;
 }
 
 void V4l2Device::run() {
@@ -777,9 +847,12 @@ void V4l2Device::run() {
             if (errno == EAGAIN)
                 continue;
             const int err = errno;
-            fail({err == ENODEV ? ErrorCode::kUnavailable : ErrorCode::kIoError,
-                  path_ + ": VIDIOC_DQBUF: " + errnoText(err) +
-                      (err == ENODEV ? " (device unplugged?)" : "")});
+            if (err == ENODEV) {
+                if (recover({ErrorCode::kUnavailable, path_ + " was lost (unplugged?)"}))
+                    continue;
+                return;
+            }
+            fail({ErrorCode::kIoError, path_ + ": VIDIOC_DQBUF: " + errnoText(err)});
             return;
         }
         const int64_t host_ns = monotonicNowNs();
@@ -850,8 +923,12 @@ void V4l2Device::run() {
         buf.flags = 0;
         if (xioctl(fd_, VIDIOC_QBUF, &buf) != 0) {
             const int err = errno;
-            fail({err == ENODEV ? ErrorCode::kUnavailable : ErrorCode::kIoError,
-                  path_ + ": VIDIOC_QBUF: " + errnoText(err)});
+            if (err == ENODEV) {
+                if (recover({ErrorCode::kUnavailable, path_ + " was lost (unplugged?)"}))
+                    continue;
+                return;
+            }
+            fail({ErrorCode::kIoError, path_ + ": VIDIOC_QBUF: " + errnoText(err)});
             return;
         }
     }

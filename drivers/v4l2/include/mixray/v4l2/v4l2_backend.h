@@ -55,6 +55,9 @@ std::string controlKey(std::string_view name);
 //                  (kHostClockDomain); `device`, or a driver whose stamps are not monotonic,
 //                  gives the device a clock domain of its own for the graph's ClockModel
 //                  (default auto)
+//   reconnect      true | false: a camera lost while streaming is reopened when its node
+//                  answers again (renegotiated, controls set again), or its stream ends
+//                  (default true)
 //   ctrl.<key>     any control by its key (integer; booleans and menus as their numbers),
 //                  e.g. ctrl.brightness=10; set after the settings above, in key order
 struct V4l2Options {
@@ -74,6 +77,7 @@ struct V4l2Options {
     int32_t exposure_us = 0;                  // 0: not set
     int32_t auto_white_balance = -1;          // -1: not set, else 0 or 1
     int32_t white_balance_k = 0;              // 0: not set
+    bool reconnect = true;
     std::map<std::string, int32_t> controls;  // by key
 
     // kInvalidArgument naming the device and the option for unknown keys and bad values.
@@ -92,7 +96,11 @@ struct V4l2Options {
 // open() (through V4l2Backend) opens the node, checks it captures and streams, negotiates the
 // format and sets the controls; start() allocates and queues the buffers and starts
 // streaming; stop() stops streaming and frees them, so start/stop cycle. A device lost while
-// streaming (ENODEV) ends the stream; error() says why.
+// streaming (ENODEV) is reported by error() (kUnavailable) while the capture thread reopens
+// its node every 200 ms; once it answers, the format is negotiated and the controls set again
+// and frames resume (sequences restart from the driver's 0), error() is ok again and
+// reconnects() counts it. With reconnect=false, or when the node comes back with another
+// layout, the stream ends instead (Graph::endStream).
 // Thread-safety: connect/start/stop and the control calls are called by the graph's owner;
 // counters may be read from any thread.
 class V4l2Device : public Device {
@@ -123,6 +131,7 @@ public:
     uint64_t poolExhausted() const { return exhausted_.load(); }
     uint64_t decodeErrors() const { return decode_errors_.load(); }
     uint64_t sequenceGaps() const { return gaps_.load(); }  // frames the driver skipped
+    uint64_t reconnects() const { return reconnects_.load(); }
     // Ok while streaming or stopped on request; the failure that ended capture otherwise.
     Status error() const;
 
@@ -141,6 +150,11 @@ private:
     void freeBuffers();
     void run();
     void fail(Status status);
+    void setError(Status status);
+    // On the capture thread after ENODEV: false when capture must end.
+    bool recover(Status lost);
+    Status reopen();
+    void releaseNode();
     const ControlInfo* findControl(std::string_view key) const;
 
     struct Buffer {
@@ -153,7 +167,7 @@ private:
     std::string path_;
     V4l2Options options_;
     DeviceDescriptor descriptor_;
-    int fd_ = -1;
+    std::atomic<int> fd_{-1};  // replaced by the capture thread when it reconnects
     int wake_fd_ = -1;        // eventfd that interrupts the capture thread's poll
     ImageDesc desc_;          // what the graph sees
     uint32_t sizeimage_ = 0;  // bytes of one driver buffer
@@ -176,6 +190,7 @@ private:
     std::atomic<uint64_t> decode_errors_{0};
     std::atomic<uint64_t> gaps_{0};
     std::atomic<int64_t> exposure_us_{-1};
+    std::atomic<uint64_t> reconnects_{0};
     mutable std::mutex error_mutex_;
     Status error_;
 };
