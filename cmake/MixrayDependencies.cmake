@@ -76,4 +76,6 @@ if(MIXRAY_BUILD_TESTS)
     mixray_require(benchmark_FOUND "Google Benchmark" libbenchmark-dev)
     # ERFA (the IAU SOFA routines): an independent reference for the sun's position tests.
     mixray_pkg(ERFA erfa liberfa-dev)
+    # umockdev: emulated /dev and /sys for the V4L2 backend's tests (a UVC camera in software).
+    mixray_pkg(UMOCKDEV umockdev-1.0 libumockdev-dev)
 endif()

@@ -7,6 +7,7 @@
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/replay/replay_backend.h"
+#include "mixray/v4l2/v4l2_backend.h"
 
 namespace mixray::cli {
 
@@ -16,6 +17,7 @@ BackendRegistry makeBackendRegistry() {
     (void)registry.add(std::make_unique<replay::ReplayBackend>());
     (void)registry.add(std::make_unique<pattern::PatternBackend>());
     (void)registry.add(std::make_unique<aravis::AravisBackend>());
+    (void)registry.add(std::make_unique<v4l2::V4l2Backend>());
     return registry;
 }
 
