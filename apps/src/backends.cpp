@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/replay/replay_backend.h"
 
@@ -14,6 +15,7 @@ BackendRegistry makeBackendRegistry() {
     // Names are distinct by construction; add() cannot fail here.
     (void)registry.add(std::make_unique<replay::ReplayBackend>());
     (void)registry.add(std::make_unique<pattern::PatternBackend>());
+    (void)registry.add(std::make_unique<openni2::OpenNI2Backend>());
     return registry;
 }
 
