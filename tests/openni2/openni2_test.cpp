@@ -4,6 +4,7 @@
 #include <OpenNI.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <map>
@@ -166,6 +167,10 @@ TEST(OpenNI2Options, RefusesUnknownKeysAndBadValues) {
     config.options = {{"streams", "depth,sonar"}};
     EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
     config.options = {{"depth.width", "-3"}};
+    EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
+    config.options = {{"depth.fps", "29.97"}};
+    EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
+    config.options = {{"color.format", "rgb9"}};
     EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
     config.options = {{"streams", "depth"}, {"color.fps", "30"}};
     EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
@@ -347,11 +352,15 @@ TEST(OpenNI2Recording, RefusesWhatARecordingCannotDo) {
     ASSERT_FALSE(resized);
     EXPECT_EQ(resized.status().code(), ErrorCode::kInvalidArgument);
     EXPECT_NE(resized.status().message().find("640x480@30"), std::string::npos);
+    auto mono = backend.open(kinectConfig({{"color.format", "mono8"}}));
+    ASSERT_FALSE(mono);
+    EXPECT_EQ(mono.status().code(), ErrorCode::kInvalidArgument);
     auto ir = backend.open(kinectConfig({{"streams", "ir"}}));
     ASSERT_FALSE(ir);
     EXPECT_EQ(ir.status().code(), ErrorCode::kNotFound);
     // What was recorded is accepted.
-    auto same = backend.open(kinectConfig({{"depth.width", "640"}, {"depth.fps", "30"}}));
+    auto same = backend.open(
+        kinectConfig({{"depth.width", "640"}, {"depth.fps", "30.0"}, {"depth.format", "depth16"}}));
     ASSERT_TRUE(same) << same.status().toString();
     EXPECT_EQ((*same)->descriptor().modes,
               (std::vector<std::string>{"depth 640x480@30 depth16", "color 640x480@30 rgb8"}));
@@ -374,6 +383,78 @@ TEST(OpenNI2Recording, AnEmptyRecordingFailsCleanly) {
     auto missing = backend.open(config);
     ASSERT_FALSE(missing);
     EXPECT_EQ(missing.status().code(), ErrorCode::kNotFound);
+}
+
+// OpenNI2's DummyDevice driver (Debian's libopenni2-0 ships it) is a live device: URI "Dummy",
+// depth and colour at 320x240, frame i stamped i * 33 ms, the top depth row at 2000 mm.
+TEST(OpenNI2Live, DummyDeviceStreamsThroughTheGraph) {
+    const auto driver =
+        std::filesystem::path("/usr/lib/x86_64-linux-gnu/OpenNI2/Drivers") / "libDummyDevice.so.0";
+    if (!std::filesystem::exists(driver))
+        GTEST_SKIP() << "OpenNI2's DummyDevice driver is not installed: " << driver;
+    DeviceConfig config;
+    config.name = "dummy";
+    config.driver = "openni2";
+    config.id = "Dummy";
+    config.options = {{"buffers", "16"}};
+
+    OpenNI2Backend backend;
+    config.options["registration"] = "on";
+    EXPECT_EQ(backend.open(config).status().code(), ErrorCode::kUnsupported);
+    config.options.erase("registration");
+    config.options["pace"] = "fast";
+    EXPECT_EQ(backend.open(config).status().code(), ErrorCode::kInvalidArgument);
+    config.options.erase("pace");
+    config.options["depth.width"] = "640";
+    auto too_wide = backend.open(config);
+    ASSERT_FALSE(too_wide);
+    EXPECT_EQ(too_wide.status().code(), ErrorCode::kUnsupported);
+    EXPECT_NE(too_wide.status().message().find("depth 320x240@30 depth16"), std::string::npos);
+    config.options.erase("depth.width");
+
+    Session session;
+    ASSERT_TRUE(startSession(session, config));
+    EXPECT_FALSE(session.device->isRecording());
+    EXPECT_EQ(session.device->descriptor().modes,
+              (std::vector<std::string>{"depth 320x240@30 depth16", "color 320x240@30 rgb8"}));
+    EXPECT_EQ(session.device->softwareUnmirror(), (std::vector<bool>{false, false}));
+    std::vector<FrameRef> depth;
+    std::vector<FrameRef> color;
+    while (depth.size() < 5 || color.size() < 5) {
+        auto d = session.queues.at("dummy/depth")->pop(seconds(10));
+        auto c = session.queues.at("dummy/color")->pop(seconds(10));
+        ASSERT_TRUE(d && c) << "the Dummy device stopped delivering";
+        depth.push_back(std::move(*d));
+        color.push_back(std::move(*c));
+    }
+    session.graph.stop();
+    EXPECT_TRUE(session.device->status()) << session.device->status().toString();
+
+    for (const auto* frames : {&depth, &color}) {
+        for (size_t i = 0; i < frames->size(); ++i) {
+            const FrameMetadata& meta = (*frames)[i].meta();
+            EXPECT_EQ(meta.device_stamp_ns, static_cast<int64_t>(meta.sequence) * 33'000'000);
+            EXPECT_EQ(meta.clock_domain, defaultClockDomain("dummy"));
+            if (i > 0) {
+                EXPECT_GT(meta.sequence, (*frames)[i - 1].meta().sequence);
+            }
+        }
+    }
+    const ImageView first = depth.front().image();
+    EXPECT_EQ(first.desc, ImageDesc::packed(PixelFormat::kDepth16, 320, 240));
+    for (int x = 0; x < first.desc.width; ++x)
+        ASSERT_EQ(first.row<uint16_t>(0)[x], 2000) << "x " << x;
+    EXPECT_EQ(color.front().image().row<uint8_t>(0)[2], 255);  // blue of pixel (0, 0)
+
+    // Once OpenNI2 knows the device, enumerate() lists it with its modes.
+    auto devices = backend.enumerate();
+    ASSERT_TRUE(devices) << devices.status().toString();
+    auto it = std::find_if(devices->begin(), devices->end(),
+                           [](const DeviceDescriptor& d) { return d.id == "Dummy"; });
+    ASSERT_NE(it, devices->end());
+    EXPECT_EQ(it->backend, "openni2");
+    EXPECT_EQ(it->modes,
+              (std::vector<std::string>{"depth 320x240@30 depth16", "color 320x240@30 rgb8"}));
 }
 
 }  // namespace

@@ -18,7 +18,8 @@ namespace {
 
 constexpr int kWaitMs = 100;
 constexpr const char* kKnownOptions =
-    "streams, <stream>.width, <stream>.height, <stream>.fps, registration, sync, pace, speed, "
+    "streams, <stream>.width, <stream>.height, <stream>.fps, <stream>.format, registration, "
+    "sync, pace, speed, "
     "loop, seek, buffers, clock_domain";
 
 int64_t hostNowNs() {
@@ -238,19 +239,33 @@ Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {
         if (dot != std::string::npos) {
             const auto sensor = sensorFromString(std::string_view(key).substr(0, dot));
             const std::string field = key.substr(dot + 1);
-            int number = 0;
-            if (!sensor || (field != "width" && field != "height" && field != "fps")) {
+            if (!sensor ||
+                (field != "width" && field != "height" && field != "fps" && field != "format")) {
                 return {ErrorCode::kInvalidArgument,
                         "openni2 device '" + config.name + "': unknown option '" + key +
                             "' (known: " + kKnownOptions + "; streams: depth, color, ir)"};
             }
-            if (!parseNumber(value, number) || number <= 0 || number > 16384)
-                return badOption(config, key, value, "a positive whole number");
             SensorRequest& request = modes[*sensor];
             request.sensor = *sensor;
-            (field == "width"    ? request.width
-             : field == "height" ? request.height
-                                 : request.fps) = number;
+            if (field == "format") {
+                const auto format = pixelFormatFromString(value);
+                if (!format)
+                    return badOption(config, key, value, "a pixel format such as depth16 or rgb8");
+                request.format = *format;
+            } else if (field == "fps") {
+                // Rig files write rates as decimals; OpenNI2 modes have whole rates.
+                double fps = 0;
+                if (!parseNumber(value, fps) || !(fps > 0) || fps > 10000 ||
+                    std::abs(fps - std::round(fps)) > 0.01) {
+                    return badOption(config, key, value, "a whole frame rate such as 30");
+                }
+                request.fps = static_cast<int>(std::lround(fps));
+            } else {
+                int number = 0;
+                if (!parseNumber(value, number) || number <= 0 || number > 16384)
+                    return badOption(config, key, value, "a positive whole number");
+                (field == "width" ? request.width : request.height) = number;
+            }
         } else if (key == "streams") {
             if (!config.streams.empty()) {
                 return {ErrorCode::kInvalidArgument,
@@ -746,7 +761,9 @@ Result<std::unique_ptr<Device>> OpenNI2Backend::open(const DeviceConfig& config)
             return (request.width == 0 || m.getResolutionX() == request.width) &&
                    (request.height == 0 || m.getResolutionY() == request.height) &&
                    (request.fps == 0 || m.getFps() == request.fps) &&
-                   graphFormat(request.sensor, m.getPixelFormat()) != PixelFormat::kUnknown;
+                   graphFormat(request.sensor, m.getPixelFormat()) != PixelFormat::kUnknown &&
+                   (request.format == PixelFormat::kUnknown ||
+                    graphFormat(request.sensor, m.getPixelFormat()) == request.format);
         };
         if (!matches(mode)) {
             if (impl->is_file) {

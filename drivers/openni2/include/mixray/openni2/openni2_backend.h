@@ -27,12 +27,14 @@ struct SensorRequest {
     int width = 0;
     int height = 0;
     int fps = 0;
+    PixelFormat format = PixelFormat::kUnknown;  // kUnknown: any this backend delivers
 };
 
 // How an OpenNI2 device is opened. Parsed from DeviceConfig::options (all values strings):
 //   streams        comma list of depth, color, ir (or the rig's stream list; default: depth and
 //                  color where the device has them)
-//   <s>.width, <s>.height, <s>.fps   video mode per stream (default: the device's current);
+//   <s>.width, <s>.height, <s>.fps, <s>.format   video mode per stream (as a rig file's
+//                  `mode:` passes them; default: the device's current);
 //                  a recording accepts only what was recorded
 //   registration   on | off: hardware depth->color registration (default off); on fails on
 //                  devices that cannot register (recordings, Kinect v1 without a driver that
