@@ -17,6 +17,7 @@ namespace mixray::openni2 {
 namespace {
 
 constexpr int kWaitMs = 100;
+constexpr auto kDriverDrain = std::chrono::milliseconds(200);
 constexpr const char* kKnownOptions =
     "streams, <stream>.width, <stream>.height, <stream>.fps, <stream>.format, registration, "
     "sync, pace, speed, "
@@ -368,6 +369,7 @@ struct OpenNI2Device::Impl {
     std::shared_ptr<Library> library;
     openni::Device device;
     bool is_file = false;
+    bool streamed = false;  // a stream was started at least once
     std::vector<std::unique_ptr<Stream>> streams;
     int64_t pass_length_ns = 0;
     int64_t max_stamp_ns = 0;
@@ -377,8 +379,15 @@ struct OpenNI2Device::Impl {
             // OpenNI2 may crash destroying a stream that was not stopped.
             if (s->started)
                 s->stream.stop();
-            s->stream.destroy();
         }
+        if (streamed && !is_file) {
+            // A driver's stream thread may still deliver the frame it was making when the
+            // stream stopped: OpenNI2's DummyDevice does not join its threads, and one that
+            // wakes after its stream was destroyed crashes. Its threads sleep 33 ms per frame.
+            std::this_thread::sleep_for(kDriverDrain);
+        }
+        for (auto& s : streams)
+            s->stream.destroy();
         streams.clear();
         if (device.isValid())
             device.close();
@@ -477,6 +486,7 @@ Status OpenNI2Device::start() {
                                                  openniError()};
         }
         s->started = true;
+        impl_->streamed = true;
     }
     stop_requested_ = false;
     finished_ = false;
