@@ -333,13 +333,17 @@ TEST(OpenNI2Recording, RepeatContinuesSequenceAndTime) {
 
 TEST(OpenNI2Recording, SeekStartsAtTheFrame) {
     MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
-    Session session;
-    ASSERT_TRUE(
-        startSession(session, kinectConfig({{"pace", "fast"}, {"seek", "5"}, {"buffers", "32"}})));
-    const auto depth = drain(*session.queues.at("kinect/depth"));
-    const auto color = drain(*session.queues.at("kinect/color"));
-    session.graph.stop();
-    EXPECT_TRUE(session.device->status()) << session.device->status().toString();
+    std::vector<FrameRef> depth;
+    std::vector<FrameRef> color;
+    {
+        Session session;
+        ASSERT_TRUE(startSession(
+            session, kinectConfig({{"pace", "fast"}, {"seek", "5"}, {"buffers", "32"}})));
+        depth = drain(*session.queues.at("kinect/depth"));
+        color = drain(*session.queues.at("kinect/color"));
+        session.graph.stop();
+        EXPECT_TRUE(session.device->status()) << session.device->status().toString();
+    }
     ASSERT_EQ(depth.size(), 8u);
     EXPECT_EQ(depth.front().meta().sequence, 5u);
     EXPECT_EQ(depth.front().meta().device_stamp_ns, 145'157'000);
@@ -348,7 +352,23 @@ TEST(OpenNI2Recording, SeekStartsAtTheFrame) {
     EXPECT_GT(color.front().meta().device_stamp_ns, depth.front().meta().device_stamp_ns);
     EXPECT_EQ(color.back().meta().sequence, 12u);
 
+    // Timed playback skips to the frame at its own pace.
     OpenNI2Backend backend;
+    {
+        Session timed;
+        ASSERT_TRUE(startSession(timed, kinectConfig({{"seek", "5"}, {"buffers", "32"}})));
+        const auto timed_depth = drain(*timed.queues.at("kinect/depth"));
+        timed.graph.stop();
+        EXPECT_TRUE(timed.device->status()) << timed.device->status().toString();
+        ASSERT_FALSE(timed_depth.empty());
+        EXPECT_EQ(timed_depth.front().meta().sequence, 5u);
+        EXPECT_EQ(timed_depth.front().meta().device_stamp_ns, 145'157'000);
+        EXPECT_LE(timed_depth.size(), 8u);
+        // OpenNI2 would give a second device on the same file the first one's player.
+        auto twice = backend.open(kinectConfig({}));
+        ASSERT_FALSE(twice);
+        EXPECT_EQ(twice.status().code(), ErrorCode::kUnavailable);
+    }
     EXPECT_EQ(backend.open(kinectConfig({{"seek", "13"}})).status().code(),
               ErrorCode::kInvalidArgument);
 }

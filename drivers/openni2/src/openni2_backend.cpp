@@ -63,6 +63,30 @@ private:
     Library() = default;
 };
 
+// Recordings open in this process. OpenNI2 hands a second open of the same file the first
+// one's player (one position, one end), so a second device on it is refused instead.
+class OpenRecordings {
+public:
+    static bool claim(const std::string& path) {
+        std::lock_guard lock(mutex());
+        return paths().insert(path).second;
+    }
+    static void release(const std::string& path) {
+        std::lock_guard lock(mutex());
+        paths().erase(path);
+    }
+
+private:
+    static std::mutex& mutex() {
+        static std::mutex m;
+        return m;
+    }
+    static std::set<std::string>& paths() {
+        static std::set<std::string> p;
+        return p;
+    }
+};
+
 std::optional<Sensor> sensorFromString(std::string_view name) {
     if (name == "depth")
         return Sensor::kDepth;
@@ -367,6 +391,7 @@ struct OpenNI2Device::Impl {
     };
 
     std::shared_ptr<Library> library;
+    std::string claimed_path;  // the recording this device holds in OpenRecordings
     openni::Device device;
     bool is_file = false;
     bool streamed = false;  // a stream was started at least once
@@ -391,6 +416,8 @@ struct OpenNI2Device::Impl {
         streams.clear();
         if (device.isValid())
             device.close();
+        if (!claimed_path.empty())
+            OpenRecordings::release(claimed_path);
     }
 };
 
@@ -512,13 +539,11 @@ void OpenNI2Device::run() {
     std::vector<openni::VideoStream*> handles;
     for (auto& s : impl.streams)
         handles.push_back(&s->stream);
-    openni::PlaybackControl* playback = impl.is_file ? impl.device.getPlaybackControl() : nullptr;
     const bool waits_for_buffers = impl.is_file && options_.pace == OpenNI2Options::Pace::kFast;
-    // Seeking reads and drops frames in manual playback: OpenNI2's own seek command never
-    // returns on recordings it cannot seek (see README.md).
+    // Seeking reads and drops frames (at the playback's pace): OpenNI2's own seek command
+    // never returns on recordings it cannot seek, and timed playback switched to manual
+    // mode and back delivered nothing more (see README.md).
     bool seeking = impl.is_file && options_.seek > 1;
-    if (seeking && playback)
-        playback->setSpeed(-1.0f);
     int timeouts_after_end = 0;
     for (auto& s : impl.streams)
         s->done = impl.is_file && s->recorded_frames <= 0;
@@ -570,11 +595,6 @@ void OpenNI2Device::run() {
                 if (index != 0 || frame_index < options_.seek)
                     continue;
                 seeking = false;
-                if (playback) {
-                    playback->setSpeed(options_.pace == OpenNI2Options::Pace::kFast
-                                           ? -1.0f
-                                           : static_cast<float>(options_.speed));
-                }
             }
             device_ns += static_cast<int64_t>(s.pass) * impl.pass_length_ns;
         }
@@ -688,6 +708,14 @@ Result<std::unique_ptr<Device>> OpenNI2Backend::open(const DeviceConfig& config)
     // The id is a recording's path, a URI or a serial, tried in that order.
     std::error_code ec;
     if (!config.id.empty() && std::filesystem::is_regular_file(config.id, ec)) {
+        const std::string path = std::filesystem::weakly_canonical(config.id, ec).string();
+        if (!OpenRecordings::claim(path)) {
+            return {ErrorCode::kUnavailable,
+                    context + ": '" + config.id +
+                        "' is already open in this process (OpenNI2 would share one player "
+                        "between the two devices)"};
+        }
+        impl->claimed_path = path;
         if (impl->device.open(config.id.c_str()) != openni::STATUS_OK) {
             return {ErrorCode::kCorruptData,
                     context + ": OpenNI2 cannot play '" + config.id + "': " + openniError()};
