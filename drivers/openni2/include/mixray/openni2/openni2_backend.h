@@ -46,7 +46,8 @@ struct SensorRequest {
 //   speed          > 0, recordings with pace=original (default 1)
 //   loop           true | false: recordings only, OpenNI2's repeat (default false)
 //   seek           frame number (OpenNI2 numbering, 1 = first) of the first enabled stream
-//                  where playback begins; recordings only (default 1)
+//                  where playback begins, reached by dropping the frames before it at the
+//                  playback's pace; recordings only (default 1)
 //   buffers        pool buffers per stream, 1..1024 (default 8)
 //   clock_domain   ClockDomainId of the device clock, >= 1 (default: a hash of the name)
 // Mirroring is always off: a device or recording that cannot turn it off is un-mirrored in
@@ -82,7 +83,9 @@ ClockDomainId defaultClockDomain(std::string_view device_name);
 //                   rebased to 0 by OpenNI2; on loops later passes are shifted by one pass)
 //   host_stamp_ns   CLOCK_MONOTONIC when the capture thread read the frame
 // so that ClockSync maps device time onto host time. A recording without loop ends every
-// stream (Graph::endStream) after its last frame. A full pool drops the frame (counted).
+// stream (Graph::endStream) after its last frame. A full pool drops the frame (counted),
+// except with pace=fast, which waits for a buffer. One recording can back one device at a
+// time in a process (OpenNI2 would share its player); a second open is kUnavailable.
 // Thread-safety: connect/start/stop from the graph's owner; counters from any thread.
 class OpenNI2Device : public Device {
 public:
