@@ -144,6 +144,36 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
               a["streams"][0]["first_stamp_ns"].get<int64_t>() / 1000);
 }
 
+// A rig whose device is the Kinect v1 .oni recording, opened by the openni2 backend.
+TEST(Cli, RecordsAKinectRecordingThroughTheOpenNI2Backend) {
+    const fs::path oni = test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni";
+    const fs::path empty =
+        test::sharedDataDir() / "01_oni" / "negative" / "bloyot_empty_image_only.oni";
+    MIXRAY_REQUIRE_SHARED_DATA(oni);
+    MIXRAY_REQUIRE_SHARED_DATA(empty);
+    const fs::path dir = test::tempDir();
+    const auto writeRig = [&](const fs::path& rig, const fs::path& id) {
+        std::ofstream(rig) << "rig: oni\ndevices:\n  - name: kinect\n    driver: openni2\n"
+                           << "    id: " << id.string() << "\n    options: { pace: fast }\n";
+    };
+    writeRig(dir / "rig.yaml", oni);
+    CliRun record = mixray("record " + q(dir / "rig.yaml") + " -o " + q(dir / "kinect.mkv"));
+    ASSERT_EQ(record.exit_code, 0) << record.output;
+    EXPECT_NE(record.output.find("recorded 24 frames"), std::string::npos) << record.output;
+    const auto info = nlohmann::json::parse(mixray("info --json " + q(dir / "kinect.mkv")).output);
+    ASSERT_EQ(info["streams"].size(), 2u);
+    EXPECT_EQ(info["streams"][0]["name"], "kinect/depth");
+    EXPECT_EQ(info["streams"][0]["format"], "depth16");
+    EXPECT_EQ(info["streams"][0]["frames"], 12);
+    EXPECT_EQ(info["streams"][1]["name"], "kinect/color");
+    EXPECT_EQ(info["streams"][1]["frames"], 12);
+
+    writeRig(dir / "empty.yaml", empty);
+    CliRun bad = mixray("record " + q(dir / "empty.yaml") + " -o " + q(dir / "empty.mkv"));
+    EXPECT_EQ(bad.exit_code, 3) << bad.output;
+    EXPECT_NE(bad.output.find("bloyot_empty_image_only.oni"), std::string::npos) << bad.output;
+}
+
 TEST(Cli, ConvertsTheRealTumPairToMkvAndBackByteForByte) {
     const fs::path src = test::sharedDataDir() / "02_rgbd_single_frames_open3d";
     MIXRAY_REQUIRE_SHARED_DATA(src / "TUM_depth.png");

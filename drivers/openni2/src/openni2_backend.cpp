@@ -1,0 +1,915 @@
+// OpenNI2 devices and recordings: options, opening, the capture thread and enumeration.
+#include "mixray/openni2/openni2_backend.h"
+
+#include <OpenNI.h>
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+#include <set>
+
+namespace mixray::openni2 {
+namespace {
+
+constexpr int kWaitMs = 100;
+constexpr auto kDriverDrain = std::chrono::milliseconds(200);
+constexpr const char* kKnownOptions =
+    "streams, <stream>.width, <stream>.height, <stream>.fps, <stream>.format, registration, "
+    "sync, pace, speed, "
+    "loop, seek, buffers, clock_domain";
+
+int64_t hostNowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+
+std::string openniError() {
+    std::string text = openni::OpenNI::getExtendedError();
+    // OpenNI2 indents its messages with tabs and ends them with newlines.
+    text.erase(std::remove(text.begin(), text.end(), '\t'), text.end());
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' '))
+        text.pop_back();
+    return text.empty() ? "no detail from OpenNI2" : text;
+}
+
+// OpenNI2 is initialised once per process and never shut down: its context keeps an event
+// per thread that ever waited for frames, keyed by thread id, and after a shutdown and a new
+// initialisation a capture thread that reuses such an id crashes in waitForAnyStream (seen
+// with Debian's 2.2.0.33 when one device was closed and the next opened).
+class Library {
+public:
+    static Result<std::shared_ptr<Library>> acquire() {
+        static std::mutex mutex;
+        static std::shared_ptr<Library> library;
+        std::lock_guard lock(mutex);
+        if (!library) {
+            if (openni::OpenNI::initialize() != openni::STATUS_OK) {
+                return {ErrorCode::kInternal, "OpenNI2 failed to initialise: " + openniError()};
+            }
+            library.reset(new Library());
+        }
+        return library;
+    }
+    Library(const Library&) = delete;
+    Library& operator=(const Library&) = delete;
+
+private:
+    Library() = default;
+};
+
+// Recordings open in this process. OpenNI2 hands a second open of the same file the first
+// one's player (one position, one end), so a second device on it is refused instead.
+class OpenRecordings {
+public:
+    static bool claim(const std::string& path) {
+        std::lock_guard lock(mutex());
+        return paths().insert(path).second;
+    }
+    static void release(const std::string& path) {
+        std::lock_guard lock(mutex());
+        paths().erase(path);
+    }
+
+private:
+    static std::mutex& mutex() {
+        static std::mutex m;
+        return m;
+    }
+    static std::set<std::string>& paths() {
+        static std::set<std::string> p;
+        return p;
+    }
+};
+
+std::optional<Sensor> sensorFromString(std::string_view name) {
+    if (name == "depth")
+        return Sensor::kDepth;
+    if (name == "color")
+        return Sensor::kColor;
+    if (name == "ir")
+        return Sensor::kInfrared;
+    return std::nullopt;
+}
+
+openni::SensorType sensorType(Sensor sensor) {
+    switch (sensor) {
+        case Sensor::kDepth:
+            return openni::SENSOR_DEPTH;
+        case Sensor::kColor:
+            return openni::SENSOR_COLOR;
+        case Sensor::kInfrared:
+            return openni::SENSOR_IR;
+    }
+    return openni::SENSOR_DEPTH;
+}
+
+StreamKind kindOf(Sensor sensor) {
+    switch (sensor) {
+        case Sensor::kDepth:
+            return StreamKind::kDepth;
+        case Sensor::kColor:
+            return StreamKind::kColor;
+        case Sensor::kInfrared:
+            return StreamKind::kInfrared;
+    }
+    return StreamKind::kData;
+}
+
+// The graph format of an OpenNI2 pixel format this backend delivers; kUnknown for the others
+// (100 µm depth, shifts, YUV and JPEG colour), which open() avoids by choosing another mode.
+PixelFormat graphFormat(Sensor sensor, openni::PixelFormat format) {
+    switch (sensor) {
+        case Sensor::kDepth:
+            return format == openni::PIXEL_FORMAT_DEPTH_1_MM ? PixelFormat::kDepth16
+                                                             : PixelFormat::kUnknown;
+        case Sensor::kColor:
+            return format == openni::PIXEL_FORMAT_RGB888 ? PixelFormat::kRGB8
+                                                         : PixelFormat::kUnknown;
+        case Sensor::kInfrared:
+            if (format == openni::PIXEL_FORMAT_GRAY16)
+                return PixelFormat::kIR16;
+            if (format == openni::PIXEL_FORMAT_GRAY8)
+                return PixelFormat::kMono8;
+            return PixelFormat::kUnknown;
+    }
+    return PixelFormat::kUnknown;
+}
+
+std::string modeText(Sensor sensor, const openni::VideoMode& mode) {
+    const PixelFormat format = graphFormat(sensor, mode.getPixelFormat());
+    std::string name = format == PixelFormat::kUnknown
+                           ? "openni-format-" + std::to_string(mode.getPixelFormat())
+                           : std::string(toString(format));
+    return std::string(toString(sensor)) + " " + std::to_string(mode.getResolutionX()) + "x" +
+           std::to_string(mode.getResolutionY()) + "@" + std::to_string(mode.getFps()) + " " + name;
+}
+
+std::vector<std::string> splitList(std::string_view text) {
+    std::vector<std::string> out;
+    size_t pos = 0;
+    while (pos <= text.size()) {
+        size_t comma = text.find(',', pos);
+        if (comma == std::string_view::npos)
+            comma = text.size();
+        std::string_view item = text.substr(pos, comma - pos);
+        while (!item.empty() && item.front() == ' ')
+            item.remove_prefix(1);
+        while (!item.empty() && item.back() == ' ')
+            item.remove_suffix(1);
+        if (!item.empty())
+            out.emplace_back(item);
+        pos = comma + 1;
+    }
+    return out;
+}
+
+template <typename T>
+bool parseNumber(const std::string& text, T& out) {
+    const char* end = text.data() + text.size();
+    auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return ec == std::errc() && ptr == end;
+}
+
+Status badOption(const DeviceConfig& config, const std::string& key, const std::string& value,
+                 std::string_view expected) {
+    return {ErrorCode::kInvalidArgument, "openni2 device '" + config.name + "': option '" + key +
+                                             "': expected " + std::string(expected) + ", got '" +
+                                             value + "'"};
+}
+
+Status parseSwitch(const DeviceConfig& config, const std::string& key, const std::string& value,
+                   bool& out) {
+    if (value == "on" || value == "true" || value == "1" || value == "yes") {
+        out = true;
+    } else if (value == "off" || value == "false" || value == "0" || value == "no") {
+        out = false;
+    } else {
+        return badOption(config, key, value, "on or off");
+    }
+    return Status::ok();
+}
+
+uint32_t fnv1a(std::string_view text) {
+    uint32_t h = 2166136261u;
+    for (char c : text) {
+        h ^= static_cast<uint8_t>(c);
+        h *= 16777619u;
+    }
+    return h;
+}
+
+std::string serialOf(openni::Device& device) {
+    std::array<char, 256> serial{};
+    int size = static_cast<int>(serial.size());
+    if (device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial.data(), &size) !=
+        openni::STATUS_OK) {
+        return {};
+    }
+    serial.back() = '\0';
+    return serial.data();
+}
+
+std::vector<std::string> supportedModes(openni::Device& device) {
+    std::vector<std::string> modes;
+    for (Sensor sensor : {Sensor::kDepth, Sensor::kColor, Sensor::kInfrared}) {
+        const openni::SensorInfo* info = device.getSensorInfo(sensorType(sensor));
+        if (!info)
+            continue;
+        const auto& list = info->getSupportedVideoModes();
+        for (int i = 0; i < list.getSize(); ++i)
+            modes.push_back(modeText(sensor, list[i]));
+    }
+    return modes;
+}
+
+std::string modelOf(const openni::DeviceInfo& info) {
+    std::string vendor = info.getVendor();
+    std::string name = info.getName();
+    if (vendor.empty())
+        return name;
+    return name.empty() ? vendor : vendor + " " + name;
+}
+
+}  // namespace
+
+std::string_view toString(Sensor sensor) {
+    switch (sensor) {
+        case Sensor::kDepth:
+            return "depth";
+        case Sensor::kColor:
+            return "color";
+        case Sensor::kInfrared:
+            return "ir";
+    }
+    return "unknown";
+}
+
+ClockDomainId defaultClockDomain(std::string_view device_name) {
+    const uint32_t h = fnv1a("openni2/" + std::string(device_name));
+    return h == kHostClockDomain ? 1 : h;
+}
+
+Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {
+    OpenNI2Options o;
+    std::map<Sensor, SensorRequest> modes;
+    std::vector<std::string> names = config.streams;
+    for (const auto& [key, value] : config.options) {
+        const size_t dot = key.rfind('.');
+        if (dot != std::string::npos) {
+            const auto sensor = sensorFromString(std::string_view(key).substr(0, dot));
+            const std::string field = key.substr(dot + 1);
+            if (!sensor ||
+                (field != "width" && field != "height" && field != "fps" && field != "format")) {
+                return {ErrorCode::kInvalidArgument,
+                        "openni2 device '" + config.name + "': unknown option '" + key +
+                            "' (known: " + kKnownOptions + "; streams: depth, color, ir)"};
+            }
+            SensorRequest& request = modes[*sensor];
+            request.sensor = *sensor;
+            if (field == "format") {
+                const auto format = pixelFormatFromString(value);
+                if (!format)
+                    return badOption(config, key, value, "a pixel format such as depth16 or rgb8");
+                request.format = *format;
+            } else if (field == "fps") {
+                // Rig files write rates as decimals; OpenNI2 modes have whole rates.
+                double fps = 0;
+                if (!parseNumber(value, fps) || !(fps > 0) || fps > 10000 ||
+                    std::abs(fps - std::round(fps)) > 0.01) {
+                    return badOption(config, key, value, "a whole frame rate such as 30");
+                }
+                request.fps = static_cast<int>(std::lround(fps));
+            } else {
+                int number = 0;
+                if (!parseNumber(value, number) || number <= 0 || number > 16384)
+                    return badOption(config, key, value, "a positive whole number");
+                (field == "width" ? request.width : request.height) = number;
+            }
+        } else if (key == "streams") {
+            if (!config.streams.empty()) {
+                return {ErrorCode::kInvalidArgument,
+                        "openni2 device '" + config.name +
+                            "': streams are listed both in the rig's stream list and in option "
+                            "'streams'; give them once"};
+            }
+            names = splitList(value);
+            if (names.empty())
+                return badOption(config, key, value, "a comma list of depth, color, ir");
+        } else if (key == "registration") {
+            MIXRAY_RETURN_IF_ERROR(parseSwitch(config, key, value, o.registration));
+        } else if (key == "sync") {
+            bool on = false;
+            MIXRAY_RETURN_IF_ERROR(parseSwitch(config, key, value, on));
+            o.sync = on ? 1 : 0;
+        } else if (key == "pace") {
+            if (value == "original") {
+                o.pace = Pace::kOriginal;
+            } else if (value == "fast") {
+                o.pace = Pace::kFast;
+            } else {
+                return badOption(config, key, value, "original or fast");
+            }
+        } else if (key == "speed") {
+            if (!parseNumber(value, o.speed) || !std::isfinite(o.speed) || o.speed <= 0 ||
+                o.speed > 1000) {
+                return badOption(config, key, value, "a positive number such as 0.5 or 2");
+            }
+            o.speed_given = true;
+        } else if (key == "loop") {
+            MIXRAY_RETURN_IF_ERROR(parseSwitch(config, key, value, o.loop));
+        } else if (key == "seek") {
+            if (!parseNumber(value, o.seek) || o.seek < 1)
+                return badOption(config, key, value, "a frame number >= 1");
+        } else if (key == "buffers") {
+            if (!parseNumber(value, o.buffers) || o.buffers < 1 || o.buffers > 1024)
+                return badOption(config, key, value, "a whole number from 1 to 1024");
+        } else if (key == "clock_domain") {
+            if (!parseNumber(value, o.clock_domain) || o.clock_domain == kHostClockDomain)
+                return badOption(config, key, value, "an integer >= 1 (0 is the host clock)");
+        } else {
+            return {ErrorCode::kInvalidArgument, "openni2 device '" + config.name +
+                                                     "': unknown option '" + key +
+                                                     "' (known: " + kKnownOptions + ")"};
+        }
+    }
+    if (o.speed_given && o.pace == Pace::kFast) {
+        return {ErrorCode::kInvalidArgument,
+                "openni2 device '" + config.name +
+                    "': option 'speed' applies only with pace=original (pace=fast already goes "
+                    "as fast as consumers allow)"};
+    }
+    for (const std::string& name : names) {
+        const auto sensor = sensorFromString(name);
+        if (!sensor) {
+            return {ErrorCode::kInvalidArgument, "openni2 device '" + config.name +
+                                                     "': no stream '" + name +
+                                                     "' (streams: depth, color, ir)"};
+        }
+        for (const auto& existing : o.streams) {
+            if (existing.sensor == *sensor) {
+                return {ErrorCode::kInvalidArgument,
+                        "openni2 device '" + config.name + "': stream '" + name + "' twice"};
+            }
+        }
+        SensorRequest request;
+        request.sensor = *sensor;
+        o.streams.push_back(request);
+    }
+    for (const auto& [sensor, request] : modes) {
+        if (!names.empty() &&
+            std::none_of(o.streams.begin(), o.streams.end(),
+                         [&](const SensorRequest& r) { return r.sensor == sensor; })) {
+            return {ErrorCode::kInvalidArgument,
+                    "openni2 device '" + config.name + "': a mode is given for stream '" +
+                        std::string(toString(sensor)) + "', which is not enabled"};
+        }
+        o.modes.push_back(request);
+    }
+    return o;
+}
+
+// The OpenNI2 side of a device: everything that needs OpenNI.h.
+struct OpenNI2Device::Impl {
+    struct Stream {
+        Sensor sensor = Sensor::kDepth;
+        openni::VideoStream stream;
+        openni::VideoMode mode;
+        ImageDesc desc;
+        bool unmirror = false;
+        int recorded_frames = 0;
+        bool started = false;
+        // Playback bookkeeping.
+        int last_index = 0;
+        uint64_t pass = 0;
+        bool done = false;
+    };
+
+    std::shared_ptr<Library> library;
+    std::string claimed_path;  // the recording this device holds in OpenRecordings
+    openni::Device device;
+    bool is_file = false;
+    bool streamed = false;  // a stream was started at least once
+    std::vector<std::unique_ptr<Stream>> streams;
+    int64_t pass_length_ns = 0;
+    int64_t max_stamp_ns = 0;
+
+    ~Impl() {
+        for (auto& s : streams) {
+            // OpenNI2 may crash destroying a stream that was not stopped.
+            if (s->started)
+                s->stream.stop();
+        }
+        if (streamed && !is_file) {
+            // A driver's stream thread may still deliver the frame it was making when the
+            // stream stopped: OpenNI2's DummyDevice does not join its threads, and one that
+            // wakes after its stream was destroyed crashes. Its threads sleep 33 ms per frame.
+            std::this_thread::sleep_for(kDriverDrain);
+        }
+        for (auto& s : streams)
+            s->stream.destroy();
+        streams.clear();
+        if (device.isValid())
+            device.close();
+        if (!claimed_path.empty())
+            OpenRecordings::release(claimed_path);
+    }
+};
+
+OpenNI2Device::OpenNI2Device(std::string name, OpenNI2Options options, std::unique_ptr<Impl> impl)
+    : name_(std::move(name)), options_(std::move(options)), impl_(std::move(impl)) {
+    if (options_.clock_domain == kHostClockDomain)
+        options_.clock_domain = defaultClockDomain(name_);
+}
+
+OpenNI2Device::~OpenNI2Device() {
+    stop();
+}
+
+bool OpenNI2Device::isRecording() const {
+    return impl_->is_file;
+}
+
+std::vector<Sensor> OpenNI2Device::sensors() const {
+    std::vector<Sensor> out;
+    for (const auto& s : impl_->streams)
+        out.push_back(s->sensor);
+    return out;
+}
+
+std::vector<int> OpenNI2Device::recordedFrameCounts() const {
+    std::vector<int> out;
+    if (!impl_->is_file)
+        return out;
+    for (const auto& s : impl_->streams)
+        out.push_back(s->recorded_frames);
+    return out;
+}
+
+std::vector<bool> OpenNI2Device::softwareUnmirror() const {
+    std::vector<bool> out;
+    for (const auto& s : impl_->streams)
+        out.push_back(s->unmirror);
+    return out;
+}
+
+Status OpenNI2Device::status() const {
+    std::lock_guard lock(mutex_);
+    return status_;
+}
+
+void OpenNI2Device::setError(Status status) {
+    std::lock_guard lock(mutex_);
+    if (status_.isOk())
+        status_ = std::move(status);
+}
+
+Status OpenNI2Device::connect(Graph& graph) {
+    if (graph_)
+        return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "' connected twice"};
+    for (const auto& s : impl_->streams) {
+        StreamInfo info;
+        info.name = name_ + "/" + std::string(toString(s->sensor));
+        info.device = name_;
+        info.kind = kindOf(s->sensor);
+        info.format = s->desc;
+        info.nominal_fps = s->mode.getFps();
+        info.clock_domain = options_.clock_domain;
+        info.tags["backend"] = "openni2";
+        info.tags["openni2_uri"] = impl_->device.getDeviceInfo().getUri();
+        if (s->unmirror)
+            info.tags["openni2_unmirrored"] = "software";
+        auto id = graph.addStream(info);
+        if (!id)
+            return id.status();
+        auto pool = BufferPool::create({info.format, 0, options_.buffers, info.name});
+        if (!pool) {
+            return {ErrorCode::kInternal, "openni2 device '" + name_ +
+                                              "': cannot create the pool of '" + info.name + "'"};
+        }
+        ids_.push_back(*id);
+        pools_.push_back(std::move(pool));
+    }
+    graph_ = &graph;
+    return Status::ok();
+}
+
+Status OpenNI2Device::start() {
+    if (!graph_)
+        return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
+    if (thread_.joinable())
+        return Status::ok();
+    for (auto& s : impl_->streams) {
+        if (s->started)
+            continue;
+        if (s->stream.start() != openni::STATUS_OK) {
+            return {ErrorCode::kUnavailable, "openni2 device '" + name_ + "': cannot start " +
+                                                 std::string(toString(s->sensor)) + ": " +
+                                                 openniError()};
+        }
+        s->started = true;
+        impl_->streamed = true;
+    }
+    stop_requested_ = false;
+    finished_ = false;
+    thread_ = std::thread([this] { run(); });
+    return Status::ok();
+}
+
+void OpenNI2Device::stop() {
+    stop_requested_ = true;
+    if (thread_.joinable())
+        thread_.join();
+    for (auto& s : impl_->streams) {
+        if (s->started) {
+            s->stream.stop();
+            s->started = false;
+        }
+    }
+}
+
+void OpenNI2Device::run() {
+    Impl& impl = *impl_;
+    const size_t n = impl.streams.size();
+    std::vector<openni::VideoStream*> handles;
+    for (auto& s : impl.streams)
+        handles.push_back(&s->stream);
+    const bool waits_for_buffers = impl.is_file && options_.pace == OpenNI2Options::Pace::kFast;
+    // Seeking reads and drops frames (at the playback's pace): OpenNI2's own seek command
+    // never returns on recordings it cannot seek, and timed playback switched to manual
+    // mode and back delivered nothing more (see README.md).
+    bool seeking = impl.is_file && options_.seek > 1;
+    int timeouts_after_end = 0;
+    for (auto& s : impl.streams)
+        s->done = impl.is_file && s->recorded_frames <= 0;
+
+    while (!stop_requested_) {
+        int index = -1;
+        const openni::Status rc =
+            openni::OpenNI::waitForAnyStream(handles.data(), static_cast<int>(n), &index, kWaitMs);
+        if (rc == openni::STATUS_TIME_OUT) {
+            // A recording's player stops at its end; done streams already account for it.
+            if (impl.is_file && !options_.loop && ++timeouts_after_end > 50) {
+                setError({ErrorCode::kCorruptData, "openni2 device '" + name_ +
+                                                       "': the recording stopped delivering "
+                                                       "frames before its recorded count"});
+                break;
+            }
+            continue;
+        }
+        if (rc != openni::STATUS_OK || index < 0 || static_cast<size_t>(index) >= n) {
+            setError({ErrorCode::kUnavailable,
+                      "openni2 device '" + name_ + "': waiting for frames: " + openniError()});
+            break;
+        }
+        timeouts_after_end = 0;
+        Impl::Stream& s = *impl.streams[static_cast<size_t>(index)];
+        openni::VideoFrameRef frame;
+        if (s.stream.readFrame(&frame) != openni::STATUS_OK || !frame.isValid()) {
+            setError({ErrorCode::kUnavailable,
+                      "openni2 device '" + name_ + "': reading a frame: " + openniError()});
+            break;
+        }
+        const int64_t host_ns = hostNowNs();
+        const int frame_index = frame.getFrameIndex();
+        int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
+
+        if (impl.is_file) {
+            if (frame_index < s.last_index) {
+                // OpenNI2's repeat restarted the recording: later passes continue time.
+                if (impl.pass_length_ns == 0) {
+                    const double fps = s.mode.getFps() > 0 ? s.mode.getFps() : 30.0;
+                    impl.pass_length_ns = impl.max_stamp_ns + std::llround(1e9 / fps);
+                }
+                ++s.pass;
+            }
+            s.last_index = frame_index;
+            if (s.pass == 0)
+                impl.max_stamp_ns = std::max(impl.max_stamp_ns, device_ns);
+            if (seeking) {
+                if (index != 0 || frame_index < options_.seek)
+                    continue;
+                seeking = false;
+            }
+            device_ns += static_cast<int64_t>(s.pass) * impl.pass_length_ns;
+        }
+
+        const int width = frame.getWidth();
+        const int height = frame.getHeight();
+        if (width != s.desc.width || height != s.desc.height) {
+            setError({ErrorCode::kCorruptData,
+                      "openni2 device '" + name_ + "': " + std::string(toString(s.sensor)) +
+                          " frame of " + std::to_string(width) + "x" + std::to_string(height) +
+                          " in a stream of " + std::to_string(s.desc.width) + "x" +
+                          std::to_string(s.desc.height)});
+            break;
+        }
+        BufferPool& pool = *pools_[static_cast<size_t>(index)];
+        WritableFrame out = pool.acquire();
+        while (!out && waits_for_buffers && !stop_requested_) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            out = pool.acquire();
+        }
+        if (!out) {
+            if (stop_requested_)
+                break;
+            dropped_.fetch_add(1, std::memory_order_relaxed);
+        } else {
+            const auto* src = static_cast<const uint8_t*>(frame.getData());
+            const int src_stride = frame.getStrideInBytes();
+            MutableImageView dst = out.image();
+            const size_t pixel = pixelFormatInfo(s.desc.format).bits_per_pixel / 8;
+            const size_t row_bytes = static_cast<size_t>(width) * pixel;
+            for (int y = 0; y < height; ++y) {
+                const uint8_t* in = src + static_cast<size_t>(y) * src_stride;
+                uint8_t* row = dst.row<uint8_t>(y);
+                if (!s.unmirror) {
+                    std::memcpy(row, in, row_bytes);
+                    continue;
+                }
+                for (int x = 0; x < width; ++x) {
+                    std::memcpy(row + static_cast<size_t>(x) * pixel,
+                                in + static_cast<size_t>(width - 1 - x) * pixel, pixel);
+                }
+            }
+            FrameMetadata& meta = out.meta();
+            meta.stream = ids_[static_cast<size_t>(index)];
+            meta.sequence = static_cast<uint64_t>(frame_index) +
+                            s.pass * static_cast<uint64_t>(std::max(s.recorded_frames, 0));
+            meta.device_stamp_ns = device_ns;
+            meta.host_stamp_ns = host_ns;
+            meta.clock_domain = options_.clock_domain;
+            graph_->publish(std::move(out).publish());
+            published_.fetch_add(1, std::memory_order_relaxed);
+        }
+
+        if (impl.is_file && !options_.loop && frame_index >= s.recorded_frames) {
+            s.done = true;
+            bool all = true;
+            for (const auto& other : impl.streams)
+                all = all && other->done;
+            if (all) {
+                for (StreamId id : ids_)
+                    graph_->endStream(id);
+                break;
+            }
+        }
+    }
+    finished_ = true;
+}
+
+Result<std::vector<DeviceDescriptor>> OpenNI2Backend::enumerate() {
+    auto library = Library::acquire();
+    if (!library)
+        return library.status();
+    openni::Array<openni::DeviceInfo> list;
+    openni::OpenNI::enumerateDevices(&list);
+    std::vector<DeviceDescriptor> out;
+    for (int i = 0; i < list.getSize(); ++i) {
+        const openni::DeviceInfo& info = list[i];
+        DeviceDescriptor d;
+        d.backend = "openni2";
+        d.id = info.getUri();
+        d.model = modelOf(info);
+        d.location = info.getUri();
+        // A device streaming in another process cannot be opened: it is listed without its
+        // serial and modes rather than hidden.
+        openni::Device device;
+        if (device.open(info.getUri()) == openni::STATUS_OK) {
+            d.serial = serialOf(device);
+            d.modes = supportedModes(device);
+            device.close();
+        }
+        out.push_back(std::move(d));
+    }
+    return out;
+}
+
+Result<std::unique_ptr<Device>> OpenNI2Backend::open(const DeviceConfig& config) {
+    if (config.name.empty()) {
+        return {ErrorCode::kInvalidArgument,
+                "openni2 device without a name (streams are named <name>/<stream>)"};
+    }
+    auto options = OpenNI2Options::fromConfig(config);
+    if (!options)
+        return options.status();
+    auto library = Library::acquire();
+    if (!library)
+        return library.status();
+    auto impl = std::make_unique<OpenNI2Device::Impl>();
+    impl->library = *library;
+    const std::string context = "openni2 device '" + config.name + "'";
+
+    // The id is a recording's path, a URI or a serial, tried in that order.
+    std::error_code ec;
+    if (!config.id.empty() && std::filesystem::is_regular_file(config.id, ec)) {
+        const std::string path = std::filesystem::weakly_canonical(config.id, ec).string();
+        if (!OpenRecordings::claim(path)) {
+            return {ErrorCode::kUnavailable,
+                    context + ": '" + config.id +
+                        "' is already open in this process (OpenNI2 would share one player "
+                        "between the two devices)"};
+        }
+        impl->claimed_path = path;
+        if (impl->device.open(config.id.c_str()) != openni::STATUS_OK) {
+            return {ErrorCode::kCorruptData,
+                    context + ": OpenNI2 cannot play '" + config.id + "': " + openniError()};
+        }
+    } else if (config.id.empty()) {
+        if (impl->device.open(openni::ANY_DEVICE) != openni::STATUS_OK) {
+            return {ErrorCode::kNotFound, context + ": no OpenNI2 device: " + openniError()};
+        }
+    } else if (impl->device.open(config.id.c_str()) != openni::STATUS_OK) {
+        const std::string uri_error = openniError();
+        openni::Array<openni::DeviceInfo> list;
+        openni::OpenNI::enumerateDevices(&list);
+        bool found = false;
+        for (int i = 0; i < list.getSize() && !found; ++i) {
+            openni::Device candidate;
+            if (candidate.open(list[i].getUri()) != openni::STATUS_OK)
+                continue;
+            found = serialOf(candidate) == config.id;
+            candidate.close();
+            if (found && impl->device.open(list[i].getUri()) != openni::STATUS_OK) {
+                return {ErrorCode::kUnavailable, context + ": cannot open '" +
+                                                     std::string(list[i].getUri()) + "' (serial " +
+                                                     config.id + "): " + openniError()};
+            }
+        }
+        if (!found) {
+            return {ErrorCode::kNotFound, context + ": '" + config.id +
+                                              "' is neither a recording, an OpenNI2 URI nor the "
+                                              "serial of a connected device (" +
+                                              uri_error + ")"};
+        }
+    }
+    impl->is_file = impl->device.isFile();
+    OpenNI2Options& o = *options;
+
+    if (!impl->is_file) {
+        for (const char* key : {"pace", "speed", "loop", "seek"}) {
+            if (config.options.count(key)) {
+                return {ErrorCode::kInvalidArgument,
+                        context + ": option '" + std::string(key) + "' applies to recordings only"};
+            }
+        }
+    }
+    if (o.streams.empty()) {
+        for (Sensor sensor : {Sensor::kDepth, Sensor::kColor}) {
+            if (impl->device.hasSensor(sensorType(sensor))) {
+                SensorRequest request;
+                request.sensor = sensor;
+                o.streams.push_back(request);
+            }
+        }
+        if (o.streams.empty())
+            return {ErrorCode::kUnsupported, context + ": the device has no depth or color"};
+    }
+    for (const SensorRequest& mode : o.modes) {
+        auto it = std::find_if(o.streams.begin(), o.streams.end(),
+                               [&](const SensorRequest& r) { return r.sensor == mode.sensor; });
+        if (it == o.streams.end()) {
+            return {ErrorCode::kInvalidArgument, context + ": a mode is given for stream '" +
+                                                     std::string(toString(mode.sensor)) +
+                                                     "', which is not enabled"};
+        }
+        *it = mode;
+    }
+
+    for (const SensorRequest& request : o.streams) {
+        const std::string sensor_name(toString(request.sensor));
+        if (!impl->device.hasSensor(sensorType(request.sensor))) {
+            return {ErrorCode::kNotFound, context + ": " +
+                                              (impl->is_file ? "the recording" : "the device") +
+                                              " has no " + sensor_name + " stream"};
+        }
+        auto s = std::make_unique<OpenNI2Device::Impl::Stream>();
+        s->sensor = request.sensor;
+        if (s->stream.create(impl->device, sensorType(request.sensor)) != openni::STATUS_OK) {
+            return {ErrorCode::kUnavailable,
+                    context + ": cannot create the " + sensor_name + " stream: " + openniError()};
+        }
+        openni::VideoMode mode = s->stream.getVideoMode();
+        const auto matches = [&](const openni::VideoMode& m) {
+            return (request.width == 0 || m.getResolutionX() == request.width) &&
+                   (request.height == 0 || m.getResolutionY() == request.height) &&
+                   (request.fps == 0 || m.getFps() == request.fps) &&
+                   graphFormat(request.sensor, m.getPixelFormat()) != PixelFormat::kUnknown &&
+                   (request.format == PixelFormat::kUnknown ||
+                    graphFormat(request.sensor, m.getPixelFormat()) == request.format);
+        };
+        if (!matches(mode)) {
+            if (impl->is_file) {
+                return {ErrorCode::kInvalidArgument, context + ": the recording's " + sensor_name +
+                                                         " stream is " +
+                                                         modeText(request.sensor, mode) +
+                                                         " (a recording cannot change its mode)"};
+            }
+            const auto& list = s->stream.getSensorInfo().getSupportedVideoModes();
+            bool chosen = false;
+            for (int i = 0; i < list.getSize() && !chosen; ++i) {
+                if (!matches(list[i]))
+                    continue;
+                if (s->stream.setVideoMode(list[i]) != openni::STATUS_OK) {
+                    return {ErrorCode::kUnavailable, context + ": cannot set " +
+                                                         modeText(request.sensor, list[i]) + ": " +
+                                                         openniError()};
+                }
+                chosen = true;
+            }
+            if (!chosen) {
+                std::string offered;
+                for (int i = 0; i < list.getSize(); ++i) {
+                    offered += (offered.empty() ? "" : ", ") + modeText(request.sensor, list[i]);
+                }
+                return {ErrorCode::kUnsupported,
+                        context + ": no " + sensor_name +
+                            " mode matches the request (offered: " + offered + ")"};
+            }
+            mode = s->stream.getVideoMode();
+        }
+        s->mode = mode;
+        s->desc = ImageDesc::packed(graphFormat(request.sensor, mode.getPixelFormat()),
+                                    mode.getResolutionX(), mode.getResolutionY());
+        // Mirroring off; what the device or recording cannot turn off is undone in software.
+        if (s->stream.getMirroringEnabled()) {
+            if (impl->is_file || s->stream.setMirroringEnabled(false) != openni::STATUS_OK ||
+                s->stream.getMirroringEnabled()) {
+                s->unmirror = true;
+            }
+        }
+        if (impl->is_file) {
+            s->recorded_frames = impl->device.getPlaybackControl()->getNumberOfFrames(s->stream);
+        }
+        impl->streams.push_back(std::move(s));
+    }
+
+    const auto has = [&](Sensor sensor) {
+        return std::any_of(o.streams.begin(), o.streams.end(),
+                           [&](const SensorRequest& r) { return r.sensor == sensor; });
+    };
+    if (o.registration) {
+        if (!impl->device.isImageRegistrationModeSupported(
+                openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+            return {ErrorCode::kUnsupported,
+                    context + ": " +
+                        (impl->is_file ? "a recording plays what was recorded; it cannot register "
+                                         "depth to color"
+                                       : "the device cannot register depth to color")};
+        }
+        if (impl->device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
+            openni::STATUS_OK) {
+            return {ErrorCode::kUnavailable,
+                    context + ": cannot turn registration on: " + openniError()};
+        }
+    } else if (!impl->is_file &&
+               impl->device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_OFF)) {
+        (void)impl->device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_OFF);
+    }
+    if (!impl->is_file && has(Sensor::kDepth) && has(Sensor::kColor)) {
+        const bool want = o.sync != 0;
+        if (impl->device.setDepthColorSyncEnabled(want) != openni::STATUS_OK && o.sync == 1) {
+            return {ErrorCode::kUnsupported,
+                    context + ": the device cannot sync depth and color: " + openniError()};
+        }
+    }
+
+    if (impl->is_file) {
+        openni::PlaybackControl* playback = impl->device.getPlaybackControl();
+        if (o.seek > impl->streams.front()->recorded_frames) {
+            return {ErrorCode::kInvalidArgument,
+                    context + ": seek=" + std::to_string(o.seek) + " is past the " +
+                        std::to_string(impl->streams.front()->recorded_frames) + " frames of the " +
+                        std::string(toString(impl->streams.front()->sensor)) + " stream"};
+        }
+        // Speed -1 is OpenNI2's manual playback: a frame is produced only when the previous one
+        // was read, so none is lost however slow the consumers.
+        const float speed =
+            o.pace == OpenNI2Options::Pace::kFast ? -1.0f : static_cast<float>(o.speed);
+        if (playback->setSpeed(speed) != openni::STATUS_OK ||
+            playback->setRepeatEnabled(o.loop) != openni::STATUS_OK) {
+            return {ErrorCode::kInternal,
+                    context + ": OpenNI2 refused the playback settings: " + openniError()};
+        }
+    }
+
+    std::unique_ptr<OpenNI2Device> device(
+        new OpenNI2Device(config.name, std::move(o), std::move(impl)));
+    const openni::DeviceInfo& info = device->impl_->device.getDeviceInfo();
+    device->descriptor_.backend = "openni2";
+    device->descriptor_.id = config.id.empty() ? info.getUri() : config.id;
+    device->descriptor_.model =
+        device->impl_->is_file ? "OpenNI recording (" + modelOf(info) + ")" : modelOf(info);
+    device->descriptor_.serial = serialOf(device->impl_->device);
+    device->descriptor_.location = info.getUri();
+    for (const auto& s : device->impl_->streams)
+        device->descriptor_.modes.push_back(modeText(s->sensor, s->mode));
+    return std::unique_ptr<Device>(std::move(device));
+}
+
+}  // namespace mixray::openni2
