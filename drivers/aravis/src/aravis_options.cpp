@@ -1,106 +1,21 @@
 // Aravis device options: parsing DeviceConfig::options into AravisOptions.
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
+#include <limits>
 #include <optional>
-#include <set>
 #include <utility>
 
 #include "mixray/aravis/aravis_backend.h"
+#include "mixray/graph/device_options.h"
 
 namespace mixray::aravis {
 namespace {
 
+constexpr double kNoLimit = std::numeric_limits<double>::infinity();
+
 constexpr std::array<std::string_view, 7> kPixelFormats = {
     "Mono8", "Mono16", "RGB8", "BayerRG8", "BayerGR8", "BayerGB8", "BayerBG8"};
-
-// Reads options one key at a time, remembering which were used, so that the leftovers
-// (typos) can be reported.
-class OptionReader {
-public:
-    explicit OptionReader(const DeviceConfig& config) : config_(config) {}
-
-    const std::string* find(const std::string& key) {
-        auto it = config_.options.find(key);
-        if (it == config_.options.end())
-            return nullptr;
-        used_.insert(key);
-        return &it->second;
-    }
-
-    Status error(const std::string& key, const std::string& value,
-                 std::string_view expected) const {
-        return {ErrorCode::kInvalidArgument, "aravis device '" + config_.name + "': option '" +
-                                                 key + "': expected " + std::string(expected) +
-                                                 ", got '" + value + "'"};
-    }
-
-    template <typename T>
-    Status integer(const std::string& key, T& out, T lo, T hi, std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        T value{};
-        const char* end = text->data() + text->size();
-        auto [ptr, ec] = std::from_chars(text->data(), end, value);
-        if (ec != std::errc() || ptr != end || value < lo || value > hi)
-            return error(key, *text, expected);
-        out = value;
-        return Status::ok();
-    }
-
-    // A value > lo (or >= lo when `closed`).
-    Status real(const std::string& key, double& out, double lo, bool closed,
-                std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        double value = 0;
-        const char* end = text->data() + text->size();
-        auto [ptr, ec] = std::from_chars(text->data(), end, value);
-        if (ec != std::errc() || ptr != end || !std::isfinite(value) ||
-            (closed ? value < lo : value <= lo)) {
-            return error(key, *text, expected);
-        }
-        out = value;
-        return Status::ok();
-    }
-
-    Status boolean(const std::string& key, bool& out) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        static const std::array<std::string_view, 4> kTrue = {"true", "1", "on", "yes"};
-        static const std::array<std::string_view, 4> kFalse = {"false", "0", "off", "no"};
-        if (std::find(kTrue.begin(), kTrue.end(), *text) != kTrue.end()) {
-            out = true;
-        } else if (std::find(kFalse.begin(), kFalse.end(), *text) != kFalse.end()) {
-            out = false;
-        } else {
-            return error(key, *text, "true or false");
-        }
-        return Status::ok();
-    }
-
-    Status leftovers() const {
-        for (const auto& [key, value] : config_.options) {
-            if (used_.count(key))
-                continue;
-            return {ErrorCode::kInvalidArgument,
-                    "aravis device '" + config_.name + "': unknown option '" + key +
-                        "' (known: pixel_format, debayer, exposure_us, gain, fps, width, "
-                        "height, offset_x, offset_y, trigger, buffers, packet_size, "
-                        "packet_resend, lost_timeout_ms, reconnect_ms, clock_domain, and the rig's "
-                        "<stream>.width, .height, .fps, .format for mono or color)"};
-        }
-        return Status::ok();
-    }
-
-private:
-    const DeviceConfig& config_;
-    std::set<std::string> used_;
-};
 
 // GenICam name of a graph pixel format a rig's stream mode may ask for.
 std::optional<std::string_view> genicamName(std::string_view graph_format) {
@@ -122,7 +37,7 @@ std::optional<std::string_view> genicamName(std::string_view graph_format) {
 
 // The rig file's way of asking for a mode: the stream list and "<stream>.width", ".height",
 // ".fps", ".format" (graph format names) for the camera's one stream, "mono" or "color".
-Status readStreamMode(const DeviceConfig& config, OptionReader& reader, AravisOptions& o) {
+Status readStreamMode(const DeviceConfig& config, DeviceOptionReader& reader, AravisOptions& o) {
     const std::string context = "aravis device '" + config.name + "'";
     if (config.streams.size() > 1) {
         return {ErrorCode::kInvalidArgument, context + ": the camera has one stream; " +
@@ -158,7 +73,8 @@ Status readStreamMode(const DeviceConfig& config, OptionReader& reader, AravisOp
         MIXRAY_RETURN_IF_ERROR(once(keys[3], "pixel_format", !o.pixel_format.empty()));
         MIXRAY_RETURN_IF_ERROR(reader.integer(keys[0], o.width, 1, 65535, "1..65535"));
         MIXRAY_RETURN_IF_ERROR(reader.integer(keys[1], o.height, 1, 65535, "1..65535"));
-        MIXRAY_RETURN_IF_ERROR(reader.real(keys[2], o.fps, 0, false, "a rate > 0"));
+        MIXRAY_RETURN_IF_ERROR(reader.real(keys[2], o.fps, 0, kNoLimit, "a rate > 0",
+                                           DeviceOptionReader::Bound::kOpen));
         if (const std::string* format = reader.find(keys[3])) {
             const auto name = genicamName(*format);
             if (!name) {
@@ -181,7 +97,7 @@ Status readStreamMode(const DeviceConfig& config, OptionReader& reader, AravisOp
 
 Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
     AravisOptions o;
-    OptionReader reader(config);
+    DeviceOptionReader reader(config, "aravis");
     if (const std::string* format = reader.find("pixel_format")) {
         if (std::find(kPixelFormats.begin(), kPixelFormats.end(), *format) == kPixelFormats.end()) {
             return reader.error("pixel_format", *format,
@@ -190,9 +106,11 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
         o.pixel_format = *format;
     }
     MIXRAY_RETURN_IF_ERROR(reader.boolean("debayer", o.debayer));
-    MIXRAY_RETURN_IF_ERROR(reader.real("exposure_us", o.exposure_us, 0, false, "a time > 0"));
-    MIXRAY_RETURN_IF_ERROR(reader.real("gain", o.gain, 0, true, "a gain >= 0"));
-    MIXRAY_RETURN_IF_ERROR(reader.real("fps", o.fps, 0, false, "a rate > 0"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("exposure_us", o.exposure_us, 0, kNoLimit, "a time > 0",
+                                       DeviceOptionReader::Bound::kOpen));
+    MIXRAY_RETURN_IF_ERROR(reader.real("gain", o.gain, 0, kNoLimit, "a gain >= 0"));
+    MIXRAY_RETURN_IF_ERROR(
+        reader.real("fps", o.fps, 0, kNoLimit, "a rate > 0", DeviceOptionReader::Bound::kOpen));
     MIXRAY_RETURN_IF_ERROR(reader.integer("width", o.width, 1, 65535, "1..65535"));
     MIXRAY_RETURN_IF_ERROR(reader.integer("height", o.height, 1, 65535, "1..65535"));
     MIXRAY_RETURN_IF_ERROR(reader.integer("offset_x", o.offset_x, 0, 65535, "0..65535"));
@@ -219,7 +137,10 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
                                           ClockDomainId{UINT32_MAX},
                                           "an integer >= 1 (0 is the host clock)"));
     MIXRAY_RETURN_IF_ERROR(readStreamMode(config, reader, o));
-    MIXRAY_RETURN_IF_ERROR(reader.leftovers());
+    MIXRAY_RETURN_IF_ERROR(reader.leftovers(
+        "pixel_format, debayer, exposure_us, gain, fps, width, height, offset_x, offset_y, "
+        "trigger, buffers, packet_size, packet_resend, lost_timeout_ms, reconnect_ms, "
+        "clock_domain, and the rig's <stream>.width, .height, .fps, .format for mono or color"));
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("aravis device '" + config.name + "'"));
     return o;
 }

@@ -3,12 +3,11 @@
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <set>
 
+#include "mixray/graph/device_options.h"
 #include "mixray/pattern/random.h"
 
 namespace mixray::pattern {
@@ -68,93 +67,6 @@ std::vector<std::string> splitList(std::string_view text) {
     return out;
 }
 
-// Reads the device's options one key at a time, remembering which were used, so that the
-// leftovers (typos) can be reported.
-class OptionReader {
-public:
-    explicit OptionReader(const DeviceConfig& config) : config_(config) {}
-
-    const std::string* find(const std::string& key) {
-        auto it = config_.options.find(key);
-        if (it == config_.options.end())
-            return nullptr;
-        used_.insert(key);
-        return &it->second;
-    }
-
-    Status error(const std::string& key, const std::string& value,
-                 std::string_view expected) const {
-        return {ErrorCode::kInvalidArgument, "pattern device '" + config_.name + "': option '" +
-                                                 key + "': expected " + std::string(expected) +
-                                                 ", got '" + value + "'"};
-    }
-
-    template <typename T>
-    Status integer(const std::string& key, T& out, T lo, T hi, std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        T value{};
-        const char* end = text->data() + text->size();
-        auto [ptr, ec] = std::from_chars(text->data(), end, value);
-        if (ec != std::errc() || ptr != end || value < lo || value > hi) {
-            return error(key, *text, expected);
-        }
-        out = value;
-        return Status::ok();
-    }
-
-    Status real(const std::string& key, double& out, double lo, double hi, bool hi_open,
-                std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        double value = 0;
-        const char* end = text->data() + text->size();
-        auto [ptr, ec] = std::from_chars(text->data(), end, value);
-        if (ec != std::errc() || ptr != end || !std::isfinite(value) || value < lo ||
-            (hi_open ? value >= hi : value > hi)) {
-            return error(key, *text, expected);
-        }
-        out = value;
-        return Status::ok();
-    }
-
-    Status boolean(const std::string& key, bool& out) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        static const std::array<std::string_view, 4> kTrue = {"true", "1", "on", "yes"};
-        static const std::array<std::string_view, 4> kFalse = {"false", "0", "off", "no"};
-        if (std::find(kTrue.begin(), kTrue.end(), *text) != kTrue.end()) {
-            out = true;
-        } else if (std::find(kFalse.begin(), kFalse.end(), *text) != kFalse.end()) {
-            out = false;
-        } else {
-            return error(key, *text, "true or false");
-        }
-        return Status::ok();
-    }
-
-    Status leftovers() const {
-        for (const auto& [key, value] : config_.options) {
-            if (used_.count(key))
-                continue;
-            return {ErrorCode::kInvalidArgument,
-                    "pattern device '" + config_.name + "': unknown option '" + key +
-                        "' (known: streams, <stream>.width, <stream>.height, fps, frames, "
-                        "realtime, epoch_ns, phase_us, offset_ns, drift_ppm, latency_us, "
-                        "jitter_us, reset_at_frame, drop_ratio, seed, buffers, fill, "
-                        "clock_domain)"};
-        }
-        return Status::ok();
-    }
-
-private:
-    const DeviceConfig& config_;
-    std::set<std::string> used_;
-};
-
 // splitmix64: tiny, fast and the same on every platform (std distributions are not).
 using Random = SplitMix64;
 
@@ -195,7 +107,7 @@ Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {
         return {ErrorCode::kNotFound, "pattern device '" + config.name + "': no virtual device '" +
                                           o.id + "' (known: rgbd, mono)"};
     }
-    OptionReader reader(config);
+    DeviceOptionReader reader(config, "pattern");
 
     std::vector<std::string> names;
     const std::string* list = reader.find("streams");
@@ -244,8 +156,7 @@ Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {
         o.streams.push_back(so);
     }
 
-    MIXRAY_RETURN_IF_ERROR(
-        reader.real("fps", o.fps, 1e-3, 1e5, false, "a rate in [0.001, 100000]"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("fps", o.fps, 1e-3, 1e5, "a rate in [0.001, 100000]"));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer<uint64_t>("frames", o.frames, 0, UINT64_MAX, "a frame count >= 0"));
     MIXRAY_RETURN_IF_ERROR(reader.boolean("realtime", o.realtime));
@@ -253,24 +164,24 @@ Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {
         reader.integer<int64_t>("epoch_ns", o.epoch_ns, 0, INT64_MAX / 2, "nanoseconds >= 0"));
     double phase_us = 0;
     MIXRAY_RETURN_IF_ERROR(
-        reader.real("phase_us", phase_us, -1e9, 1e9, false, "microseconds in [-1e9, 1e9]"));
+        reader.real("phase_us", phase_us, -1e9, 1e9, "microseconds in [-1e9, 1e9]"));
     o.phase_ns = std::llround(phase_us * 1e3);
     MIXRAY_RETURN_IF_ERROR(reader.integer<int64_t>("offset_ns", o.offset_ns, INT64_MIN / 2,
                                                    INT64_MAX / 2, "nanoseconds within ±4.6e18"));
     MIXRAY_RETURN_IF_ERROR(
-        reader.real("drift_ppm", o.drift_ppm, -1e4, 1e4, false, "ppm in [-10000, 10000]"));
+        reader.real("drift_ppm", o.drift_ppm, -1e4, 1e4, "ppm in [-10000, 10000]"));
     double latency_us = 0;
     MIXRAY_RETURN_IF_ERROR(
-        reader.real("latency_us", latency_us, 0, 1e7, false, "microseconds in [0, 1e7]"));
+        reader.real("latency_us", latency_us, 0, 1e7, "microseconds in [0, 1e7]"));
     o.latency_ns = std::llround(latency_us * 1e3);
     double jitter_us = 0;
-    MIXRAY_RETURN_IF_ERROR(
-        reader.real("jitter_us", jitter_us, 0, 1e7, false, "microseconds in [0, 1e7]"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("jitter_us", jitter_us, 0, 1e7, "microseconds in [0, 1e7]"));
     o.jitter_ns = jitter_us * 1e3;
     MIXRAY_RETURN_IF_ERROR(reader.integer<uint64_t>("reset_at_frame", o.reset_at_frame, 0,
                                                     UINT64_MAX, "a frame number >= 0"));
-    MIXRAY_RETURN_IF_ERROR(
-        reader.real("drop_ratio", o.drop_ratio, 0, 1, true, "a probability in [0, 1)"));
+    MIXRAY_RETURN_IF_ERROR(reader.real("drop_ratio", o.drop_ratio, 0, 1, "a probability in [0, 1)",
+                                       DeviceOptionReader::Bound::kClosed,
+                                       DeviceOptionReader::Bound::kOpen));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer<uint64_t>("seed", o.seed, 0, UINT64_MAX, "an unsigned integer"));
     MIXRAY_RETURN_IF_ERROR(
@@ -287,7 +198,10 @@ Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {
     o.clock_domain = defaultClockDomain(config.name);
     MIXRAY_RETURN_IF_ERROR(reader.integer<uint32_t>("clock_domain", o.clock_domain, 1, UINT32_MAX,
                                                     "an integer >= 1 (0 is the host clock)"));
-    MIXRAY_RETURN_IF_ERROR(reader.leftovers());
+    MIXRAY_RETURN_IF_ERROR(
+        reader.leftovers("streams, <stream>.width, <stream>.height, fps, frames, realtime, "
+                         "epoch_ns, phase_us, offset_ns, drift_ppm, latency_us, jitter_us, "
+                         "reset_at_frame, drop_ratio, seed, buffers, fill, clock_domain"));
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("pattern device '" + config.name + "'"));
     return o;
 }

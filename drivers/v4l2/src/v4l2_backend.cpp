@@ -18,8 +18,8 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
-#include <set>
 
+#include "mixray/graph/device_options.h"
 #include "mixray/v4l2/mjpeg.h"
 
 namespace mixray::v4l2 {
@@ -200,88 +200,20 @@ private:
     int fd_;
 };
 
-// Reads the options one key at a time, remembering which were used, so that leftovers (typos)
-// can be reported.
-class OptionReader {
-public:
-    explicit OptionReader(const DeviceConfig& config) : config_(config) {}
-
-    const std::string* find(const std::string& key) {
-        auto it = config_.options.find(key);
-        if (it == config_.options.end())
-            return nullptr;
-        used_.insert(key);
-        return &it->second;
+// The ctrl.<key> options: any control by its key (controlKey()), as an integer.
+Status readControls(DeviceOptionReader& reader, std::map<std::string, int32_t>& out) {
+    for (const auto& [key, value] : reader.config().options) {
+        if (key.rfind("ctrl.", 0) != 0)
+            continue;
+        const std::string name = key.substr(5);
+        if (name.empty() || controlKey(name) != name)
+            return reader.error(key, value, "ctrl.<lowercase control key>");
+        int32_t v = 0;
+        MIXRAY_RETURN_IF_ERROR(reader.integer<int32_t>(key, v, INT32_MIN, INT32_MAX, "an integer"));
+        out[name] = v;
     }
-
-    Status error(const std::string& key, const std::string& value,
-                 std::string_view expected) const {
-        return {ErrorCode::kInvalidArgument, "v4l2 device '" + config_.name + "': option '" + key +
-                                                 "': expected " + std::string(expected) +
-                                                 ", got '" + value + "'"};
-    }
-
-    template <typename T>
-    Status integer(const std::string& key, T& out, T lo, T hi, std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        T value{};
-        const char* end = text->data() + text->size();
-        auto [ptr, ec] = std::from_chars(text->data(), end, value);
-        if (ec != std::errc() || ptr != end || value < lo || value > hi)
-            return error(key, *text, expected);
-        out = value;
-        return Status::ok();
-    }
-
-    template <typename T>
-    Status choice(const std::string& key, T& out,
-                  std::initializer_list<std::pair<std::string_view, T>> values,
-                  std::string_view expected) {
-        const std::string* text = find(key);
-        if (!text)
-            return Status::ok();
-        for (const auto& [name, value] : values) {
-            if (*text == name) {
-                out = value;
-                return Status::ok();
-            }
-        }
-        return error(key, *text, expected);
-    }
-
-    Status controls(std::map<std::string, int32_t>& out) {
-        for (const auto& [key, value] : config_.options) {
-            if (key.rfind("ctrl.", 0) != 0)
-                continue;
-            const std::string name = key.substr(5);
-            if (name.empty() || controlKey(name) != name)
-                return error(key, value, "ctrl.<lowercase control key>");
-            int32_t v = 0;
-            MIXRAY_RETURN_IF_ERROR(integer<int32_t>(key, v, INT32_MIN, INT32_MAX, "an integer"));
-            out[name] = v;
-        }
-        return Status::ok();
-    }
-
-    Status leftovers() const {
-        for (const auto& [key, value] : config_.options) {
-            if (used_.count(key))
-                continue;
-            return {ErrorCode::kInvalidArgument,
-                    "v4l2 device '" + config_.name + "': unknown option '" + key +
-                        "' (known: color.format, color.width, color.height, color.fps, io, "
-                        "buffers, pool, role, clock, exposure_us, auto_white_balance, "
-                        "white_balance_k, reconnect, ctrl.<key>)"};
-        }
-        return Status::ok();
-    }
-
-private:
-    const DeviceConfig& config_;
-    std::set<std::string> used_;
-};
+    return Status::ok();
+}
 
 }  // namespace
 
@@ -305,7 +237,7 @@ std::string controlKey(std::string_view name) {
 Result<V4l2Options> V4l2Options::fromConfig(const DeviceConfig& config) {
     V4l2Options o;
     o.fourcc = V4L2_PIX_FMT_YUYV;
-    OptionReader reader(config);
+    DeviceOptionReader reader(config, "v4l2");
     if (const std::string* text = reader.find("color.format")) {
         if (*text == "yuyv") {
             o.fourcc = V4L2_PIX_FMT_YUYV;
@@ -349,11 +281,12 @@ Result<V4l2Options> V4l2Options::fromConfig(const DeviceConfig& config) {
     }
     MIXRAY_RETURN_IF_ERROR(reader.integer<int32_t>("white_balance_k", o.white_balance_k, 1000,
                                                    20000, "kelvin in [1000, 20000]"));
-    MIXRAY_RETURN_IF_ERROR(reader.choice<bool>("reconnect", o.reconnect,
-                                               {{"true", true}, {"false", false}},
-                                               "true or false"));
-    MIXRAY_RETURN_IF_ERROR(reader.controls(o.controls));
-    MIXRAY_RETURN_IF_ERROR(reader.leftovers());
+    MIXRAY_RETURN_IF_ERROR(reader.choice<bool>(
+        "reconnect", o.reconnect, {{"true", true}, {"false", false}}, "true or false"));
+    MIXRAY_RETURN_IF_ERROR(readControls(reader, o.controls));
+    MIXRAY_RETURN_IF_ERROR(reader.leftovers(
+        "color.format, color.width, color.height, color.fps, io, buffers, pool, role, clock, "
+        "exposure_us, auto_white_balance, white_balance_k, reconnect, ctrl.<key>"));
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("v4l2 device '" + config.name + "'"));
     return o;
 }
