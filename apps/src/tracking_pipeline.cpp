@@ -300,8 +300,13 @@ std::vector<render::Light> TrackingPipeline::lights(const TrackedFrame& frame) c
         render::Light env;
         env.name = "estimated_environment";
         env.type = render::LightType::kEnvironment;
-        env.environment_image =
-            std::make_shared<const FloatImage>(frame.environment.value->environment_map);
+        // One shared copy per estimate, not per frame: the map is a few MB.
+        if (environment_map_stamp_ != frame.environment.good_stamp_ns || !environment_map_) {
+            environment_map_ =
+                std::make_shared<const FloatImage>(frame.environment.value->environment_map);
+            environment_map_stamp_ = frame.environment.good_stamp_ns;
+        }
+        env.environment_image = environment_map_;
         out.push_back(std::move(env));
     }
     return out;
