@@ -296,17 +296,11 @@ std::vector<render::Light> TrackingPipeline::lights(const TrackedFrame& frame) c
         }
         out.push_back(std::move(l));
     }
-    if (frame.environment.value && !frame.environment.value->environment_map.pixels.empty()) {
+    if (frame.environment.value && frame.environment.value->environment_map) {
         render::Light env;
         env.name = "estimated_environment";
         env.type = render::LightType::kEnvironment;
-        // One shared copy per estimate, not per frame: the map is a few MB.
-        if (environment_map_stamp_ != frame.environment.good_stamp_ns || !environment_map_) {
-            environment_map_ =
-                std::make_shared<const FloatImage>(frame.environment.value->environment_map);
-            environment_map_stamp_ = frame.environment.good_stamp_ns;
-        }
-        env.environment_image = environment_map_;
+        env.environment_image = frame.environment.value->environment_map;
         out.push_back(std::move(env));
     }
     return out;

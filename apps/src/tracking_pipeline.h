@@ -105,9 +105,6 @@ private:
     std::vector<tracking::Estimate<tracking::ProbeResult>> probes_;
     tracking::Estimate<tracking::IntensityFit> intensities_;
     tracking::Estimate<tracking::EstimatedLight> sun_;
-    // lights()'s environment map, shared between the frames of one estimate.
-    mutable std::shared_ptr<const FloatImage> environment_map_;
-    mutable int64_t environment_map_stamp_ = -1;
     uint64_t frames_ = 0;
 };
 

@@ -476,7 +476,8 @@ TEST(AsyncEnvironmentEstimator, FreshThenStaleKeepsTheLastGoodValue) {
     EXPECT_EQ(e.stamp_ns, 100);
     EXPECT_EQ(e.good_stamp_ns, 100);
     EXPECT_GE(e.value->lights.size(), 2u);
-    EXPECT_EQ(e.value->environment_map.width, 64);
+    ASSERT_TRUE(e.value->environment_map);
+    EXPECT_EQ(e.value->environment_map->width, 64);
     EXPECT_LT(nearestDeg(e.value->lights, toLight(truth().lights[0])), 3.0);
 
     estimator.submit(filled(camera.model, 0).view(), 200);

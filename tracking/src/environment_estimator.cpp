@@ -77,7 +77,9 @@ struct AsyncEnvironmentEstimator::Impl {
             estimate.keep(map.status().message(), job.stamp_ns);
             return;
         }
-        estimate.update({std::move(lights).value(), std::move(map).value()}, job.stamp_ns);
+        estimate.update(
+            {std::move(lights).value(), std::make_shared<const FloatImage>(std::move(map).value())},
+            job.stamp_ns);
     }
 };
 

@@ -114,9 +114,10 @@ Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const Environ
                                              int width = 512);
 
 // Everything estimated from one environment frame.
+// The map is shared and immutable: estimates are copied to every frame that reads them.
 struct EnvironmentEstimate {
     std::vector<EstimatedLight> lights;
-    FloatImage environment_map;
+    std::shared_ptr<const FloatImage> environment_map;
 };
 
 // Runs environment estimation on its own thread: submit() hands over the newest image without
