@@ -1,6 +1,6 @@
 // The usb backend against USB devices described to umockdev (tests/usb/*.umockdev: sysfs
-// attributes and descriptors of a Kinect v1 and a UVC webcam): libusb enumerates them as if they
-// were plugged in, and testbed uevents fire libusb's hot-plug callbacks.
+// attributes and descriptors of a Kinect v1, a UVC webcam and a USB3 Vision camera): libusb
+// enumerates them as if they were plugged in, and testbed uevents fire its hot-plug callbacks.
 #include <gtest/gtest.h>
 #include <umockdev.h>
 #include <unistd.h>
@@ -83,18 +83,19 @@ TEST(UsbIdentify, ByIdsThenByInterfaceClass) {
     EXPECT_EQ(deviceId(0x045e, 0x02ae, 1, 5), "045e:02ae@1/5");
 }
 
-TEST(UsbBackend, EnumeratesTheKinectAndTheWebcamOnly) {
+TEST(UsbBackend, EnumeratesTheRigDevicesOnly) {
     MIXRAY_REQUIRE_UMOCKDEV();
     Testbed bed;
     ASSERT_TRUE(bed.add("root_hub.umockdev"));
     ASSERT_TRUE(bed.add("kinect_v1.umockdev"));
     ASSERT_TRUE(bed.add("uvc_camera.umockdev"));
+    ASSERT_TRUE(bed.add("usb3_vision_camera.umockdev"));
     UsbBackend backend;
     EXPECT_EQ(backend.name(), "usb");
     auto devices = backend.enumerate();
     ASSERT_TRUE(devices) << devices.status().toString();
     // The root hub and the Kinect's internal hub are not rig devices.
-    ASSERT_EQ(devices->size(), 4u);
+    ASSERT_EQ(devices->size(), 5u);
     const DeviceDescriptor* camera = find(*devices, "045e:02ae@1/5");
     ASSERT_TRUE(camera);
     EXPECT_EQ(camera->backend, "usb");
@@ -115,6 +116,11 @@ TEST(UsbBackend, EnumeratesTheKinectAndTheWebcamOnly) {
     EXPECT_EQ(webcam->model, "UVC camera");
     EXPECT_EQ(webcam->serial, "8A3F29C0");
     EXPECT_EQ(webcam->location, "1-2");
+    const DeviceDescriptor* vision = find(*devices, "2676:ba02@1/7");
+    ASSERT_TRUE(vision);
+    EXPECT_EQ(vision->model, "USB3 Vision camera");
+    EXPECT_EQ(vision->serial, "22841531");
+    EXPECT_EQ(vision->location, "1-3");
 }
 
 TEST(UsbBackend, OpenNamesTheBackendThatStreams) {
@@ -138,6 +144,12 @@ TEST(UsbBackend, OpenNamesTheBackendThatStreams) {
     ASSERT_FALSE(webcam);
     EXPECT_NE(webcam.status().message().find("driver: v4l2"), std::string::npos)
         << webcam.status().message();
+    ASSERT_TRUE(bed.add("usb3_vision_camera.umockdev"));
+    c.id = "22841531";
+    auto vision = backend.open(c);
+    ASSERT_FALSE(vision);
+    EXPECT_NE(vision.status().message().find("driver: aravis"), std::string::npos)
+        << vision.status().message();
     c.id = "045e:02b0@1/3";
     auto motor = backend.open(c);
     ASSERT_FALSE(motor);
