@@ -8,6 +8,7 @@
 #include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/replay/replay_backend.h"
+#include "mixray/usb/usb_backend.h"
 #include "mixray/v4l2/v4l2_backend.h"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -34,6 +35,7 @@ BackendRegistry makeBackendRegistry() {
     (void)registry.add(std::make_unique<aravis::AravisBackend>());
     (void)registry.add(std::make_unique<v4l2::V4l2Backend>());
     (void)registry.add(std::make_unique<openni2::OpenNI2Backend>());
+    (void)registry.add(std::make_unique<usb::UsbBackend>());
     return registry;
 }
 
