@@ -163,13 +163,7 @@ TEST(MarkerDetect, AprilTagCornersAreShiftedHalfAPixelIntoOurConvention) {
 TEST(MarkerDetect, CharucoCornersAreShiftedHalfAPixelIntoOurConvention) {
     // interpolateCornersCharuco's corners against the board's projected inner corners.
     const auto camera = syntheticCamera();
-    MarkerTarget board;
-    board.name = "charuco";
-    board.kind = TargetKind::kCharucoBoard;
-    board.squares_x = 5;
-    board.squares_y = 7;
-    board.square_m = 0.04;
-    board.size_m = 0.02;
+    MarkerTarget board = synth::tutorialCharucoBoard();
     ASSERT_TRUE(board.validate());
     auto cvboard = cv::aruco::CharucoBoard::create(
         5, 7, 0.04f, 0.02f, cv::aruco::getPredefinedDictionary(cv::aruco::DICT_6X6_250));
@@ -305,13 +299,7 @@ TEST(MarkerDetect, RealBoardPosesFitTheirPhotos) {
         auto camera = calibration::CameraModel::pinhole(640, 480, 452.51072220, 456.76707935,
                                                         317.70297317, 277.75155919);
         camera.distortion = {0.12136926, -1.08546647, 0.00011787, -0.00046241, 2.95425894};
-        MarkerTarget board;
-        board.name = "charuco";
-        board.kind = TargetKind::kCharucoBoard;
-        board.squares_x = 5;
-        board.squares_y = 7;
-        board.square_m = 0.04;
-        board.size_m = 0.02;
+        MarkerTarget board = synth::tutorialCharucoBoard();
         auto tracker = MarkerTracker::create(camera, {board});
         ASSERT_TRUE(tracker) << tracker.status().toString();
         const cv::Mat grey = readGrey(dir / "choriginal.jpg");

@@ -124,4 +124,15 @@ double angleDeg(const Isometry3d& a, const Isometry3d& b) {
     return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180 / M_PI;
 }
 
+MarkerTarget tutorialCharucoBoard() {
+    MarkerTarget board;
+    board.name = "charuco";
+    board.kind = TargetKind::kCharucoBoard;
+    board.squares_x = 5;
+    board.squares_y = 7;
+    board.square_m = 0.04;
+    board.size_m = 0.02;
+    return board;
+}
+
 }  // namespace mixray::tracking::synth

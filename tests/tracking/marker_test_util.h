@@ -9,6 +9,7 @@
 
 #include "mixray/calibration/camera_model.h"
 #include "mixray/graph/image.h"
+#include "mixray/tracking/markers.h"
 
 namespace mixray::tracking::synth {
 
@@ -50,5 +51,9 @@ Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& targ
 
 // Rotation angle (degrees) between two poses and their translation difference (m).
 double angleDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+
+// The ChArUco board of OpenCV's tutorial photo choriginal.jpg: 5x7 squares of 40 mm, 20 mm
+// DICT_6X6_250 markers from id 0.
+MarkerTarget tutorialCharucoBoard();
 
 }  // namespace mixray::tracking::synth

@@ -404,13 +404,7 @@ TEST(MarkerTracker, OptionsAndTargetsAreValidated) {
     t.name.clear();
     EXPECT_FALSE(t.validate());
 
-    MarkerTarget charuco;
-    charuco.name = "charuco";
-    charuco.kind = TargetKind::kCharucoBoard;
-    charuco.squares_x = 5;
-    charuco.squares_y = 7;
-    charuco.square_m = 0.04;
-    charuco.size_m = 0.02;
+    MarkerTarget charuco = synth::tutorialCharucoBoard();
     ASSERT_TRUE(charuco.validate());
     const auto cp = charuco.points();
     ASSERT_EQ(cp.size(), 24u);  // (5-1) x (7-1) inner corners

@@ -14,13 +14,14 @@
 #include <vector>
 
 #include "mixray/usb/usb_backend.h"
+#include "umockdev_preload.h"
 
 namespace mixray::usb {
 namespace {
 
 using std::chrono::seconds;
 
-constexpr const char* kPreload = "libumockdev-preload.so.0";
+using test::kUmockdevPreload;
 constexpr const char* kBus = "/sys/devices/pci0000:00/0000:00:14.0/usb1";
 
 // Owns a umockdev testbed; its devices vanish with it.
@@ -52,14 +53,9 @@ private:
     UMockdevTestbed* testbed_;
 };
 
-bool preloaded() {
-    const char* preload = std::getenv("LD_PRELOAD");
-    return preload && std::strstr(preload, kPreload);
-}
-
-#define MIXRAY_REQUIRE_UMOCKDEV()                              \
-    if (!preloaded())                                          \
-    GTEST_SKIP() << "umockdev's preload library (" << kPreload \
+#define MIXRAY_REQUIRE_UMOCKDEV()                                      \
+    if (!test::umockdevPreloaded())                                    \
+    GTEST_SKIP() << "umockdev's preload library (" << kUmockdevPreload \
                  << ") is not installed (Debian package umockdev): no emulated USB bus"
 
 const DeviceDescriptor* find(const std::vector<DeviceDescriptor>& devices, const std::string& id) {
@@ -202,33 +198,8 @@ TEST(HotplugMonitor, ReportsArrivalAndDepartureOfRigDevices) {
 }  // namespace
 }  // namespace mixray::usb
 
-// umockdev works by preloading a library that redirects /dev and /sys; re-executing with the
-// library preloaded lets ctest and a plain run use the emulated bus without a wrapper script.
 int main(int argc, char** argv) {
-    const char* preload = std::getenv("LD_PRELOAD");
-    const bool listing = argc > 1 && std::strstr(argv[1], "--gtest_list_tests");
-    if (!listing && (!preload || !std::strstr(preload, mixray::usb::kPreload)) &&
-        !std::getenv("MIXRAY_USB_NO_PRELOAD")) {
-        for (const char* dir : {"/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu",
-                                "/usr/lib64", "/usr/lib"}) {
-            if (!std::filesystem::exists(std::string(dir) + "/" + mixray::usb::kPreload))
-                continue;
-            std::string value = mixray::usb::kPreload;
-            if (preload && *preload)
-                value += std::string(":") + preload;
-            setenv("LD_PRELOAD", value.c_str(), 1);
-            // Guard against a loop should the loader ignore the variable.
-            setenv("MIXRAY_USB_NO_PRELOAD", "1", 1);
-            // ASan wants to be the first library loaded; umockdev's preload comes first here.
-            const char* asan = std::getenv("ASAN_OPTIONS");
-            std::string asan_options = "verify_asan_link_order=0";
-            if (asan && *asan)
-                asan_options = std::string(asan) + ":" + asan_options;
-            setenv("ASAN_OPTIONS", asan_options.c_str(), 1);
-            execv("/proc/self/exe", argv);
-            break;
-        }
-    }
+    mixray::test::reexecWithUmockdevPreload(argc, argv);
     testing::InitGoogleTest(&argc, argv);
     return RUN_ALL_TESTS();
 }

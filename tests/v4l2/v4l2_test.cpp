@@ -19,6 +19,7 @@
 #include "mixray/v4l2/mjpeg.h"
 #include "mixray/v4l2/v4l2_backend.h"
 #include "test_data.h"
+#include "umockdev_preload.h"
 #include "uvc_emulator.h"
 
 namespace mixray::v4l2 {
@@ -27,13 +28,12 @@ namespace {
 using std::chrono::seconds;
 using test::UvcEmulator;
 
-constexpr const char* kPreload = "libumockdev-preload.so.0";
+using mixray::test::kUmockdevPreload;
 
 // umockdev redirects /dev and /sys through its preload library, which main() puts in place;
 // the emulator is skipped only when umockdev itself is missing.
 std::unique_ptr<UvcEmulator> emulator() {
-    const char* preload = std::getenv("LD_PRELOAD");
-    if (!preload || !std::strstr(preload, kPreload))
+    if (!mixray::test::umockdevPreloaded())
         return nullptr;
     std::string why;
     auto e = UvcEmulator::create(&why);
@@ -46,7 +46,7 @@ std::unique_ptr<UvcEmulator> emulator() {
     if (!e) {                                                                               \
         if (::testing::Test::HasFailure())                                                  \
             return;                                                                         \
-        GTEST_SKIP() << "umockdev's preload library (" << kPreload                          \
+        GTEST_SKIP() << "umockdev's preload library (" << kUmockdevPreload                  \
                      << ") is not installed (Debian package umockdev): no emulated camera"; \
     }
 
@@ -530,34 +530,8 @@ TEST(Mjpeg, RefusesWhatIsNotAJpeg) {
 }  // namespace
 }  // namespace mixray::v4l2
 
-// umockdev works by preloading a library that redirects /dev and /sys; without it the process
-// sees the real (empty) device tree. Re-executing with the library preloaded lets ctest and a
-// plain run use the emulator without a wrapper script.
 int main(int argc, char** argv) {
-    const char* preload = std::getenv("LD_PRELOAD");
-    const bool listing = argc > 1 && std::strstr(argv[1], "--gtest_list_tests");
-    if (!listing && (!preload || !std::strstr(preload, mixray::v4l2::kPreload)) &&
-        !std::getenv("MIXRAY_V4L2_NO_PRELOAD")) {
-        for (const char* dir : {"/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu",
-                                "/usr/lib64", "/usr/lib"}) {
-            if (!std::filesystem::exists(std::string(dir) + "/" + mixray::v4l2::kPreload))
-                continue;
-            std::string value = mixray::v4l2::kPreload;
-            if (preload && *preload)
-                value += std::string(":") + preload;
-            setenv("LD_PRELOAD", value.c_str(), 1);
-            // Guard against a loop should the loader ignore the variable.
-            setenv("MIXRAY_V4L2_NO_PRELOAD", "1", 1);
-            // ASan wants to be the first library loaded; umockdev's preload comes first here.
-            const char* asan = std::getenv("ASAN_OPTIONS");
-            std::string asan_options = "verify_asan_link_order=0";
-            if (asan && *asan)
-                asan_options = std::string(asan) + ":" + asan_options;
-            setenv("ASAN_OPTIONS", asan_options.c_str(), 1);
-            execv("/proc/self/exe", argv);
-            break;
-        }
-    }
+    mixray::test::reexecWithUmockdevPreload(argc, argv);
     testing::InitGoogleTest(&argc, argv);
     return RUN_ALL_TESTS();
 }

@@ -359,13 +359,11 @@ Status AravisDevice::connect(Graph& graph) {
     const std::string context = "aravis device '" + name_ + "'";
     if (graph_)
         return {ErrorCode::kInvalidArgument, context + " connected twice"};
-    auto id = graph.addStream(info_);
-    if (!id)
-        return id.status();
-    pool_ = BufferPool::create({info_.format, 0, options_.buffers, info_.name});
-    if (!pool_)
-        return {ErrorCode::kInternal, context + ": cannot create the pool of " + info_.name};
-    stream_id_ = *id;
+    auto stream = addPooledStream(graph, info_, options_.buffers);
+    if (!stream)
+        return stream.status().withContext(context);
+    pool_ = std::move(stream->pool);
+    stream_id_ = stream->id;
     graph_ = &graph;
     return Status::ok();
 }

@@ -179,4 +179,17 @@ std::vector<EdgeStats> Graph::edgeStats() const {
     return out;
 }
 
+Result<PooledStream> addPooledStream(Graph& graph, const StreamInfo& info, size_t buffer_count,
+                                     size_t buffer_bytes) {
+    auto id = graph.addStream(info);
+    if (!id)
+        return id.status();
+    PooledStream out;
+    out.id = *id;
+    out.pool = BufferPool::create({info.format, buffer_bytes, buffer_count, info.name});
+    if (!out.pool)
+        return Status(ErrorCode::kInternal, "cannot create the pool of '" + info.name + "'");
+    return out;
+}
+
 }  // namespace mixray

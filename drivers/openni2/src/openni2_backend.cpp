@@ -484,16 +484,11 @@ Status OpenNI2Device::connect(Graph& graph) {
         info.tags["openni2_uri"] = impl_->device.getDeviceInfo().getUri();
         if (s->unmirror)
             info.tags["openni2_unmirrored"] = "software";
-        auto id = graph.addStream(info);
-        if (!id)
-            return id.status();
-        auto pool = BufferPool::create({info.format, 0, options_.buffers, info.name});
-        if (!pool) {
-            return {ErrorCode::kInternal, "openni2 device '" + name_ +
-                                              "': cannot create the pool of '" + info.name + "'"};
-        }
-        ids_.push_back(*id);
-        pools_.push_back(std::move(pool));
+        auto stream = addPooledStream(graph, info, options_.buffers);
+        if (!stream)
+            return stream.status().withContext("openni2 device '" + name_ + "'");
+        ids_.push_back(stream->id);
+        pools_.push_back(std::move(stream->pool));
     }
     graph_ = &graph;
     return Status::ok();

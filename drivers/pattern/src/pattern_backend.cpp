@@ -279,16 +279,11 @@ Status PatternDevice::connect(Graph& graph) {
         info.nominal_fps = options_.fps;
         info.clock_domain = options_.clock_domain;
         info.tags["generator"] = "mixray pattern";
-        auto id = graph.addStream(info);
-        if (!id)
-            return id.status();
-        auto pool = BufferPool::create({info.format, 0, options_.buffers, info.name});
-        if (!pool) {
-            return {ErrorCode::kInternal, "pattern device '" + name_ +
-                                              "': cannot create the pool of '" + info.name + "'"};
-        }
-        ids_.push_back(*id);
-        pools_.push_back(std::move(pool));
+        auto stream = addPooledStream(graph, info, options_.buffers);
+        if (!stream)
+            return stream.status().withContext("pattern device '" + name_ + "'");
+        ids_.push_back(stream->id);
+        pools_.push_back(std::move(stream->pool));
     }
     graph_ = &graph;
     return Status::ok();

@@ -553,21 +553,13 @@ Status V4l2Device::connect(Graph& graph) {
     info.clock_domain = clock_domain_;
     info.tags["v4l2_card"] = descriptor_.model;
     info.tags["v4l2_path"] = path_;
-    auto id = graph.addStream(info);
-    if (!id)
-        return id.status();
-    BufferPoolOptions po;
-    po.desc = desc_;
-    po.buffer_count = options_.pool;
-    po.name = info.name;
-    if (desc_.format == PixelFormat::kMJPEG)
-        po.buffer_bytes = sizeimage_;
-    pool_ = BufferPool::create(po);
-    if (!pool_) {
-        return {ErrorCode::kInternal,
-                "v4l2 device '" + name_ + "': cannot create the pool of '" + info.name + "'"};
-    }
-    stream_ = *id;
+    // MJPEG frames vary in size: the driver's sizeimage bounds them.
+    auto stream = addPooledStream(graph, info, options_.pool,
+                                  desc_.format == PixelFormat::kMJPEG ? sizeimage_ : 0);
+    if (!stream)
+        return stream.status().withContext("v4l2 device '" + name_ + "'");
+    pool_ = std::move(stream->pool);
+    stream_ = stream->id;
     graph_ = &graph;
     return Status::ok();
 }

@@ -102,4 +102,16 @@ private:
     std::atomic<uint64_t> unknown_stream_frames_{0};
 };
 
+// A stream a device publishes from a pool of its own: declared in the graph, its pool allocated.
+struct PooledStream {
+    StreamId id = kInvalidStream;
+    std::shared_ptr<BufferPool> pool;
+};
+
+// Declares `info` and creates its pool of `buffer_count` buffers of `buffer_bytes` (0: what the
+// stream's format needs), named after the stream. The graph's error for a bad stream; kInternal
+// naming the stream when the pool cannot be created.
+Result<PooledStream> addPooledStream(Graph& graph, const StreamInfo& info, size_t buffer_count,
+                                     size_t buffer_bytes = 0);
+
 }  // namespace mixray
