@@ -7,6 +7,25 @@
 
 namespace mixray {
 
+std::vector<std::string> splitOptionList(std::string_view text) {
+    std::vector<std::string> out;
+    size_t pos = 0;
+    while (pos <= text.size()) {
+        size_t comma = text.find(',', pos);
+        if (comma == std::string_view::npos)
+            comma = text.size();
+        std::string_view item = text.substr(pos, comma - pos);
+        while (!item.empty() && item.front() == ' ')
+            item.remove_prefix(1);
+        while (!item.empty() && item.back() == ' ')
+            item.remove_suffix(1);
+        if (!item.empty())
+            out.emplace_back(item);
+        pos = comma + 1;
+    }
+    return out;
+}
+
 const std::string* DeviceOptionReader::find(const std::string& key) {
     auto it = config_.options.find(key);
     if (it == config_.options.end())

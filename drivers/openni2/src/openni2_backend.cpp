@@ -13,6 +13,8 @@
 #include <optional>
 #include <set>
 
+#include "mixray/graph/device_options.h"
+
 namespace mixray::openni2 {
 namespace {
 
@@ -150,25 +152,6 @@ std::string modeText(Sensor sensor, const openni::VideoMode& mode) {
            std::to_string(mode.getResolutionY()) + "@" + std::to_string(mode.getFps()) + " " + name;
 }
 
-std::vector<std::string> splitList(std::string_view text) {
-    std::vector<std::string> out;
-    size_t pos = 0;
-    while (pos <= text.size()) {
-        size_t comma = text.find(',', pos);
-        if (comma == std::string_view::npos)
-            comma = text.size();
-        std::string_view item = text.substr(pos, comma - pos);
-        while (!item.empty() && item.front() == ' ')
-            item.remove_prefix(1);
-        while (!item.empty() && item.back() == ' ')
-            item.remove_suffix(1);
-        if (!item.empty())
-            out.emplace_back(item);
-        pos = comma + 1;
-    }
-    return out;
-}
-
 template <typename T>
 bool parseNumber(const std::string& text, T& out) {
     const char* end = text.data() + text.size();
@@ -298,7 +281,7 @@ Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {
                             "': streams are listed both in the rig's stream list and in option "
                             "'streams'; give them once"};
             }
-            names = splitList(value);
+            names = splitOptionList(value);
             if (names.empty())
                 return badOption(config, key, value, "a comma list of depth, color, ir");
         } else if (key == "registration") {

@@ -47,26 +47,6 @@ PatternStreamOptions defaultStream(PatternStream stream) {
     return {stream, 640, 480};
 }
 
-// Splits "a, b,c" into trimmed, non-empty items.
-std::vector<std::string> splitList(std::string_view text) {
-    std::vector<std::string> out;
-    size_t pos = 0;
-    while (pos <= text.size()) {
-        size_t comma = text.find(',', pos);
-        if (comma == std::string_view::npos)
-            comma = text.size();
-        std::string_view item = text.substr(pos, comma - pos);
-        while (!item.empty() && item.front() == ' ')
-            item.remove_prefix(1);
-        while (!item.empty() && item.back() == ' ')
-            item.remove_suffix(1);
-        if (!item.empty())
-            out.emplace_back(item);
-        pos = comma + 1;
-    }
-    return out;
-}
-
 // splitmix64: tiny, fast and the same on every platform (std distributions are not).
 using Random = SplitMix64;
 
@@ -118,7 +98,7 @@ Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {
                     "'streams'; give them once"};
     }
     if (list) {
-        names = splitList(*list);
+        names = splitOptionList(*list);
         if (names.empty())
             return reader.error("streams", *list, "a comma list of streams");
     } else {

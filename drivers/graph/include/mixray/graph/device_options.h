@@ -10,11 +10,15 @@
 #include <string_view>
 #include <system_error>
 #include <utility>
+#include <vector>
 
 #include "mixray/graph/device.h"
 #include "mixray/graph/result.h"
 
 namespace mixray {
+
+// Splits an option's "a, b,c" into trimmed, non-empty items.
+std::vector<std::string> splitOptionList(std::string_view text);
 
 // Reads one device's options key by key, remembering which were read. Absent keys leave the
 // output as it was (the backend's default). Thread-bound; does not own `config`.
