@@ -30,6 +30,7 @@ mixray_pkg(OPENNI2 libopenni2 libopenni2-dev)
 mixray_pkg(ARAVIS aravis-0.8 libaravis-dev)
 mixray_pkg(LIBV4L2 libv4l2 libv4l-dev)
 mixray_pkg(LIBUSB libusb-1.0 libusb-1.0-0-dev)
+mixray_pkg(LIBFREENECT libfreenect libfreenect-dev)
 
 # Algorithms.
 find_package(Eigen3 3.4 QUIET NO_MODULE)

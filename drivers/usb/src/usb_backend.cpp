@@ -11,20 +11,12 @@
 #include <mutex>
 #include <thread>
 
+#include "mixray/usb/kinect_motor.h"
+#include "usb_internal.h"
+
 namespace mixray::usb {
-namespace {
 
-constexpr uint16_t kMicrosoft = 0x045e;
-constexpr uint16_t kPrimeSense = 0x1d27;
-
-std::string hex4(uint16_t v) {
-    char buf[8];
-    std::snprintf(buf, sizeof(buf), "%04x", v);
-    return buf;
-}
-
-// "1-1.3": the kernel's name for the device, also its directory in /sys/bus/usb/devices.
-std::string portPath(libusb_device* dev) {
+std::string detail::portPath(libusb_device* dev) {
     uint8_t ports[8];
     const int n = libusb_get_port_numbers(dev, ports, sizeof(ports));
     std::string path = std::to_string(libusb_get_bus_number(dev));
@@ -33,6 +25,19 @@ std::string portPath(libusb_device* dev) {
     for (int i = 0; i < n; ++i)
         path += (i == 0 ? "-" : ".") + std::to_string(ports[i]);
     return path;
+}
+
+namespace {
+
+using detail::portPath;
+
+constexpr uint16_t kMicrosoft = 0x045e;
+constexpr uint16_t kPrimeSense = 0x1d27;
+
+std::string hex4(uint16_t v) {
+    char buf[8];
+    std::snprintf(buf, sizeof(buf), "%04x", v);
+    return buf;
 }
 
 std::vector<InterfaceClass> interfaceClasses(libusb_device* dev) {
@@ -130,7 +135,7 @@ std::optional<Identity> identify(uint16_t vendor, uint16_t product,
             case 0x02ae:
                 return Identity{"Kinect v1 camera", "openni2"};
             case 0x02b0:
-                return Identity{"Kinect v1 motor", ""};
+                return Identity{"Kinect v1 motor", "usb"};
             case 0x02ad:
                 return Identity{"Kinect v1 audio", ""};
             default:
@@ -173,11 +178,17 @@ Result<std::unique_ptr<Device>> UsbBackend::open(const DeviceConfig& config) {
             continue;
         std::string what = "usb: " + d.descriptor.model + " " + d.descriptor.id + " (device '" +
                            config.name + "')";
+        if (d.identity.streamer == "usb") {
+            auto motor = KinectMotorDevice::open(config, d.descriptor);
+            if (!motor)
+                return motor.status();
+            return std::unique_ptr<Device>(std::move(*motor));
+        }
         if (d.identity.streamer.empty())
             return Status(ErrorCode::kUnsupported,
                           what +
                               " is discovered only: no mixray backend streams it (the Kinect "
-                              "motor, LED, accelerometer and microphones are not supported)");
+                              "microphones are not supported)");
         return Status(ErrorCode::kUnsupported,
                       what + " is discovered here; open it with driver: " + d.identity.streamer);
     }

@@ -1,5 +1,6 @@
 // The "usb" backend: discovery of the rig's USB devices through libusb-1.0, and hot-plug events.
-// It identifies devices; the backends that stream them (openni2, v4l2, aravis) open them.
+// It identifies devices; the backends that stream them (openni2, v4l2, aravis) open them, except
+// the Kinect v1 motor, which it opens itself (mixray/usb/kinect_motor.h).
 #pragma once
 
 #include <chrono>
@@ -17,7 +18,7 @@ namespace mixray::usb {
 // What a USB device was identified as, from its IDs and interface classes.
 struct Identity {
     std::string model;     // "Kinect v1 camera", "UVC camera", ...
-    std::string streamer;  // backend that streams it; empty when none in mixray does
+    std::string streamer;  // backend that streams it ("usb": this one); empty when none does
 };
 
 // Interface class/subclass pairs of a device's configuration, for identify().
@@ -42,8 +43,9 @@ public:
     // the bus/port path ("1-1.3", as in /sys/bus/usb/devices), serial from sysfs or, when sysfs
     // lacks it, the string descriptor (needs permission to open the device; empty otherwise).
     Result<std::vector<DeviceDescriptor>> enumerate() override;
-    // Always fails: kUnsupported naming the backend that streams the device (kNotFound when
-    // config.id matches no rig device by id or serial).
+    // Opens the Kinect v1 motor as a KinectMotorDevice (mixray/usb/kinect_motor.h). Any other
+    // device fails: kUnsupported naming the backend that streams it (kNotFound when config.id
+    // matches no rig device by id or serial).
     Result<std::unique_ptr<Device>> open(const DeviceConfig& config) override;
 };
 
