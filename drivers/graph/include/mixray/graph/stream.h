@@ -26,7 +26,7 @@ enum class StreamKind : uint8_t {
     kDepth,     // depth map, PixelFormat::kDepth16 in millimetres
     kInfrared,  // infrared intensity image
     kMono,      // monochrome visible-light image (machine-vision cameras)
-    kImu,       // accelerometer / gyroscope samples, kBinary ImuSample records
+    kImu,       // accelerometer/gyroscope samples, kBinary: imu.h records or Azure Kinect samples
     kPose,      // camera or marker poses, kBinary records
     kData,      // anything else, kBinary
 };
