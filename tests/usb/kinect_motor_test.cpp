@@ -168,6 +168,7 @@ TEST(KinectMotor, GravityStreamCarriesTheAccelerometer) {
     KinectMotorDevice* device = motor->get();
     EXPECT_EQ(device->descriptor().model, "Kinect v1 motor");
     EXPECT_EQ(device->descriptor().location, "1-1.1");
+    EXPECT_EQ(device->descriptor().modes, std::vector<std::string>{"gravity imu@20"});
 
     Graph graph;
     ASSERT_TRUE(graph.addNode(std::move(*motor)));

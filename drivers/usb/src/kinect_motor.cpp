@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "mixray/graph/device_options.h"
@@ -162,7 +163,9 @@ Result<std::unique_ptr<KinectMotorDevice>> KinectMotorDevice::open(const DeviceC
     if (!options)
         return options.status();
     DeviceDescriptor d = found;
-    d.modes = {"gravity imu@" + std::to_string(options->rate_hz).substr(0, 5) + " Hz"};
+    char mode[48];
+    std::snprintf(mode, sizeof(mode), "gravity imu@%g", options->rate_hz);
+    d.modes = {mode};
     std::unique_ptr<KinectMotorDevice> device(
         new KinectMotorDevice(config.name, std::move(d), std::move(*options)));
     std::lock_guard lock(device->device_mutex_);
