@@ -195,32 +195,25 @@ std::unique_ptr<KinectMotorEmulator> KinectMotorEmulator::create(UMockdevTestbed
     std::unique_ptr<KinectMotorEmulator> e(new KinectMotorEmulator());
     e->state_ = std::make_shared<State>();
     e->testbed_ = testbed;
-    if (!e->attach(why))
-        return nullptr;
-    return e;
-}
-
-bool KinectMotorEmulator::attach(std::string* why) {
-    UMockdevIoctlBase* base = umockdev_ioctl_base_new();
-    handlers_.push_back(base);
-    g_signal_connect_data(base, "handle-ioctl", G_CALLBACK(onIoctl), new Handler{state_},
+    e->handler_ = umockdev_ioctl_base_new();
+    g_signal_connect_data(e->handler_, "handle-ioctl", G_CALLBACK(onIoctl), new Handler{e->state_},
                           freeHandler, static_cast<GConnectFlags>(0));
     GError* error = nullptr;
-    if (!umockdev_testbed_attach_ioctl(testbed_, kDevNode, base, &error)) {
+    if (!umockdev_testbed_attach_ioctl(testbed, kDevNode, e->handler_, &error)) {
         if (why)
             *why = std::string("umockdev: attaching ") + kDevNode + ": " + error->message;
         g_clear_error(&error);
-        return false;
+        return nullptr;
     }
-    attached_ = true;
-    return true;
+    e->attached_ = true;
+    return e;
 }
 
 KinectMotorEmulator::~KinectMotorEmulator() {
     if (attached_)
         (void)umockdev_testbed_detach_ioctl(testbed_, kDevNode, nullptr);
-    for (UMockdevIoctlBase* base : handlers_)
-        g_object_unref(base);
+    if (handler_)
+        g_object_unref(handler_);
 }
 
 void KinectMotorEmulator::setAccelerometer(int16_t x, int16_t y, int16_t z) {
@@ -259,10 +252,8 @@ void KinectMotorEmulator::unplug() {
         state_->completed.clear();
         state_->claimed = 0;
     }
-    if (attached_) {
-        (void)umockdev_testbed_detach_ioctl(testbed_, kDevNode, nullptr);
-        attached_ = false;
-    }
+    // The handler stays attached (answering ENODEV): detached, its socket would refuse the
+    // preload's connection from a client that still finds the node, and umockdev aborts then.
     umockdev_testbed_uevent(testbed_, kSysPath, "remove");
     umockdev_testbed_remove_device(testbed_, kSysPath);
 }
@@ -279,8 +270,6 @@ bool KinectMotorEmulator::replug(std::string* why) {
         std::lock_guard lock(state_->mutex);
         state_->unplugged = false;
     }
-    if (!attach(why))
-        return false;
     umockdev_testbed_uevent(testbed_, kSysPath, "add");
     return true;
 }

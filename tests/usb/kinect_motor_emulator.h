@@ -50,8 +50,8 @@ public:
     // usbfs ioctls the handler did not know (answered ENOTTY).
     std::vector<unsigned long> unknownIoctls() const;
 
-    // The motor leaves the bus: every ioctl on open handles fails with ENODEV, its sysfs entry
-    // and /dev node go and a `remove` uevent is sent.
+    // The motor leaves the bus: every ioctl fails with ENODEV, its sysfs entry and /dev node go
+    // and a `remove` uevent is sent.
     void unplug();
     // It comes back on the same port, with the same address, with an `add` uevent.
     bool replug(std::string* why);
@@ -60,10 +60,9 @@ public:
 
 private:
     KinectMotorEmulator() = default;
-    bool attach(std::string* why);
     std::shared_ptr<State> state_;
     UMockdevTestbed* testbed_ = nullptr;
-    std::vector<UMockdevIoctlBase*> handlers_;
+    UMockdevIoctlBase* handler_ = nullptr;
     bool attached_ = false;
 };
 

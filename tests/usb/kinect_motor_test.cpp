@@ -16,6 +16,7 @@
 #include "kinect_motor_emulator.h"
 #include "mixray/graph/graph.h"
 #include "mixray/graph/imu.h"
+#include "mixray/graph/rig.h"
 #include "mixray/usb/usb_backend.h"
 #include "umockdev_preload.h"
 
@@ -310,6 +311,35 @@ TEST(KinectMotor, UnplugIsReportedAndReplugResumes) {
     EXPECT_EQ(requests.back().request, 0x31);
     EXPECT_EQ(static_cast<int16_t>(requests.back().value), -8);
     graph.stop();
+}
+
+TEST(KinectMotor, OpensFromARigFile) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    MotorBus bus;
+    ASSERT_TRUE(bus.setUp());
+    auto rig = parseRig(R"(rig: tabletop
+devices:
+  - name: tilt
+    driver: usb
+    id: "045e:02b0@1/3"
+    streams: [gravity]
+    options: { tilt_deg: 15, led: yellow, rate_hz: 50 }
+)",
+                        "rig.yaml");
+    ASSERT_TRUE(rig) << rig.status().toString();
+    BackendRegistry registry;
+    ASSERT_TRUE(registry.add(std::make_unique<UsbBackend>()));
+    auto device = registry.open(rig->deviceConfigs().at(0));
+    ASSERT_TRUE(device) << device.status().toString();
+    Graph graph;
+    ASSERT_TRUE(graph.addNode(std::move(*device)));
+    auto id = graph.findStream("tilt/gravity");
+    ASSERT_TRUE(id);
+    EXPECT_EQ(graph.stream(*id).nominal_fps, 50);
+    const auto requests = bus.emulator->requests();
+    ASSERT_EQ(requests.size(), 2u);
+    EXPECT_EQ(requests[0].value, 30);  // 15 degrees
+    EXPECT_EQ(requests[1].value, 3);   // yellow
 }
 
 TEST(KinectMotor, EnumeratedAndAbsentMotor) {

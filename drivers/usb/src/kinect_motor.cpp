@@ -1,5 +1,5 @@
 // The Kinect v1 motor through libfreenect's motor API, on a libusb context of our own so that the
-// motor libfreenect opens is the one the usb backend found.
+// motor libfreenect opens is the one the usb backend found (by port path).
 #include "mixray/usb/kinect_motor.h"
 
 #include <libfreenect.h>
@@ -100,9 +100,20 @@ Result<KinectMotorOptions> KinectMotorOptions::fromConfig(const DeviceConfig& co
     return o;
 }
 
-// libfreenect's context and device on a libusb context of ours.
-struct KinectMotorDevice::Handle {
+// One libusb context for the device's life: its device list follows hot-plug events, so a
+// returning motor shows up in it, and no context is created and torn down at every reopen
+// (libusb's event monitor would come and go with them).
+struct KinectMotorDevice::UsbSession {
     libusb_context* usb = nullptr;
+
+    ~UsbSession() {
+        if (usb)
+            libusb_exit(usb);
+    }
+};
+
+// libfreenect's context and the opened motor, on the UsbSession's libusb context.
+struct KinectMotorDevice::Handle {
     freenect_context* freenect = nullptr;
     freenect_device* device = nullptr;
 
@@ -111,8 +122,6 @@ struct KinectMotorDevice::Handle {
             freenect_close_device(device);
         if (freenect)
             freenect_shutdown(freenect);
-        if (usb)
-            libusb_exit(usb);
     }
 };
 
@@ -168,6 +177,11 @@ Result<std::unique_ptr<KinectMotorDevice>> KinectMotorDevice::open(const DeviceC
     d.modes = {mode};
     std::unique_ptr<KinectMotorDevice> device(
         new KinectMotorDevice(config.name, std::move(d), std::move(*options)));
+    auto session = std::make_unique<UsbSession>();
+    if (const int rc = libusb_init(&session->usb); rc != LIBUSB_SUCCESS)
+        return Status(ErrorCode::kIoError,
+                      "usb device '" + config.name + "': libusb_init failed: " + libusbText(rc));
+    device->usb_ = std::move(session);
     std::lock_guard lock(device->device_mutex_);
     if (Status s = device->reopenLocked(); !s)
         return s;
@@ -180,13 +194,11 @@ Result<std::unique_ptr<KinectMotorDevice>> KinectMotorDevice::open(const DeviceC
 // Opens (again) the motor on descriptor_.location and sets the wanted tilt and LED.
 Status KinectMotorDevice::reopenLocked() {
     const std::string what = "usb device '" + name_ + "' (Kinect motor " + descriptor_.id + ")";
-    auto h = std::make_unique<Handle>();
-    if (const int rc = libusb_init(&h->usb); rc != LIBUSB_SUCCESS)
-        return Status(ErrorCode::kIoError, what + ": libusb_init failed: " + libusbText(rc));
-    auto index = motorIndex(h->usb, descriptor_.location);
+    auto index = motorIndex(usb_->usb, descriptor_.location);
     if (!index)
         return index.status().withContext(what);
-    if (freenect_init(&h->freenect, h->usb) < 0)
+    auto h = std::make_unique<Handle>();
+    if (freenect_init(&h->freenect, usb_->usb) < 0)
         return Status(ErrorCode::kIoError, what + ": freenect_init failed");
     // libfreenect prints its own failures; ours carry them as statuses.
     freenect_set_log_level(h->freenect, FREENECT_LOG_FATAL);
@@ -381,8 +393,9 @@ void KinectMotorDevice::run() {
                 meta.device_stamp_ns = host_ns;
                 meta.host_stamp_ns = host_ns;
                 meta.clock_domain = kHostClockDomain;
-                graph_->publish(std::move(frame).publish());
+                // Counted first, so that a consumer holding the sample sees it counted.
                 published_.fetch_add(1);
+                graph_->publish(std::move(frame).publish());
             }
         }
         // While lost, look for the motor again at the reopen period rather than the poll rate.

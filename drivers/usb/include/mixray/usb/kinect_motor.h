@@ -106,6 +106,7 @@ public:
     Status error() const;
 
     struct Handle;
+    struct UsbSession;
 
 private:
     KinectMotorDevice(std::string name, DeviceDescriptor descriptor, KinectMotorOptions options);
@@ -123,6 +124,7 @@ private:
     StreamId stream_ = kInvalidStream;
     std::shared_ptr<BufferPool> pool_;
 
+    std::unique_ptr<UsbSession> usb_;  // outlives handle_ (declared first)
     mutable std::mutex device_mutex_;  // guards handle_ and the wanted settings
     std::unique_ptr<Handle> handle_;
     std::optional<double> wanted_tilt_;
