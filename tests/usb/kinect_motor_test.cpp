@@ -127,6 +127,7 @@ TEST(KinectMotorOptions, BadOptionsAreClearErrors) {
          "blink_red_yellow, got 'purple'"},
         {"rate_hz", "0", "option 'rate_hz': expected a rate in (0, 200] Hz, got '0'"},
         {"buffers", "0", "option 'buffers': expected an integer in [1, 1024], got '0'"},
+        {"reconnect", "maybe", "option 'reconnect'"},
         {"tilt", "10", "tilt"},
     };
     for (const Case& c : cases) {
@@ -310,6 +311,32 @@ TEST(KinectMotor, UnplugIsReportedAndReplugResumes) {
     ASSERT_FALSE(requests.empty());
     EXPECT_EQ(requests.back().request, 0x31);
     EXPECT_EQ(static_cast<int16_t>(requests.back().value), -8);
+    graph.stop();
+}
+
+TEST(KinectMotor, WithoutReconnectTheStreamEnds) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    MotorBus bus;
+    ASSERT_TRUE(bus.setUp());
+    DeviceConfig config = motorConfig();
+    config.options = {{"reconnect", "false"}, {"rate_hz", "100"}};
+    auto motor = openMotor(config);
+    ASSERT_TRUE(motor) << motor.status().toString();
+    KinectMotorDevice* device = motor->get();
+    Graph graph;
+    ASSERT_TRUE(graph.addNode(std::move(*motor)));
+    auto queue = graph.subscribe(*graph.findStream("kinect_motor/gravity"), {});
+    ASSERT_TRUE(queue);
+    ASSERT_TRUE(graph.start());
+    popSample(**queue);
+    bus.emulator->unplug();
+    ASSERT_TRUE(eventually([&] { return (*queue)->closed(); }));
+    EXPECT_EQ(device->error().code(), ErrorCode::kUnavailable);
+    EXPECT_NE(device->error().message().find("its stream ends"), std::string::npos)
+        << device->error().message();
+    std::string why;
+    ASSERT_TRUE(bus.emulator->replug(&why)) << why;
+    EXPECT_EQ(device->reconnects(), 0u);
     graph.stop();
 }
 

@@ -96,7 +96,8 @@ Result<KinectMotorOptions> KinectMotorOptions::fromConfig(const DeviceConfig& co
                                        DeviceOptionReader::Bound::kOpen));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer<size_t>("buffers", o.buffers, 1, 1024, "an integer in [1, 1024]"));
-    MIXRAY_RETURN_IF_ERROR(reader.leftovers("tilt_deg, led, rate_hz, buffers"));
+    MIXRAY_RETURN_IF_ERROR(reader.boolean("reconnect", o.reconnect));
+    MIXRAY_RETURN_IF_ERROR(reader.leftovers("tilt_deg, led, rate_hz, buffers, reconnect"));
     return o;
 }
 
@@ -236,9 +237,10 @@ Status KinectMotorDevice::applySettingsLocked() {
 
 void KinectMotorDevice::lostLocked(const std::string& why) {
     handle_.reset();
-    setError(Status(ErrorCode::kUnavailable, "usb device '" + name_ + "' (Kinect motor on port " +
-                                                 descriptor_.location + ") was lost (" + why +
-                                                 "); reopening it when it returns"));
+    setError(Status(ErrorCode::kUnavailable,
+                    "usb device '" + name_ + "' (Kinect motor on port " + descriptor_.location +
+                        ") was lost (" + why + "); " +
+                        (options_.reconnect ? "reopening it when it returns" : "its stream ends")));
 }
 
 Status KinectMotorDevice::setTilt(double degrees) {
@@ -361,10 +363,13 @@ void KinectMotorDevice::run() {
     auto next = std::chrono::steady_clock::now();
     for (;;) {
         bool open = false;
+        bool ended = false;
         std::optional<KinectMotorState> state;
         {
             std::lock_guard lock(device_mutex_);
-            if (!handle_ && reopenLocked()) {
+            if (!handle_ && !options_.reconnect) {
+                ended = true;
+            } else if (!handle_ && reopenLocked()) {
                 reconnects_.fetch_add(1);
                 setError(Status::ok());
             }
@@ -374,6 +379,10 @@ void KinectMotorDevice::run() {
                 if (read)
                     state = *read;
             }
+        }
+        if (ended) {
+            graph_->endStream(stream_);
+            return;
         }
         const int64_t host_ns = hostNowNs();
         if (state) {

@@ -42,11 +42,14 @@ inline constexpr double kMaxTiltDegrees = 31;
 //   led        off | green | red | yellow | blink_green | blink_red_yellow (default: leave it)
 //   rate_hz    accelerometer polls per second, in (0, 200] (default 20)
 //   buffers    graph buffers of the gravity stream, 1..1024 (default 8)
+//   reconnect  true | false: a motor lost while streaming is reopened when it returns, or its
+//              stream ends (default true)
 struct KinectMotorOptions {
     std::optional<double> tilt_deg;
     std::optional<KinectLed> led;
     double rate_hz = 20;
     size_t buffers = 8;
+    bool reconnect = true;
 
     // kInvalidArgument naming the device and the option for unknown keys and bad values.
     static Result<KinectMotorOptions> fromConfig(const DeviceConfig& config);
@@ -69,7 +72,8 @@ struct KinectMotorState {
 // and counted. A motor lost while streaming is reported by error() (kUnavailable) while the
 // polling thread reopens it every 200 ms (found again on its port path); once it answers, the
 // tilt and LED last asked for are set again, samples resume, error() is ok and reconnects()
-// counts it. The graph keeps running throughout.
+// counts it. The graph keeps running throughout. With reconnect=false the stream ends instead
+// (Graph::endStream) and error() stays kUnavailable.
 // Thread-safety: connect/start/stop by the graph's owner; setTilt/setLed and the readers from
 // any thread.
 class KinectMotorDevice : public Device {
