@@ -206,6 +206,35 @@ TEST_F(AravisGv, StreamsOverGvspWithMappedTimestamps) {
     EXPECT_EQ(stats.connection_losses, 0u);
 }
 
+// A burst of software triggers while nobody reads: one frame per trigger, every frame waits in
+// the pool, none is lost and none comes untriggered. The simulator (like a real camera without
+// trigger overlap) latches one pending trigger and checks it once per tick of its trigger clock,
+// so each trigger waits for its frame. Aravis's in-process fake camera cannot run this test: its
+// stream ignores software triggers and emits frames at its simulated trigger frequency.
+TEST_F(AravisGv, SoftwareTriggerBurstLosesNothing) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"trigger", "software"}, {"buffers", "16"}})));
+    EXPECT_EQ(device_->streamInfo().nominal_fps, 0);
+    ASSERT_TRUE(graph_.start());
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    ASSERT_EQ(device_->stats().published, 0u) << "frames before the first trigger";
+    for (uint64_t i = 1; i <= 12; ++i) {
+        ASSERT_TRUE(device_->softwareTrigger());
+        ASSERT_TRUE(eventually([&] { return device_->stats().published >= i; }, 10))
+            << "trigger " << i << " made no frame";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    auto frames = take(12);
+    graph_.stop();
+    ASSERT_EQ(frames.size(), 12u);
+    for (size_t i = 1; i < frames.size(); ++i)
+        EXPECT_EQ(frames[i].meta().sequence, frames[i - 1].meta().sequence + 1);
+    const AravisStats stats = device_->stats();
+    EXPECT_EQ(stats.published, 12u);
+    EXPECT_EQ(stats.pool_exhausted, 0u);
+    EXPECT_EQ(stats.missing_frames, 0u);
+}
+
 // The rig file fixture opens the simulator by serial, in the mode it names.
 TEST_F(AravisGv, OpensTheRigFixture) {
     auto rig = loadRig(test::fixturesDir() / "rigs" / "aravis_simulator.yaml");
