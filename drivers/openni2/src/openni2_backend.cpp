@@ -378,6 +378,8 @@ struct OpenNI2Device::Impl {
     openni::Device device;
     bool is_file = false;
     bool streamed = false;  // a stream was started at least once
+    // When a live device's streams last stopped: a driver thread may run on until it notices.
+    std::chrono::steady_clock::time_point stopped_at{};
     std::vector<std::unique_ptr<Stream>> streams;
     int64_t pass_length_ns = 0;
     int64_t max_stamp_ns = 0;
@@ -482,6 +484,12 @@ Status OpenNI2Device::start() {
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
     if (thread_.joinable())
         return Status::ok();
+    if (!impl_->is_file && impl_->streamed) {
+        // DummyDevice's stream thread checks its running flag once per frame: a stream started
+        // again before the old thread saw it stopped keeps that thread too, and two threads
+        // then deliver interleaved frame counts.
+        std::this_thread::sleep_until(impl_->stopped_at + kDriverDrain);
+    }
     for (auto& s : impl_->streams) {
         if (s->started)
             continue;
@@ -507,6 +515,7 @@ void OpenNI2Device::stop() {
         if (s->started) {
             s->stream.stop();
             s->started = false;
+            impl_->stopped_at = std::chrono::steady_clock::now();
         }
     }
 }
