@@ -8,10 +8,14 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <set>
+#include <thread>
 
 #include "mixray/graph/device_options.h"
 
@@ -30,6 +34,57 @@ int64_t hostNowNs() {
                std::chrono::steady_clock::now().time_since_epoch())
         .count();
 }
+
+// Runs capture loops on threads that never exit. Debian's OpenNI2 2.2.0.33 keeps a wait event
+// for every thread that ever waited for frames and, when a new thread first waits, probes each
+// recorded thread with pthread_kill(thread, 0): the descriptor of a thread that exited and was
+// joined may be unmapped by then, and the probe crashed (start/stop cycles of the compliance
+// suite, tests/compliance). A thread that called OpenNI2 is therefore kept and given the next
+// device's capture loop.
+class CaptureThreads {
+public:
+    static std::shared_ptr<OpenNI2Device::CaptureJob> run(std::function<void()> work) {
+        // Never destroyed: its threads outlive main().
+        static auto* threads = new CaptureThreads;
+        return threads->submit(std::move(work));
+    }
+
+private:
+    struct Task {
+        std::function<void()> work;
+        std::shared_ptr<OpenNI2Device::CaptureJob> job;
+    };
+
+    std::shared_ptr<OpenNI2Device::CaptureJob> submit(std::function<void()> work) {
+        auto job = std::make_shared<OpenNI2Device::CaptureJob>();
+        std::lock_guard lock(mutex_);
+        tasks_.push_back({std::move(work), job});
+        if (tasks_.size() > idle_)
+            std::thread([this] { loop(); }).detach();
+        else
+            wake_.notify_one();
+        return job;
+    }
+
+    void loop() {
+        for (;;) {
+            std::unique_lock lock(mutex_);
+            ++idle_;
+            wake_.wait(lock, [this] { return !tasks_.empty(); });
+            --idle_;
+            Task task = std::move(tasks_.front());
+            tasks_.pop_front();
+            lock.unlock();
+            task.work();
+            task.job->finish();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    std::deque<Task> tasks_;
+    size_t idle_ = 0;
+};
 
 std::string openniError() {
     std::string text = openni::OpenNI::getExtendedError();
@@ -482,7 +537,7 @@ Status OpenNI2Device::connect(Graph& graph) {
 Status OpenNI2Device::start() {
     if (!graph_)
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
-    if (thread_.joinable())
+    if (capture_)
         return Status::ok();
     if (!impl_->is_file && impl_->streamed) {
         // DummyDevice's stream thread checks its running flag once per frame: a stream started
@@ -503,14 +558,16 @@ Status OpenNI2Device::start() {
     }
     stop_requested_ = false;
     finished_ = false;
-    thread_ = std::thread([this] { run(); });
+    capture_ = CaptureThreads::run([this] { run(); });
     return Status::ok();
 }
 
 void OpenNI2Device::stop() {
     stop_requested_ = true;
-    if (thread_.joinable())
-        thread_.join();
+    if (capture_) {
+        capture_->wait();
+        capture_.reset();
+    }
     for (auto& s : impl_->streams) {
         if (s->started) {
             s->stream.stop();
