@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,11 @@ protected:
     void SetUp() override;
     std::unique_ptr<CompliancePeer> peer_;
 };
+
+// gtest prints parameters in failure messages and test lists: the name says it all.
+inline void PrintTo(const PeerParam& param, std::ostream* os) {
+    *os << param.name;
+}
 
 inline std::string peerName(const ::testing::TestParamInfo<PeerParam>& info) {
     return info.param.name;
