@@ -122,7 +122,9 @@ TEST_P(Compliance, Reconfigure) {
     if (modes.size() < 2)
         GTEST_SKIP() << "single mode: " << peer_->modesMissing();
     for (const PeerMode& mode : modes) {
-        SCOPED_TRACE(mode.expected.width * 100000 + mode.expected.height);
+        SCOPED_TRACE("mode " + std::to_string(mode.expected.width) + "x" +
+                     std::to_string(mode.expected.height) + " " +
+                     std::string(toString(mode.expected.format)));
         Capture capture;
         ASSERT_TRUE(openInto(*peer_, mode.config, capture));
         EXPECT_EQ(capture.graph->stream(capture.stream).format.width, mode.expected.width);
