@@ -2,6 +2,7 @@
 // (its own reference), the replay backend on the committed Matroska fixture, Aravis's
 // in-process fake camera, and OpenNI2 playing the Kinect v1 .oni and its DummyDevice.
 #include <filesystem>
+#include <fstream>
 
 #include "compliance_suite.h"
 #include "mixray/aravis/aravis_backend.h"
@@ -104,6 +105,60 @@ private:
     }
 };
 
+// A TUM RGB-D folder made of the real TUM frame pair of ../shared/data, listed kFrames times
+// 1/30 s apart. Its depth is in TUM units (5000 per metre), so the device converts every depth
+// frame into a pool of its own: the stream watched here.
+class ReplayTumPeer : public CompliancePeer {
+public:
+    static constexpr int kFrames = 8;
+
+    std::string missing() const override {
+        return std::filesystem::exists(source() / "TUM_depth.png")
+                   ? ""
+                   : "real data not available: " + source().string() +
+                         " (expected under ../shared/data; see its MANIFEST.md)";
+    }
+    Status setUp() override {
+        folder_ = test::tempDir() / "tum";
+        std::filesystem::create_directories(folder_ / "rgb");
+        std::filesystem::create_directories(folder_ / "depth");
+        std::filesystem::copy_file(source() / "TUM_color.png", folder_ / "rgb" / "frame.png");
+        std::filesystem::copy_file(source() / "TUM_depth.png", folder_ / "depth" / "frame.png");
+        std::ofstream rgb(folder_ / "rgb.txt");
+        std::ofstream depth(folder_ / "depth.txt");
+        for (int i = 0; i < kFrames; ++i) {
+            const std::string stamp = std::to_string(1 + i / 30.0);
+            rgb << stamp << " rgb/frame.png\n";
+            depth << stamp << " depth/frame.png\n";
+        }
+        return rgb && depth ? Status::ok()
+                            : Status(ErrorCode::kIoError, "cannot write " + folder_.string());
+    }
+    std::unique_ptr<DeviceBackend> backend() const override {
+        return std::make_unique<replay::ReplayBackend>();
+    }
+    DeviceConfig config() const override {
+        return configOf("tum", "replay", folder_.string(),
+                        {{"loop", "true"}, {"speed", "4"}, {"buffers", "4"}});
+    }
+    std::string stream() const override { return "depth"; }
+    std::string modesMissing() const override {
+        return "a recording plays the mode it was recorded in";
+    }
+    std::optional<FiniteRun> finite() const override {
+        return FiniteRun{
+            configOf("tum", "replay", folder_.string(), {{"pace", "fast"}, {"buffers", "4"}}),
+            kFrames};
+    }
+    std::string missingId() const override { return (folder_ / "no_such_folder").string(); }
+
+private:
+    static std::filesystem::path source() {
+        return test::sharedDataDir() / "02_rgbd_single_frames_open3d";
+    }
+    std::filesystem::path folder_;
+};
+
 class AravisFakePeer : public CompliancePeer {
 public:
     std::unique_ptr<DeviceBackend> backend() const override {
@@ -194,13 +249,12 @@ PeerParam peer(std::string name) {
     return {std::move(name), [] { return std::make_unique<P>(); }};
 }
 
-INSTANTIATE_TEST_SUITE_P(Peers, Compliance,
-                         ::testing::Values(peer<PatternPeer>("pattern"),
-                                           peer<ReplayPeer>("replay_mkv"),
-                                           peer<AravisFakePeer>("aravis_fake"),
-                                           peer<OniPeer>("openni2_oni"),
-                                           peer<OpenNI2DummyPeer>("openni2_dummy")),
-                         peerName);
+INSTANTIATE_TEST_SUITE_P(
+    Peers, Compliance,
+    ::testing::Values(peer<PatternPeer>("pattern"), peer<ReplayPeer>("replay_mkv"),
+                      peer<ReplayTumPeer>("replay_tum"), peer<AravisFakePeer>("aravis_fake"),
+                      peer<OniPeer>("openni2_oni"), peer<OpenNI2DummyPeer>("openni2_dummy")),
+    peerName);
 
 }  // namespace
 }  // namespace mixray::compliance
