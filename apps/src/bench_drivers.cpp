@@ -13,8 +13,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -109,6 +111,11 @@ Result<Run> runDevice(DeviceBackend& backend, const DeviceConfig& config, bool l
     }
     std::atomic<uint64_t> count{0};
     std::atomic<bool> done{false};
+    // The measuring thread sleeps until the last frame or the deadline: polling would add its
+    // own wake-ups to the CPU time per frame.
+    std::mutex mutex;
+    std::condition_variable wake;
+    size_t running = queues.size();
     std::vector<std::thread> consumers;
     const Meter meter;
     MIXRAY_RETURN_IF_ERROR(graph.start());
@@ -121,18 +128,33 @@ Result<Run> runDevice(DeviceBackend& backend, const DeviceConfig& config, bool l
                         break;
                     continue;
                 }
-                if (count.fetch_add(1, std::memory_order_relaxed) + 1 >= frames)
+                if (count.fetch_add(1, std::memory_order_relaxed) + 1 >= frames) {
+                    std::lock_guard lock(mutex);
                     done = true;
+                    wake.notify_all();
+                }
             }
+            std::lock_guard lock(mutex);
+            --running;
+            wake.notify_all();
         });
     }
-    while (!done.load() && meter.wallS() < duration_s)
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    bool ended = false;
+    {
+        std::unique_lock lock(mutex);
+        wake.wait_for(lock, std::chrono::duration<double>(duration_s),
+                      [&] { return done.load() || running == 0; });
+        ended = running == 0 && !done.load();
+    }
     const Run run = meter.stop(count.load());
     done = true;
     graph.stop();
     for (auto& c : consumers)
         c.join();
+    if (ended) {
+        return Status(ErrorCode::kUnavailable, "the device ended its streams after " +
+                                                   std::to_string(run.frames) + " frames");
+    }
     return run;
 }
 
