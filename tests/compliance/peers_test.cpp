@@ -42,6 +42,13 @@ public:
     DeviceConfig config() const override { return mode(320, 240).config; }
     std::string stream() const override { return "color"; }
     std::vector<PeerMode> modes() const override { return {mode(320, 240), mode(640, 480)}; }
+    // On simulated time the device waits for buffers and back-pressure, like a file.
+    std::optional<FiniteRun> finite() const override {
+        PeerMode m = mode(320, 240);
+        m.config.options["realtime"] = "false";
+        m.config.options["frames"] = "20";
+        return FiniteRun{m.config, 20};
+    }
     std::string missingId() const override { return "no_such_pattern"; }
 
 private:
