@@ -1,5 +1,6 @@
 // The mixray command line end to end: exit codes, messages, and the bundled session.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <chrono>
@@ -32,8 +33,8 @@ TEST(Cli, HelpAndUsageErrors) {
     EXPECT_EQ(none.exit_code, 2) << none.output;
     CliRun unknown = mixray("frobnicate");
     EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
-    for (const char* command :
-         {"devices", "record", "info", "play", "convert", "bench graph", "bench render"}) {
+    for (const char* command : {"devices", "record", "info", "play", "convert", "bench graph",
+                                "bench render", "bench drivers"}) {
         CliRun help = mixray(std::string(command) + " --help");
         EXPECT_EQ(help.exit_code, 0) << command;
         EXPECT_NE(help.output.find("Usage"), std::string::npos) << command;
@@ -319,6 +320,37 @@ TEST(Cli, BenchGraphPrintsItsFigures) {
           "raw disk write, ", "recording uncompressed,", "recording FFV1,"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
+}
+
+// Each backend against its peer's own API; the figures themselves are the benchmark's, only
+// their presence is checked.
+TEST(Cli, BenchDriversComparesEachBackendWithItsPeer) {
+    CliRun run = mixray("bench drivers --frames 60 --duration 0.5");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    for (const char* line : {"ratio = mixray / peer", "no peer: the backend is its own reference",
+                             "pattern_rgbd.mkv, pace=fast loop", "Matroska reader next()",
+                             "in-process fake camera Mono8 512x512 at 200 fps",
+                             "ArvStream pop loop", "no V4L2 capture node here"}) {
+        EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
+    }
+    if (std::filesystem::exists(test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni")) {
+        EXPECT_NE(run.output.find("VideoStream::readFrame"), std::string::npos) << run.output;
+    }
+    if (access("/usr/bin/arv-fake-gv-camera-0.8", X_OK) == 0) {
+        EXPECT_NE(run.output.find("GigE Vision simulator on loopback"), std::string::npos)
+            << run.output;
+    }
+}
+
+TEST(Cli, BenchDriversSaysWhichPeerIsMissing) {
+    CliRun run =
+        mixray("bench drivers --frames 60 --backends openni2 --shared-data " + q(test::tempDir()));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("peer missing: "), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("3dj_kinect1_test.oni"), std::string::npos) << run.output;
+    CliRun bad = mixray("bench drivers --backends pattern,nope");
+    EXPECT_NE(bad.exit_code, 0) << bad.output;
+    EXPECT_NE(bad.output.find("unknown backend 'nope'"), std::string::npos) << bad.output;
 }
 
 TEST(Cli, BenchRenderRejectsBadArguments) {

@@ -8,10 +8,14 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <set>
+#include <thread>
 
 #include "mixray/graph/device_options.h"
 
@@ -29,6 +33,84 @@ int64_t hostNowNs() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(
                std::chrono::steady_clock::now().time_since_epoch())
         .count();
+}
+
+// Runs capture loops on threads that never exit. Debian's OpenNI2 2.2.0.33 keeps a wait event
+// for every thread that ever waited for frames and, when a new thread first waits, probes each
+// recorded thread with pthread_kill(thread, 0): the descriptor of a thread that exited and was
+// joined may be unmapped by then, and the probe crashed (start/stop cycles of the compliance
+// suite, tests/compliance). A thread that called OpenNI2 is therefore kept and given the next
+// device's capture loop.
+class CaptureThreads {
+public:
+    static std::shared_ptr<OpenNI2Device::CaptureJob> run(std::function<void()> work) {
+        // Never destroyed: its threads outlive main().
+        static auto* threads = new CaptureThreads;
+        return threads->submit(std::move(work));
+    }
+
+private:
+    struct Task {
+        std::function<void()> work;
+        std::shared_ptr<OpenNI2Device::CaptureJob> job;
+    };
+
+    std::shared_ptr<OpenNI2Device::CaptureJob> submit(std::function<void()> work) {
+        auto job = std::make_shared<OpenNI2Device::CaptureJob>();
+        std::lock_guard lock(mutex_);
+        tasks_.push_back({std::move(work), job});
+        if (tasks_.size() > idle_)
+            std::thread([this] { loop(); }).detach();
+        else
+            wake_.notify_one();
+        return job;
+    }
+
+    void loop() {
+        for (;;) {
+            std::unique_lock lock(mutex_);
+            ++idle_;
+            wake_.wait(lock, [this] { return !tasks_.empty(); });
+            --idle_;
+            Task task = std::move(tasks_.front());
+            tasks_.pop_front();
+            lock.unlock();
+            task.work();
+            task.job->finish();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    std::deque<Task> tasks_;
+    size_t idle_ = 0;
+};
+
+// Pixel x of `out` is pixel width - 1 - x of `in`. The pixel size is a constant in each loop:
+// a memcpy call per pixel took more than the whole rest of a frame's capture (bench drivers).
+template <size_t kPixel>
+void unmirrorPixels(const uint8_t* in, uint8_t* out, int width) {
+    const uint8_t* from = in + static_cast<size_t>(width - 1) * kPixel;
+    for (int x = 0; x < width; ++x, out += kPixel, from -= kPixel)
+        std::memcpy(out, from, kPixel);
+}
+
+void unmirrorRow(const uint8_t* in, uint8_t* out, int width, size_t pixel) {
+    switch (pixel) {
+        case 1:
+            return unmirrorPixels<1>(in, out, width);
+        case 2:
+            return unmirrorPixels<2>(in, out, width);
+        case 3:
+            return unmirrorPixels<3>(in, out, width);
+        case 4:
+            return unmirrorPixels<4>(in, out, width);
+        default:
+            for (int x = 0; x < width; ++x) {
+                std::memcpy(out + static_cast<size_t>(x) * pixel,
+                            in + static_cast<size_t>(width - 1 - x) * pixel, pixel);
+            }
+    }
 }
 
 std::string openniError() {
@@ -378,6 +460,8 @@ struct OpenNI2Device::Impl {
     openni::Device device;
     bool is_file = false;
     bool streamed = false;  // a stream was started at least once
+    // When a live device's streams last stopped: a driver thread may run on until it notices.
+    std::chrono::steady_clock::time_point stopped_at{};
     std::vector<std::unique_ptr<Stream>> streams;
     int64_t pass_length_ns = 0;
     int64_t max_stamp_ns = 0;
@@ -480,8 +564,14 @@ Status OpenNI2Device::connect(Graph& graph) {
 Status OpenNI2Device::start() {
     if (!graph_)
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
-    if (thread_.joinable())
+    if (capture_)
         return Status::ok();
+    if (!impl_->is_file && impl_->streamed) {
+        // DummyDevice's stream thread checks its running flag once per frame: a stream started
+        // again before the old thread saw it stopped keeps that thread too, and two threads
+        // then deliver interleaved frame counts.
+        std::this_thread::sleep_until(impl_->stopped_at + kDriverDrain);
+    }
     for (auto& s : impl_->streams) {
         if (s->started)
             continue;
@@ -495,18 +585,21 @@ Status OpenNI2Device::start() {
     }
     stop_requested_ = false;
     finished_ = false;
-    thread_ = std::thread([this] { run(); });
+    capture_ = CaptureThreads::run([this] { run(); });
     return Status::ok();
 }
 
 void OpenNI2Device::stop() {
     stop_requested_ = true;
-    if (thread_.joinable())
-        thread_.join();
+    if (capture_) {
+        capture_->wait();
+        capture_.reset();
+    }
     for (auto& s : impl_->streams) {
         if (s->started) {
             s->stream.stop();
             s->started = false;
+            impl_->stopped_at = std::chrono::steady_clock::now();
         }
     }
 }
@@ -610,10 +703,7 @@ void OpenNI2Device::run() {
                     std::memcpy(row, in, row_bytes);
                     continue;
                 }
-                for (int x = 0; x < width; ++x) {
-                    std::memcpy(row + static_cast<size_t>(x) * pixel,
-                                in + static_cast<size_t>(width - 1 - x) * pixel, pixel);
-                }
+                unmirrorRow(in, row, width, pixel);
             }
             FrameMetadata& meta = out.meta();
             meta.stream = ids_[static_cast<size_t>(index)];

@@ -3,13 +3,13 @@
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
-#include <thread>
 #include <vector>
 
 #include "mixray/graph/device.h"
@@ -89,6 +89,27 @@ ClockDomainId defaultClockDomain(std::string_view device_name);
 // Thread-safety: connect/start/stop from the graph's owner; counters from any thread.
 class OpenNI2Device : public Device {
 public:
+    // One run of the capture loop on a thread kept for OpenNI2 (see openni2_backend.cpp).
+    class CaptureJob {
+    public:
+        void finish() {
+            {
+                std::lock_guard lock(mutex_);
+                done_ = true;
+            }
+            done_cv_.notify_all();
+        }
+        void wait() {
+            std::unique_lock lock(mutex_);
+            done_cv_.wait(lock, [this] { return done_; });
+        }
+
+    private:
+        std::mutex mutex_;
+        std::condition_variable done_cv_;
+        bool done_ = false;
+    };
+
     ~OpenNI2Device() override;
 
     std::string name() const override { return name_; }
@@ -127,7 +148,7 @@ private:
     Graph* graph_ = nullptr;
     std::vector<StreamId> ids_;
     std::vector<std::shared_ptr<BufferPool>> pools_;
-    std::thread thread_;
+    std::shared_ptr<CaptureJob> capture_;  // the capture loop, on a kept thread
     std::atomic<bool> stop_requested_{false};
     std::atomic<bool> finished_{false};
     std::atomic<uint64_t> published_{0};
