@@ -1,7 +1,8 @@
-// The Kinect v1 of tests/usb/kinect_v1.umockdev behind umockdev, with its camera's usbfs node
-// answered by a handler: enough USB for libfreenect to find the camera and read its serial.
+// The Kinect v1 of tests/usb/kinect_v1.umockdev behind umockdev, its camera's usbfs node
+// answered by a handler the way the camera answers libfreenect: a Kinect camera in software.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -12,11 +13,14 @@
 namespace mixray::openni2::test {
 
 // The camera (045e:02ae, /dev/bus/usb/001/005) answers usbfs as the kernel does for a device
-// without a driver: capabilities, claim/release, GETDRIVER (none), and control transfers on
-// endpoint 0 submitted and reaped as URBs. Of the control requests it answers the standard
-// GET_DESCRIPTOR(STRING) — language ids, manufacturer, product, serial — and stalls the rest
-// (-EPIPE), as a device does for requests it does not know; libfreenect's camera commands are
-// not emulated, so opening the camera fails (see drivers/openni2/README.md).
+// without a driver: capabilities, claim/release, GETDRIVER (none), URBs submitted, reaped and
+// discarded. Control transfers on endpoint 0: GET_DESCRIPTOR(STRING) (language ids,
+// manufacturer, product, serial) and libfreenect's camera protocol ("GM" commands written with
+// vendor request 0, "RB" replies read back): read/write register, fixed parameters (with the
+// 1414's zero-plane figures) and the algorithm parameters libfreenect fetches; other requests
+// stall. Isochronous endpoints 0x82 (depth, 11-bit) and 0x81 (Bayer colour, or 10-bit IR),
+// while libfreenect's registers switch them on: 'RB' packets of 1748 / 1908 data bytes, a frame
+// every 1/30 s of CLOCK_MONOTONIC, every pixel of frame k equal to pixelValue(stream, k).
 // Thread-safe: the handler runs on umockdev's worker thread, tests read from theirs.
 class KinectUsbEmulator {
 public:
@@ -33,6 +37,21 @@ public:
 
     // Control requests seen, as "bmRequestType:bRequest:wValue:wIndex" (hex), in order.
     std::vector<std::string> controlRequests() const;
+    // Camera commands received (libfreenect's opcodes), in order, and the registers written.
+    std::vector<uint16_t> commands() const;
+    std::map<uint16_t, uint16_t> registers() const;
+    // Frames sent complete on endpoint 0x82 (depth) or 0x81 (colour/IR).
+    uint64_t framesSent(uint8_t endpoint) const;
+
+    // The streams and what every pixel of their frame `frame` holds (raw: 11-bit depth
+    // disparity, 8-bit Bayer, 10-bit IR). Frame k carries the 60 MHz timestamp
+    // kFirstTicks + k * kTicksPerFrame.
+    enum class Stream { kDepth, kBayer, kInfrared };
+    static uint16_t pixelValue(Stream stream, uint64_t frame);
+    static constexpr uint16_t kDepthRawBase = 600;
+    static constexpr uint32_t kFirstTicks = 0xfff00000u;   // wraps in the first seconds
+    static constexpr uint32_t kTicksPerFrame = 2'000'000;  // 60 MHz / 30 fps
+    static constexpr int64_t kFramePeriodNs = 33'333'333;
 
     struct State;
 
