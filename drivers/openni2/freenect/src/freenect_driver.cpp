@@ -582,7 +582,7 @@ oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*
         errorText(std::string("no Kinect at ") + (uri ? uri : "(null)"));
         return nullptr;
     }
-    // By serial: libfreenect's open index counts cameras its listing may have skipped.
+    // By serial, which names the camera whatever else is plugged in since it was listed.
     freenect_device* device = nullptr;
     const int result =
         freenect_open_device_by_camera_serial(context_, &device, camera->serial.c_str());
