@@ -290,17 +290,34 @@ TEST(FreenectDriver, StreamsInfraredAndRefusesItBesideColour) {
     color.stop();
     ASSERT_EQ(ir.start(), openni::STATUS_OK) << openni::OpenNI::getExtendedError();
     EXPECT_EQ(kinect->registers().at(0x05), 3);  // IR on
-    for (int n = 0; n < 2; ++n) {
+    // IR pixel (x, y) of camera frame k is pixelValue(kInfrared, k) + x / 64: frames show the
+    // camera's view as sent, then mirrored once mirroring is switched on.
+    int last_unmirrored = 0;
+    for (int n = 0; n < 4; ++n) {
+        const bool mirrored = n >= 2;
+        if (n == 2) {
+            ASSERT_EQ(ir.setMirroringEnabled(true), openni::STATUS_OK);
+        }
         openni::VideoFrameRef frame;
         ASSERT_EQ(ir.readFrame(&frame), openni::STATUS_OK);
+        // Frames made (or being made) before the switch may still be waiting to be read.
+        while (mirrored && frame.getFrameIndex() < last_unmirrored + 3)
+            ASSERT_EQ(ir.readFrame(&frame), openni::STATUS_OK);
+        if (!mirrored)
+            last_unmirrored = frame.getFrameIndex();
         EXPECT_EQ(frame.getVideoMode().getPixelFormat(), openni::PIXEL_FORMAT_GRAY16);
         EXPECT_EQ(frame.getWidth(), 640);
         EXPECT_EQ(frame.getHeight(), 488);
         const auto* px = static_cast<const uint16_t*>(frame.getData());
-        // pixelValue(kInfrared, k) = 100 + 3k: a value the camera sends, unpacked from 10 bits.
-        EXPECT_EQ((px[0] - 100) % 3, 0) << px[0];
-        for (int i = 0; i < 640 * 488; i += 997)
-            ASSERT_EQ(px[i], px[0]) << "pixel " << i;
+        const int left = mirrored ? px[639] : px[0];  // the camera's column 0
+        EXPECT_EQ((left - 100) % 3, 0) << left;       // 100 + 3k: a value the camera sends
+        for (int y = 0; y < 488; y += 61) {
+            for (int x = 0; x < 640; x += 7) {
+                const int camera_x = mirrored ? 639 - x : x;
+                ASSERT_EQ(px[y * 640 + x], left + camera_x / KinectUsbEmulator::kIrColumnsPerStep)
+                    << "pixel (" << x << ", " << y << ") of IR frame " << n;
+            }
+        }
     }
     ir.stop();
     ir.destroy();

@@ -191,13 +191,16 @@ int64_t monotonicNs() {
     return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-// Appends `bits`-bit values most significant bit first, as the camera packs depth and IR.
-std::vector<uint8_t> packBits(uint16_t value, size_t count, int bits) {
+// Packs `count` values of `bits` bits, most significant bit first, as the camera packs depth
+// and IR; `value(i)` is pixel i in row-major order.
+template <typename Value>
+std::vector<uint8_t> packBits(Value value, size_t count, int bits) {
     std::vector<uint8_t> out((count * static_cast<size_t>(bits) + 7) / 8, 0);
     size_t bit = 0;
     for (size_t i = 0; i < count; ++i) {
+        const uint16_t v = value(i);
         for (int b = bits - 1; b >= 0; --b, ++bit) {
-            if ((value >> b) & 1)
+            if ((v >> b) & 1)
                 out[bit / 8] |= static_cast<uint8_t>(0x80 >> (bit % 8));
         }
     }
@@ -247,7 +250,7 @@ namespace {
 
 // Fills an isochronous URB with the next packets of its endpoint's stream: "RB" headers
 // (flag base|1 start of frame, |2 middle, |5 end; sequence; 60 MHz timestamp) and the frame's
-// pixels, every pixel of frame f being KinectUsbEmulator::pixelValue(stream, f).
+// pixels: every pixel of frame f is KinectUsbEmulator::pixelValue(stream, f), plus x / 64 in IR.
 void fillIso(KinectUsbEmulator::State& s, IsoUrb& u) {
     auto* urb = reinterpret_cast<usbdevfs_urb*>(u.urb->data);
     auto& st = s.streams[u.endpoint];
@@ -263,12 +266,19 @@ void fillIso(KinectUsbEmulator::State& s, IsoUrb& u) {
         const uint64_t frame = packet / per_frame;
         const size_t k = packet % per_frame;
         if (st.frame_cache_index != frame || st.frame_cache.empty()) {
-            st.frame_cache =
-                f.bits == 8
-                    ? std::vector<uint8_t>(
-                          frame_bytes,
-                          static_cast<uint8_t>(KinectUsbEmulator::pixelValue(kind, frame)))
-                    : packBits(KinectUsbEmulator::pixelValue(kind, frame), f.pixels, f.bits);
+            const uint16_t v = KinectUsbEmulator::pixelValue(kind, frame);
+            if (kind == KinectUsbEmulator::Stream::kBayer) {
+                st.frame_cache.assign(frame_bytes, static_cast<uint8_t>(v));
+            } else if (kind == KinectUsbEmulator::Stream::kInfrared) {
+                st.frame_cache = packBits(
+                    [v](size_t pixel) {
+                        return static_cast<uint16_t>(v + (pixel % 640) /
+                                                             KinectUsbEmulator::kIrColumnsPerStep);
+                    },
+                    f.pixels, f.bits);
+            } else {
+                st.frame_cache = packBits([v](size_t) { return v; }, f.pixels, f.bits);
+            }
             st.frame_cache_index = frame;
         }
         const size_t offset = k * f.payload;

@@ -20,7 +20,8 @@ namespace mixray::openni2::test {
 // 1414's zero-plane figures) and the algorithm parameters libfreenect fetches; other requests
 // stall. Isochronous endpoints 0x82 (depth, 11-bit) and 0x81 (Bayer colour, or 10-bit IR),
 // while libfreenect's registers switch them on: 'RB' packets of 1748 / 1908 data bytes, a frame
-// every 1/30 s of CLOCK_MONOTONIC, every pixel of frame k equal to pixelValue(stream, k).
+// every 1/30 s of CLOCK_MONOTONIC, every pixel of frame k equal to pixelValue(stream, k) (IR adds
+// x / kIrColumnsPerStep, so that its images have a left and a right).
 // Thread-safe: the handler runs on umockdev's worker thread, tests read from theirs.
 class KinectUsbEmulator {
 public:
@@ -49,6 +50,7 @@ public:
     enum class Stream { kDepth, kBayer, kInfrared };
     static uint16_t pixelValue(Stream stream, uint64_t frame);
     static constexpr uint16_t kDepthRawBase = 600;
+    static constexpr int kIrColumnsPerStep = 64;
     static constexpr uint32_t kFirstTicks = 0xfff00000u;   // wraps in the first seconds
     static constexpr uint32_t kTicksPerFrame = 2'000'000;  // 60 MHz / 30 fps
     static constexpr int64_t kFramePeriodNs = 33'333'333;
