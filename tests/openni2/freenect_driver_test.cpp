@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -222,6 +223,8 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
     int first_index = 0;
     uint16_t last_mm = 0;
     uint64_t last_depth_us = 0;
+    double first_color_us = 0;
+    constexpr double kPeriodUs = 2'000'000 / 60.0;  // 60 MHz ticks per frame, in µs
     for (int n = 0; n < 4; ++n) {
         openni::VideoFrameRef frame;
         ASSERT_EQ(color.readFrame(&frame), openni::STATUS_OK);
@@ -233,12 +236,14 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
         if (first_color < 0) {
             first_color = k;
             first_index = frame.getFrameIndex();
+            first_color_us = static_cast<double>(frame.getTimestamp());
         }
         // The plug-in numbers the frames libfreenect decodes, none lost on the emulated bus
         // (readFrame may skip some when this thread is slow).
         EXPECT_EQ(k - first_color, frame.getFrameIndex() - first_index);
         // The camera's 60 MHz stamps (which wrap to 0 in the second frame) in microseconds.
-        EXPECT_EQ(frame.getTimestamp(), static_cast<uint64_t>(k - first_color) * 2'000'000 / 60);
+        EXPECT_NEAR(static_cast<double>(frame.getTimestamp()) - first_color_us,
+                    (k - first_color) * kPeriodUs, 1.0);
         for (int i = 0; i < 640 * 480 * 3; i += 997)
             ASSERT_EQ(rgb[i], rgb[0]) << "byte " << i << " of colour frame " << n;
 
@@ -252,6 +257,10 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
             ASSERT_EQ(mm[i], mm[0]) << "pixel " << i << " of depth frame " << n;
         EXPECT_GT(mm[0], 500);
         EXPECT_LT(mm[0], 4000);
+        // Depth runs on the same camera clock as colour: whole frame periods apart.
+        const double periods =
+            (static_cast<double>(frame.getTimestamp()) - first_color_us) / kPeriodUs;
+        EXPECT_NEAR(periods, std::round(periods), 1e-3) << frame.getTimestamp();
         if (n > 0) {
             EXPECT_GT(frame.getTimestamp(), last_depth_us);
             EXPECT_GT(mm[0], last_mm);
@@ -462,6 +471,11 @@ TEST(FreenectDriver, TheOpenNI2BackendOpensTheEmulatedKinectByUriAndSerialAndStr
             EXPECT_EQ(b.clock_domain, defaultClockDomain("kinect"));
         }
     }
+    // Depth and colour share the camera's clock: their stamps are whole periods apart too.
+    const double periods = static_cast<double>(depth.front().meta().device_stamp_ns -
+                                               color.front().meta().device_stamp_ns) /
+                           (2e9 / 60);
+    EXPECT_NEAR(periods, std::round(periods), 1e-3);
 }
 
 }  // namespace

@@ -101,8 +101,9 @@ public:
 
     OniSensorType type() const { return type_; }
     const OniVideoMode& mode() const { return mode_; }
-    // Copies one libfreenect frame into an OpenNI2 frame and hands it to OpenNI2.
-    void deliver(const void* pixels, uint32_t ticks);
+    // Copies one libfreenect frame into an OpenNI2 frame and hands it to OpenNI2; `ticks` is
+    // the device's unwrapped 60 MHz clock.
+    void deliver(const void* pixels, uint64_t ticks);
 
 private:
     int stride() const { return mode_.resolutionX * bytesPerPixel(mode_.pixelFormat); }
@@ -111,10 +112,6 @@ private:
     OniSensorType type_;
     OniVideoMode mode_;
     std::atomic<bool> mirror_{false};
-    // Unwraps libfreenect's 32-bit tick counter into a 64-bit one.
-    bool have_ticks_ = false;
-    uint32_t last_ticks_ = 0;
-    uint64_t ticks_ = 0;
     int frame_index_ = 0;
 };
 
@@ -145,6 +142,7 @@ private:
     static void onDepth(freenect_device* device, void* pixels, uint32_t ticks);
     static void onVideo(freenect_device* device, void* pixels, uint32_t ticks);
     int startDepth();
+    uint64_t unwrap(uint32_t ticks);
 
     Driver& driver_;
     freenect_device* device_;
@@ -159,6 +157,12 @@ private:
     std::mutex mutex_;
     Stream* depth_ = nullptr;
     Stream* video_ = nullptr;
+    // One 64-bit clock for all streams of the camera (they share its 60 MHz counter), so that
+    // depth and colour stamps compare: libfreenect's 32-bit stamps unwrapped, from 2^32 + the
+    // first stamp seen (no stream's stamp, slightly older than that, goes below zero).
+    bool have_ticks_ = false;
+    uint32_t last_ticks_ = 0;
+    uint64_t ticks_ = 0;
 };
 
 // The driver: one libfreenect context, the Kinects it lists, and one thread that runs
@@ -278,16 +282,10 @@ OniStatus Stream::setProperty(int id, const void* data, int size) {
     }
 }
 
-void Stream::deliver(const void* pixels, uint32_t ticks) {
+void Stream::deliver(const void* pixels, uint64_t ticks) {
     OniFrame* frame = getServices().acquireFrame();
     if (!frame)
         return;
-    if (have_ticks_) {
-        ticks_ += static_cast<uint32_t>(ticks - last_ticks_);  // modulo 2^32: wraps unwrap
-    } else {
-        have_ticks_ = true;
-    }
-    last_ticks_ = ticks;
     const int row = stride();
     const int height = mode_.resolutionY;
     const auto* in = static_cast<const uint8_t*>(pixels);
@@ -305,7 +303,7 @@ void Stream::deliver(const void* pixels, uint32_t ticks) {
     }
     frame->dataSize = row * height;
     frame->sensorType = type_;
-    frame->timestamp = ticks_ / kTicksPerUs;
+    frame->timestamp = ticks / kTicksPerUs;
     frame->frameIndex = ++frame_index_;
     frame->width = mode_.resolutionX;
     frame->height = height;
@@ -475,18 +473,31 @@ void Device::stopStream(Stream& stream) {
     }
 }
 
+uint64_t Device::unwrap(uint32_t ticks) {
+    if (have_ticks_) {
+        // The streams' frames interleave slightly out of order: a signed step, modulo 2^32.
+        ticks_ +=
+            static_cast<uint64_t>(static_cast<int64_t>(static_cast<int32_t>(ticks - last_ticks_)));
+    } else {
+        ticks_ = (uint64_t{1} << 32) + ticks;
+        have_ticks_ = true;
+    }
+    last_ticks_ = ticks;
+    return ticks_;
+}
+
 void Device::onDepth(freenect_device* device, void* pixels, uint32_t ticks) {
     auto* self = static_cast<Device*>(freenect_get_user(device));
     std::lock_guard lock(self->mutex_);
     if (self->depth_)
-        self->depth_->deliver(pixels, ticks);
+        self->depth_->deliver(pixels, self->unwrap(ticks));
 }
 
 void Device::onVideo(freenect_device* device, void* pixels, uint32_t ticks) {
     auto* self = static_cast<Device*>(freenect_get_user(device));
     std::lock_guard lock(self->mutex_);
     if (self->video_)
-        self->video_->deliver(pixels, ticks);
+        self->video_->deliver(pixels, self->unwrap(ticks));
 }
 
 OniStatus Driver::initialize(oni::driver::DeviceConnectedCallback connected,
