@@ -10,9 +10,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -192,6 +194,70 @@ TEST(FreenectDriver, OpensTheEmulatedKinectWithItsSerialSensorsAndStreamProperti
               openni::STATUS_OK);
     EXPECT_EQ(device.getImageRegistrationMode(), openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
     device.close();
+}
+
+// Records OpenNI2's device connected / disconnected events.
+class DeviceEvents : public openni::OpenNI::DeviceConnectedListener,
+                     public openni::OpenNI::DeviceDisconnectedListener {
+public:
+    void onDeviceConnected(const openni::DeviceInfo* info) override { add(connected_, info); }
+    void onDeviceDisconnected(const openni::DeviceInfo* info) override { add(disconnected_, info); }
+    // Waits (up to 10 s) until `uri` connected / disconnected; false if it did not.
+    bool waitConnected(const std::string& uri) { return wait(connected_, uri); }
+    bool waitDisconnected(const std::string& uri) { return wait(disconnected_, uri); }
+
+private:
+    void add(std::vector<std::string>& list, const openni::DeviceInfo* info) {
+        std::lock_guard lock(mutex_);
+        list.push_back(info->getUri());
+        changed_.notify_all();
+    }
+    bool wait(const std::vector<std::string>& list, const std::string& uri) {
+        std::unique_lock lock(mutex_);
+        return changed_.wait_for(lock, std::chrono::seconds(10), [&] {
+            return std::find(list.begin(), list.end(), uri) != list.end();
+        });
+    }
+    std::mutex mutex_;
+    std::condition_variable changed_;
+    std::vector<std::string> connected_;
+    std::vector<std::string> disconnected_;
+};
+
+// libusb's hot-plug events (umockdev uevents) reach OpenNI2 as device (dis)connections.
+TEST(FreenectDriver, ReportsAKinectPluggedInAndOutWhileOpenNI2Runs) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    std::string why;
+    auto bus = KinectUsbEmulator::create(tree("root_hub.umockdev"), false, &why);
+    ASSERT_TRUE(bus) << why;
+    Session session;
+    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
+    DeviceEvents events;
+    ASSERT_EQ(openni::OpenNI::addDeviceConnectedListener(&events), openni::STATUS_OK);
+    ASSERT_EQ(openni::OpenNI::addDeviceDisconnectedListener(&events), openni::STATUS_OK);
+    for (const auto& d : devices())
+        EXPECT_NE(std::string(d.getUri()).rfind("freenect://", 0), 0u) << d.getUri();
+
+    ASSERT_TRUE(bus->plug(tree("kinect_v1.umockdev"), &why)) << why;
+    EXPECT_TRUE(events.waitConnected(kKinectUri)) << "no connection event for " << kKinectUri;
+    {
+        openni::Device device;
+        ASSERT_EQ(device.open(kKinectUri.c_str()), openni::STATUS_OK)
+            << openni::OpenNI::getExtendedError();
+        char serial[64] = {};
+        int size = sizeof(serial);
+        ASSERT_EQ(device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size),
+                  openni::STATUS_OK);
+        EXPECT_STREQ(serial, KinectUsbEmulator::kCameraSerial);
+        device.close();
+    }
+
+    bus->unplugCamera();
+    EXPECT_TRUE(events.waitDisconnected(kKinectUri)) << "no disconnection event for " << kKinectUri;
+    for (const auto& d : devices())
+        EXPECT_NE(std::string(d.getUri()), kKinectUri);
+    openni::OpenNI::removeDeviceConnectedListener(&events);
+    openni::OpenNI::removeDeviceDisconnectedListener(&events);
 }
 
 // Frames through openni::VideoStream: libfreenect decodes the emulated camera's packets, the

@@ -515,16 +515,45 @@ std::unique_ptr<KinectUsbEmulator> KinectUsbEmulator::create(const std::string& 
     }
     if (!emulate_camera)
         return e;
+    if (!e->attach(why))
+        return nullptr;
+    return e;
+}
+
+bool KinectUsbEmulator::attach(std::string* why) {
+    auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
     UMockdevIoctlBase* base = umockdev_ioctl_base_new();
-    e->handler_ = base;
-    g_signal_connect(base, "handle-ioctl", G_CALLBACK(onIoctl), e->state_.get());
+    handler_ = base;
+    g_signal_connect(base, "handle-ioctl", G_CALLBACK(onIoctl), state_.get());
+    GError* error = nullptr;
     if (!umockdev_testbed_attach_ioctl(testbed, kCameraNode, base, &error)) {
         if (why)
             *why = std::string("umockdev: attaching ") + kCameraNode + ": " + error->message;
         g_clear_error(&error);
-        return nullptr;
+        return false;
     }
-    return e;
+    return true;
+}
+
+bool KinectUsbEmulator::plug(const std::string& tree, std::string* why) {
+    auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
+    GError* error = nullptr;
+    if (!umockdev_testbed_add_from_file(testbed, tree.c_str(), &error)) {
+        if (why)
+            *why = "umockdev: " + tree + ": " + error->message;
+        g_clear_error(&error);
+        return false;
+    }
+    if (!handler_ && !attach(why))
+        return false;
+    umockdev_testbed_uevent(testbed, kCameraSysfs, "add");
+    return true;
+}
+
+void KinectUsbEmulator::unplugCamera() {
+    auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
+    umockdev_testbed_uevent(testbed, kCameraSysfs, "remove");
+    umockdev_testbed_remove_device(testbed, kCameraSysfs);
 }
 
 KinectUsbEmulator::~KinectUsbEmulator() {

@@ -26,6 +26,8 @@ namespace mixray::openni2::test {
 class KinectUsbEmulator {
 public:
     static constexpr const char* kCameraNode = "/dev/bus/usb/001/005";
+    static constexpr const char* kCameraSysfs =
+        "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-1/1-1.3";
     static constexpr const char* kCameraSerial = "A00364A11700045A";
 
     // `tree`: a umockdev device file (tests/usb/*.umockdev). With `emulate_camera`, the
@@ -33,6 +35,11 @@ public:
     static std::unique_ptr<KinectUsbEmulator> create(const std::string& tree, bool emulate_camera,
                                                      std::string* why);
     ~KinectUsbEmulator();
+    // Hot-plug: adds the devices of `tree` and announces the camera (a uevent "add", which
+    // reaches libusb's hot-plug callbacks), its node answered by the handler from then on.
+    bool plug(const std::string& tree, std::string* why);
+    // Announces the camera's departure (uevent "remove") and removes it from the bus.
+    void unplugCamera();
     KinectUsbEmulator(const KinectUsbEmulator&) = delete;
     KinectUsbEmulator& operator=(const KinectUsbEmulator&) = delete;
 
@@ -59,6 +66,7 @@ public:
 
 private:
     KinectUsbEmulator() = default;
+    bool attach(std::string* why);
     std::shared_ptr<State> state_;
     void* testbed_ = nullptr;
     void* handler_ = nullptr;

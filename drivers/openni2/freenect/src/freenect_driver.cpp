@@ -10,9 +10,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <list>
 #include <memory>
 #include <mutex>
 #include <new>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -166,7 +168,8 @@ private:
 };
 
 // The driver: one libfreenect context, the Kinects it lists, and one thread that runs
-// libfreenect's (libusb's) event loop while a device is open.
+// libfreenect's (libusb's) event loop from initialize() to shutdown(): frames, and libusb's
+// hot-plug events, after which it lists the cameras again and tells OpenNI2 who came and went.
 class Driver : public oni::driver::DriverBase {
 public:
     explicit Driver(OniDriverServices* services) : DriverBase(services) {}
@@ -183,15 +186,23 @@ public:
     void errorText(const std::string& text) { getServices().errorLoggerAppend("%s", text.c_str()); }
 
 private:
-    void enumerate();
+    static int LIBUSB_CALL onHotplug(libusb_context* context, libusb_device* device,
+                                     libusb_hotplug_event event, void* user);
+    // Lists the cameras; reports new ones to OpenNI2 and, with `departures`, the ones gone.
+    // False when libusb sees more Kinect cameras than libfreenect could read a serial from.
+    bool enumerate(bool departures);
     void runEvents();
 
     libusb_context* usb_ = nullptr;
     freenect_context* context_ = nullptr;
-    std::vector<CameraInfo> cameras_;
-    int open_devices_ = 0;
+    libusb_hotplug_callback_handle hotplug_ = 0;
+    bool have_hotplug_ = false;
+    std::mutex cameras_mutex_;
+    std::list<CameraInfo> cameras_;  // a list: OpenNI2 is handed pointers to the infos
+    size_t next_index_ = 0;
     std::thread events_;
     std::atomic<bool> stop_events_{false};
+    std::atomic<bool> rescan_{false};
 };
 
 Stream::Stream(Device& device, OniSensorType type) : device_(device), type_(type) {
@@ -516,19 +527,39 @@ OniStatus Driver::initialize(oni::driver::DeviceConnectedCallback connected,
     }
     freenect_set_log_level(context_, FREENECT_LOG_FATAL);
     freenect_select_subdevices(context_, FREENECT_DEVICE_CAMERA);
-    enumerate();
+    (void)enumerate(false);
+    if (libusb_has_capability(LIBUSB_CAP_HAS_HOTPLUG)) {
+        have_hotplug_ =
+            libusb_hotplug_register_callback(
+                usb_,
+                static_cast<libusb_hotplug_event>(LIBUSB_HOTPLUG_EVENT_DEVICE_ARRIVED |
+                                                  LIBUSB_HOTPLUG_EVENT_DEVICE_LEFT),
+                static_cast<libusb_hotplug_flag>(0), kMicrosoftVid, LIBUSB_HOTPLUG_MATCH_ANY,
+                LIBUSB_HOTPLUG_MATCH_ANY, &Driver::onHotplug, this, &hotplug_) == LIBUSB_SUCCESS;
+    }
+    stop_events_ = false;
+    events_ = std::thread([this] { runEvents(); });
     return ONI_STATUS_OK;
 }
 
-void Driver::enumerate() {
+int LIBUSB_CALL Driver::onHotplug(libusb_context* /*context*/, libusb_device* /*device*/,
+                                  libusb_hotplug_event /*event*/, void* user) {
+    // No I/O from inside libusb's event handling: the event thread lists the cameras after it.
+    static_cast<Driver*>(user)->rescan_ = true;
+    return 0;
+}
+
+bool Driver::enumerate(bool departures) {
     if (!context_)
-        return;
+        return true;
     freenect_device_attributes* list = nullptr;
     const int count = freenect_list_device_attributes(context_, &list);
-    if (count <= 0) {
-        freenect_free_device_attributes(list);
-        return;
-    }
+    std::vector<std::string> serials;
+    for (freenect_device_attributes* a = count > 0 ? list : nullptr; a; a = a->next)
+        serials.push_back(a->camera_serial ? a->camera_serial : "");
+    freenect_free_device_attributes(list);
+    if (count < 0)
+        return false;  // the bus could not be listed: nobody came or went
     // libfreenect lists serials only; the camera's product id comes from libusb's list, in
     // which libfreenect found them in the same order (cameras with a serial descriptor).
     std::vector<uint16_t> pids;
@@ -545,37 +576,56 @@ void Driver::enumerate() {
     }
     if (n >= 0)
         libusb_free_device_list(devices, 1);
-    int index = 0;
-    for (freenect_device_attributes* a = list; a; a = a->next, ++index) {
-        const std::string serial = a->camera_serial ? a->camera_serial : "";
-        const bool known = std::any_of(cameras_.begin(), cameras_.end(),
-                                       [&](const CameraInfo& c) { return c.serial == serial; });
-        if (known || serial.empty())
-            continue;
-        CameraInfo camera;
-        camera.serial = serial;
-        // The index orders the cameras for people; the serial keeps the URI of a camera
-        // when others come and go.
-        std::snprintf(camera.info.uri, sizeof(camera.info.uri), "%s%zu/%s", kUriScheme,
-                      cameras_.size(), serial.c_str());
-        std::snprintf(camera.info.vendor, sizeof(camera.info.vendor), "Microsoft");
-        const uint16_t pid = pids.size() == static_cast<size_t>(count)
-                                 ? pids[static_cast<size_t>(index)]
-                                 : kNuiCameraPid;
-        std::snprintf(camera.info.name, sizeof(camera.info.name), "%s",
-                      pid == kK4wCameraPid ? "Kinect for Windows" : "Kinect");
-        camera.info.usbVendorId = kMicrosoftVid;
-        camera.info.usbProductId = pid;
-        cameras_.push_back(camera);
-        deviceConnected(&cameras_.back().info);
+
+    std::vector<const OniDeviceInfo*> arrived;
+    std::vector<OniDeviceInfo> left;
+    {
+        std::lock_guard lock(cameras_mutex_);
+        for (size_t index = 0; index < serials.size(); ++index) {
+            const std::string& serial = serials[index];
+            const bool known = std::any_of(cameras_.begin(), cameras_.end(),
+                                           [&](const CameraInfo& c) { return c.serial == serial; });
+            if (known || serial.empty())
+                continue;
+            CameraInfo camera;
+            camera.serial = serial;
+            // The index orders the cameras for people (never reused); the serial keeps the
+            // URI of a camera when others come and go.
+            std::snprintf(camera.info.uri, sizeof(camera.info.uri), "%s%zu/%s", kUriScheme,
+                          next_index_++, serial.c_str());
+            std::snprintf(camera.info.vendor, sizeof(camera.info.vendor), "Microsoft");
+            const uint16_t pid = pids.size() == serials.size() ? pids[index] : kNuiCameraPid;
+            std::snprintf(camera.info.name, sizeof(camera.info.name), "%s",
+                          pid == kK4wCameraPid ? "Kinect for Windows" : "Kinect");
+            camera.info.usbVendorId = kMicrosoftVid;
+            camera.info.usbProductId = pid;
+            cameras_.push_back(camera);
+            arrived.push_back(&cameras_.back().info);
+        }
+        if (departures) {
+            for (auto it = cameras_.begin(); it != cameras_.end();) {
+                if (std::find(serials.begin(), serials.end(), it->serial) == serials.end()) {
+                    left.push_back(it->info);
+                    it = cameras_.erase(it);
+                } else {
+                    ++it;
+                }
+            }
+        }
     }
-    freenect_free_device_attributes(list);
+    // Outside the lock: OpenNI2's listeners may open the device from the callback.
+    for (const OniDeviceInfo* info : arrived)
+        deviceConnected(info);
+    for (const OniDeviceInfo& info : left)
+        deviceDisconnected(&info);
+    return pids.size() <= serials.size();
 }
 
 OniStatus Driver::tryDevice(const char* uri) {
     if (!uri || std::strncmp(uri, kUriScheme, std::strlen(kUriScheme)) != 0)
         return ONI_STATUS_ERROR;
-    enumerate();
+    (void)enumerate(false);
+    std::lock_guard lock(cameras_mutex_);
     for (const CameraInfo& c : cameras_) {
         if (std::strcmp(c.info.uri, uri) == 0)
             return ONI_STATUS_OK;
@@ -584,10 +634,13 @@ OniStatus Driver::tryDevice(const char* uri) {
 }
 
 oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*/) {
-    const CameraInfo* camera = nullptr;
-    for (const CameraInfo& c : cameras_) {
-        if (uri && std::strcmp(c.info.uri, uri) == 0)
-            camera = &c;
+    std::optional<CameraInfo> camera;
+    {
+        std::lock_guard lock(cameras_mutex_);
+        for (const CameraInfo& c : cameras_) {
+            if (uri && std::strcmp(c.info.uri, uri) == 0)
+                camera = c;
+        }
     }
     if (!camera || !context_) {
         errorText(std::string("no Kinect at ") + (uri ? uri : "(null)"));
@@ -607,34 +660,41 @@ oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*
         return nullptr;
     }
     auto* opened = new (std::nothrow) Device(*this, device, *camera);
-    if (!opened) {
+    if (!opened)
         freenect_close_device(device);
-        return nullptr;
-    }
-    if (open_devices_++ == 0) {
-        stop_events_ = false;
-        events_ = std::thread([this] { runEvents(); });
-    }
     return opened;
 }
 
 void Driver::deviceClose(oni::driver::DeviceBase* device) {
     delete static_cast<Device*>(device);
-    if (--open_devices_ == 0 && events_.joinable()) {
-        stop_events_ = true;
-        events_.join();
-    }
 }
 
 void Driver::runEvents() {
+    // A camera announced by the kernel may not be openable yet (udev is still setting its
+    // node's permissions): it is listed again, every 250 ms for 5 s, until its serial reads.
+    constexpr auto kRetryEvery = std::chrono::milliseconds(250);
+    constexpr int kRetries = 20;
+    int retries = 0;
+    auto retry_at = std::chrono::steady_clock::now();
     while (!stop_events_) {
         timeval timeout{0, 50'000};
         if (freenect_process_events_timeout(context_, &timeout) < 0)
             std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        const bool announced = rescan_.exchange(false);
+        if (announced)
+            retries = kRetries;
+        if (announced || (retries > 0 && std::chrono::steady_clock::now() >= retry_at)) {
+            retries = enumerate(true) ? 0 : retries - 1;
+            retry_at = std::chrono::steady_clock::now() + kRetryEvery;
+        }
     }
 }
 
 void Driver::shutdown() {
+    if (have_hotplug_) {
+        libusb_hotplug_deregister_callback(usb_, hotplug_);
+        have_hotplug_ = false;
+    }
     if (events_.joinable()) {
         stop_events_ = true;
         events_.join();
@@ -647,6 +707,7 @@ void Driver::shutdown() {
         libusb_exit(usb_);
         usb_ = nullptr;
     }
+    std::lock_guard lock(cameras_mutex_);
     cameras_.clear();
 }
 
