@@ -41,6 +41,7 @@ struct KinectUsbEmulator::State {
     };
     std::deque<IsoUrb> iso;  // submitted isochronous URBs, oldest first (owned refs)
     std::map<uint8_t, StreamState> streams;  // by endpoint
+    bool unplugged = false;
 };
 
 namespace {
@@ -457,7 +458,13 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
     int err = 0;
     {
         std::lock_guard lock(s.mutex);
-        switch (request) {
+        // Unplugged: URBs the kernel gave back can still be reaped; then, and for everything
+        // else, ENODEV.
+        const bool reaping = request == USBDEVFS_REAPURB || request == USBDEVFS_REAPURBNDELAY;
+        switch (s.unplugged && !(reaping && !s.completed.empty()) ? 0ul : request) {
+            case 0:
+                err = ENODEV;
+                break;
             case USBDEVFS_GET_CAPABILITIES: {
                 GError* error = nullptr;
                 UMockdevIoctlData* caps = umockdev_ioctl_data_resolve(arg, 0, 4, &error);
@@ -551,6 +558,20 @@ bool KinectUsbEmulator::plug(const std::string& tree, std::string* why) {
 }
 
 void KinectUsbEmulator::unplugCamera() {
+    {
+        // The kernel gives every URB in flight back with -ESHUTDOWN.
+        std::lock_guard lock(state_->mutex);
+        state_->unplugged = true;
+        for (const IsoUrb& u : state_->iso) {
+            auto* urb = reinterpret_cast<usbdevfs_urb*>(u.urb->data);
+            urb->status = -ESHUTDOWN;
+            urb->actual_length = 0;
+            for (int i = 0; i < urb->number_of_packets; ++i)
+                urb->iso_frame_desc[i].actual_length = 0;
+            state_->completed.push_back(u.urb);
+        }
+        state_->iso.clear();
+    }
     auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
     umockdev_testbed_uevent(testbed, kCameraSysfs, "remove");
     umockdev_testbed_remove_device(testbed, kCameraSysfs);

@@ -38,7 +38,8 @@ public:
     // Hot-plug: adds the devices of `tree` and announces the camera (a uevent "add", which
     // reaches libusb's hot-plug callbacks), its node answered by the handler from then on.
     bool plug(const std::string& tree, std::string* why);
-    // Announces the camera's departure (uevent "remove") and removes it from the bus.
+    // Announces the camera's departure (uevent "remove") and removes it from the bus; its URBs
+    // in flight come back with -ESHUTDOWN, then its open node answers ENODEV, as the kernel's.
     void unplugCamera();
     KinectUsbEmulator(const KinectUsbEmulator&) = delete;
     KinectUsbEmulator& operator=(const KinectUsbEmulator&) = delete;
