@@ -1,4 +1,5 @@
-// The emulated Kinect v1 camera's usbfs node: URBs on endpoint 0 answered with its strings.
+// The emulated Kinect v1 camera behind its usbfs node: URBs, string descriptors, libfreenect's
+// camera protocol and isochronous depth / colour / IR streaming.
 #include "kinect_usb_emulator.h"
 
 #include <linux/usbdevice_fs.h>
