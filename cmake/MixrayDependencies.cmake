@@ -27,6 +27,8 @@ mixray_pkg(LIBSWSCALE libswscale libswscale-dev)
 
 # Device backends.
 mixray_pkg(OPENNI2 libopenni2 libopenni2-dev)
+# Kinect v1 for the OpenNI2 driver plug-in (drivers/openni2/freenect).
+mixray_pkg(LIBFREENECT libfreenect libfreenect-dev)
 mixray_pkg(ARAVIS aravis-0.8 libaravis-dev)
 mixray_pkg(LIBV4L2 libv4l2 libv4l-dev)
 mixray_pkg(LIBUSB libusb-1.0 libusb-1.0-0-dev)

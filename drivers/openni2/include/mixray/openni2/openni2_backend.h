@@ -37,8 +37,7 @@ struct SensorRequest {
 //                  `mode:` passes them; default: the device's current);
 //                  a recording accepts only what was recorded
 //   registration   on | off: hardware depth->color registration (default off); on fails on
-//                  devices that cannot register (recordings, Kinect v1 without a driver that
-//                  does it)
+//                  devices that cannot register (recordings, drivers without it)
 //   sync           on | off: hardware depth/color frame sync on live devices (default on when
 //                  depth and color are both enabled)
 //   pace           original | fast: recordings only; fast = OpenNI2's manual playback, every
