@@ -472,10 +472,13 @@ struct OpenNI2Device::Impl {
             if (s->started)
                 s->stream.stop();
         }
-        if (streamed && !is_file) {
+        if (streamed) {
             // A driver's stream thread may still deliver the frame it was making when the
             // stream stopped: OpenNI2's DummyDevice does not join its threads, and one that
             // wakes after its stream was destroyed crashes. Its threads sleep 33 ms per frame.
+            // The recording player's thread walks its stream list without a lock until it sees
+            // every stream stopped; destroying a stream under it crashed (1 run in 8 of a
+            // recording played to its end).
             std::this_thread::sleep_for(kDriverDrain);
         }
         for (auto& s : streams)
