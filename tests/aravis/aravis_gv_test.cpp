@@ -235,6 +235,55 @@ TEST_F(AravisGv, SoftwareTriggerBurstLosesNothing) {
     EXPECT_EQ(stats.missing_frames, 0u);
 }
 
+// A hardware line configures the camera over GVCP (read back from its registers), and with no
+// signal on the line no frame comes: the simulator sends frames only in free run or for a
+// software trigger, so in Line0 mode it is silent, as a real camera with nothing wired is. That
+// silence is no connection loss: the probe runs in free run only.
+TEST_F(AravisGv, HardwareTriggerWaitsForTheLine) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"trigger", "line0"},
+                               {"trigger_activation", "rising_edge"},
+                               {"lost_timeout_ms", "100"}})));
+    auto read = [&](const char* feature) {
+        auto value = device_->feature(feature);
+        return value ? *value : "<" + value.status().toString() + ">";
+    };
+    EXPECT_EQ(read("TriggerSelector"), "FrameStart");
+    EXPECT_EQ(read("TriggerMode"), "On");
+    EXPECT_EQ(read("TriggerSource"), "Line0");
+    EXPECT_EQ(read("TriggerActivation"), "RisingEdge");
+    EXPECT_EQ(device_->streamInfo().tags.at("trigger"), "Line0");
+    EXPECT_EQ(device_->streamInfo().nominal_fps, 0);
+    ASSERT_TRUE(graph_.start());
+    EXPECT_FALSE(queue_->pop(std::chrono::milliseconds(1500))) << "a frame without a trigger";
+    const AravisStats stats = device_->stats();
+    graph_.stop();
+    EXPECT_EQ(stats.published, 0u);
+    EXPECT_EQ(stats.failed, 0u);
+    EXPECT_EQ(stats.connection_losses, 0u);
+    EXPECT_TRUE(stats.connected);
+}
+
+// The simulator's lines and activations are those of Aravis's fake camera: Line0, RisingEdge.
+TEST_F(AravisGv, MissingLineAndPtpAreClearErrors) {
+    ASSERT_TRUE(simulator_.start());
+    auto line = openWhenUp(backend_, configOf({{"trigger", "line2"}}));
+    ASSERT_FALSE(line);
+    EXPECT_EQ(line.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(line.status().message().find("trigger 'line2': the camera has no such trigger "
+                                           "source; it offers line0"),
+              std::string::npos)
+        << line.status().toString();
+    auto ptp = openWhenUp(backend_, configOf({{"ptp", "true"}}));
+    ASSERT_FALSE(ptp);
+    EXPECT_EQ(ptp.status().code(), ErrorCode::kUnsupported);
+    EXPECT_NE(ptp.status().message().find("no IEEE 1588 (PTP)"), std::string::npos)
+        << ptp.status().toString();
+    // A refused open leaves the camera free for the next one.
+    auto free_run = openWhenUp(backend_, configOf({}));
+    EXPECT_TRUE(free_run) << free_run.status().toString();
+}
+
 // The rig file fixture opens the simulator by serial, in the mode it names.
 TEST_F(AravisGv, OpensTheRigFixture) {
     auto rig = loadRig(test::fixturesDir() / "rigs" / "aravis_simulator.yaml");
