@@ -1,5 +1,6 @@
 // The Aravis backend against a real GigE Vision peer: Aravis's camera simulator
 // (arv-fake-gv-camera-0.8) on loopback, discovered and opened over GVCP, streaming over GVSP.
+#include <arv.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
@@ -7,8 +8,12 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
+#include <fstream>
 #include <memory>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/graph/clock.h"
@@ -30,12 +35,18 @@ class Simulator {
 public:
     ~Simulator() { kill(); }
 
-    // Starts it, with `lost_per_thousand` GVSP packets dropped on purpose.
-    bool start(int lost_per_thousand = 0) {
+    // Starts it, with `lost_per_thousand` GVSP packets dropped on purpose, describing itself
+    // with the GenICam file `genicam` when one is given.
+    bool start(int lost_per_thousand = 0, const std::string& genicam = {}) {
         const std::string lost = std::to_string(lost_per_thousand);
-        const char* argv[] = {kSimulator, "-i", kAddress,     "-s",
-                              kSerial,    "-r", lost.c_str(), nullptr};
-        return posix_spawn(&pid_, kSimulator, nullptr, nullptr, const_cast<char**>(argv),
+        std::vector<const char*> argv = {kSimulator, "-i", kAddress,    "-s",
+                                         kSerial,    "-r", lost.c_str()};
+        if (!genicam.empty()) {
+            argv.push_back("-g");
+            argv.push_back(genicam.c_str());
+        }
+        argv.push_back(nullptr);
+        return posix_spawn(&pid_, kSimulator, nullptr, nullptr, const_cast<char**>(argv.data()),
                            environ) == 0;
     }
 
@@ -233,6 +244,123 @@ TEST_F(AravisGv, SoftwareTriggerBurstLosesNothing) {
     EXPECT_EQ(stats.published, 12u);
     EXPECT_EQ(stats.pool_exhausted, 0u);
     EXPECT_EQ(stats.missing_frames, 0u);
+}
+
+// A hardware line configures the camera over GVCP (read back from its registers), and with no
+// signal on the line no frame comes: the simulator sends frames only in free run or for a
+// software trigger, so in Line0 mode it is silent, as a real camera with nothing wired is. That
+// silence is no connection loss: the probe runs in free run only.
+TEST_F(AravisGv, HardwareTriggerWaitsForTheLine) {
+    ASSERT_TRUE(simulator_.start());
+    ASSERT_TRUE(open(configOf({{"trigger", "line0"},
+                               {"trigger_activation", "rising_edge"},
+                               {"lost_timeout_ms", "100"}})));
+    auto read = [&](const char* feature) {
+        auto value = device_->feature(feature);
+        return value ? *value : "<" + value.status().toString() + ">";
+    };
+    EXPECT_EQ(read("TriggerSelector"), "FrameStart");
+    EXPECT_EQ(read("TriggerMode"), "On");
+    EXPECT_EQ(read("TriggerSource"), "Line0");
+    EXPECT_EQ(read("TriggerActivation"), "RisingEdge");
+    EXPECT_EQ(device_->streamInfo().tags.at("trigger"), "Line0");
+    EXPECT_EQ(device_->streamInfo().nominal_fps, 0);
+    ASSERT_TRUE(graph_.start());
+    EXPECT_FALSE(queue_->pop(std::chrono::milliseconds(1500))) << "a frame without a trigger";
+    const AravisStats stats = device_->stats();
+    graph_.stop();
+    EXPECT_EQ(stats.published, 0u);
+    EXPECT_EQ(stats.failed, 0u);
+    EXPECT_EQ(stats.connection_losses, 0u);
+    EXPECT_TRUE(stats.connected);
+}
+
+// The simulator's lines and activations are those of Aravis's fake camera: Line0, RisingEdge.
+TEST_F(AravisGv, MissingLineAndPtpAreClearErrors) {
+    ASSERT_TRUE(simulator_.start());
+    auto line = openWhenUp(backend_, configOf({{"trigger", "line2"}}));
+    ASSERT_FALSE(line);
+    EXPECT_EQ(line.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(line.status().message().find("trigger 'line2': the camera has no such trigger "
+                                           "source; it offers line0"),
+              std::string::npos)
+        << line.status().toString();
+    auto ptp = openWhenUp(backend_, configOf({{"ptp", "true"}}));
+    ASSERT_FALSE(ptp);
+    EXPECT_EQ(ptp.status().code(), ErrorCode::kUnsupported);
+    EXPECT_NE(ptp.status().message().find("no IEEE 1588 (PTP)"), std::string::npos)
+        << ptp.status().toString();
+    // A refused open leaves the camera free for the next one.
+    auto free_run = openWhenUp(backend_, configOf({}));
+    EXPECT_TRUE(free_run) << free_run.status().toString();
+}
+
+// Aravis's fake camera description with GigE Vision's IEEE 1588 features added: GevIEEE1588
+// on a free register of the simulator's memory, and GevIEEE1588Status reading the same
+// register, Disabled (0) or Listening (1), which is what a PTP port reports while it hears no
+// grandmaster. The simulator keeps registers it does not know as plain memory, so it stands in
+// for a camera that has the features; it runs no PTP, and its clock stays the system clock.
+std::string genicamWithPtp() {
+    ArvFakeCamera* fake = arv_fake_camera_new("PTPDESC");
+    size_t size = 0;
+    const char* xml = arv_fake_camera_get_genicam_xml(fake, &size);
+    std::string text(xml ? xml : "", xml ? size : 0);
+    g_object_unref(fake);
+    const size_t end = text.rfind("</RegisterDescription>");
+    if (end == std::string::npos)
+        return {};
+    text.insert(end, R"(
+<Boolean Name="GevIEEE1588" NameSpace="Standard">
+  <pValue>MixrayPtpRegister</pValue>
+</Boolean>
+<Enumeration Name="GevIEEE1588Status" NameSpace="Standard">
+  <EnumEntry Name="Disabled" NameSpace="Standard"><Value>0</Value></EnumEntry>
+  <EnumEntry Name="Listening" NameSpace="Standard"><Value>1</Value></EnumEntry>
+  <pValue>MixrayPtpRegister</pValue>
+</Enumeration>
+<IntReg Name="MixrayPtpRegister" NameSpace="Custom">
+  <Address>0xb000</Address>
+  <Length>4</Length>
+  <AccessMode>RW</AccessMode>
+  <pPort>Device</pPort>
+  <Sign>Unsigned</Sign>
+  <Endianess>BigEndian</Endianess>
+</IntReg>
+)");
+    return text;
+}
+
+// ptp=true on a camera that has GevIEEE1588: the feature is switched on (its status register
+// reads back Listening), the status is reported, and the stamps are put in the PTP domain.
+TEST_F(AravisGv, PtpIsEnabledWhereTheCameraHasIt) {
+    const std::string xml = genicamWithPtp();
+    ASSERT_FALSE(xml.empty()) << "no RegisterDescription in Aravis's fake camera description";
+    const std::string path = ::testing::TempDir() + "mixray_arv_ptp.xml";
+    {
+        std::ofstream out(path, std::ios::binary);
+        out << xml;
+        ASSERT_TRUE(out.good()) << path;
+    }
+    ASSERT_TRUE(simulator_.start(0, path));
+    const Status opened = open(configOf({{"ptp", "true"}, {"fps", "50"}}));
+    ASSERT_TRUE(opened) << opened.toString();
+    auto status = device_->ptpStatus();
+    ASSERT_TRUE(status) << status.status().toString();
+    EXPECT_EQ(*status, "Listening");
+    auto enabled = device_->feature("GevIEEE1588");
+    ASSERT_TRUE(enabled) << enabled.status().toString();
+    EXPECT_EQ(*enabled, "true");
+    const StreamInfo& info = device_->streamInfo();
+    EXPECT_EQ(info.clock_domain, kPtpClockDomain);
+    EXPECT_EQ(info.tags.at("timestamp_clock"), "ptp");
+    EXPECT_EQ(info.tags.at("ptp_status"), "Listening");
+    ASSERT_TRUE(graph_.start());
+    auto frames = take(3);
+    graph_.stop();
+    ASSERT_EQ(frames.size(), 3u);
+    for (const FrameRef& frame : frames)
+        EXPECT_EQ(frame.meta().clock_domain, kPtpClockDomain);
+    std::remove(path.c_str());
 }
 
 // The rig file fixture opens the simulator by serial, in the mode it names.

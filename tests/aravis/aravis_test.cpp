@@ -21,6 +21,11 @@ DeviceConfig configOf(std::map<std::string, std::string> options, std::string id
     return config;
 }
 
+// A feature's value, or the error in its place so that a failed read shows in the assertion.
+std::string read(const Result<std::string>& value) {
+    return value ? *value : "<" + value.status().toString() + ">";
+}
+
 TEST(AravisOptions, ParsesEveryOption) {
     auto o = AravisOptions::fromConfig(configOf({{"pixel_format", "BayerRG8"},
                                                  {"debayer", "true"},
@@ -64,9 +69,20 @@ TEST(AravisOptions, RefusesBadValuesNamingTheOption) {
     auto format = AravisOptions::fromConfig(configOf({{"pixel_format", "YUV422"}}));
     ASSERT_FALSE(format);
     EXPECT_NE(format.status().message().find("pixel_format"), std::string::npos);
-    auto trigger = AravisOptions::fromConfig(configOf({{"trigger", "line0"}}));
+    auto trigger = AravisOptions::fromConfig(configOf({{"trigger", "line-0"}}));
     ASSERT_FALSE(trigger);
-    EXPECT_NE(trigger.status().message().find("free or software"), std::string::npos);
+    EXPECT_NE(trigger.status().message().find("free, software or a hardware line"),
+              std::string::npos);
+    auto activation =
+        AravisOptions::fromConfig(configOf({{"trigger", "line0"}, {"trigger_activation", "up"}}));
+    ASSERT_FALSE(activation);
+    EXPECT_NE(activation.status().message().find("falling_edge"), std::string::npos);
+    auto free_activation =
+        AravisOptions::fromConfig(configOf({{"trigger_activation", "any_edge"}}));
+    ASSERT_FALSE(free_activation);
+    EXPECT_NE(free_activation.status().message().find("needs a hardware trigger"),
+              std::string::npos);
+    EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"ptp", "maybe"}})));
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"fps", "0"}})));
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"buffers", "1"}})));
     EXPECT_FALSE(AravisOptions::fromConfig(configOf({{"clock_domain", "0"}})));
@@ -81,6 +97,21 @@ TEST(AravisOptions, RefusesBadValuesNamingTheOption) {
     DeviceConfig mismatch = configOf({{"color.width", "64"}});
     mismatch.streams = {"mono"};
     EXPECT_FALSE(AravisOptions::fromConfig(mismatch));
+}
+
+TEST(AravisOptions, ParsesHardwareTriggersAndPtp) {
+    auto o = AravisOptions::fromConfig(
+        configOf({{"trigger", "line1"}, {"trigger_activation", "falling_edge"}, {"ptp", "true"}}));
+    ASSERT_TRUE(o) << o.status().toString();
+    EXPECT_EQ(o->trigger, TriggerMode::kHardware);
+    EXPECT_EQ(o->trigger_source, "line1");
+    EXPECT_EQ(o->trigger_activation, "FallingEdge");
+    EXPECT_TRUE(o->ptp);
+    auto plain = AravisOptions::fromConfig(configOf({}));
+    ASSERT_TRUE(plain);
+    EXPECT_FALSE(plain->ptp);
+    EXPECT_EQ(triggerActivationName("level_low"), "LevelLow");
+    EXPECT_EQ(triggerActivationName("LevelLow"), "");
 }
 
 // What a rig file's "mode: { mono: 320x240@30 mono16 }" becomes.
@@ -267,6 +298,65 @@ TEST(AravisFake, PublishesEachPixelFormat) {
     Capture mono_as_color;
     const Status refused = mono_as_color.open(wrong_stream);
     EXPECT_EQ(refused.code(), ErrorCode::kInvalidArgument) << refused.toString();
+}
+
+// The fake camera's TriggerSource offers Line0 and Software, its TriggerActivation RisingEdge
+// only; the settings are read back from the camera's registers through Aravis.
+TEST(AravisFake, HardwareTriggerConfiguresTheCamera) {
+    Capture capture;
+    const Status opened =
+        capture.open(configOf({{"trigger", "LINE0"}, {"trigger_activation", "rising_edge"}}));
+    ASSERT_TRUE(opened) << opened.toString();
+    AravisDevice& device = *capture.device;
+    EXPECT_EQ(read(device.feature("TriggerSelector")), "FrameStart");
+    EXPECT_EQ(read(device.feature("TriggerMode")), "On");
+    EXPECT_EQ(read(device.feature("TriggerSource")), "Line0");
+    EXPECT_EQ(read(device.feature("TriggerActivation")), "RisingEdge");
+    EXPECT_EQ(device.options().trigger_source, "Line0");
+    EXPECT_EQ(device.streamInfo().tags.at("trigger"), "Line0");
+    EXPECT_EQ(device.streamInfo().tags.at("timestamp_clock"), "camera");
+    EXPECT_EQ(device.streamInfo().nominal_fps, 0);
+    const Status software = device.softwareTrigger();
+    EXPECT_EQ(software.code(), ErrorCode::kUnsupported);
+    EXPECT_NE(software.message().find("triggered by Line0"), std::string::npos);
+    EXPECT_EQ(device.feature("NoSuchFeature").status().code(), ErrorCode::kNotFound);
+    EXPECT_EQ(device.ptpStatus().status().code(), ErrorCode::kUnsupported);
+}
+
+TEST(AravisFake, FreeRunSwitchesTriggersOff) {
+    Capture capture;
+    ASSERT_TRUE(capture.open(configOf({})));
+    EXPECT_EQ(read(capture.device->feature("TriggerMode")), "Off");
+    EXPECT_EQ(read(capture.device->feature("AcquisitionMode")), "Continuous");
+    EXPECT_EQ(capture.device->streamInfo().tags.at("trigger"), "free");
+}
+
+TEST(AravisFake, MissingLineOrActivationIsAClearError) {
+    Capture line;
+    const Status no_line = line.open(configOf({{"trigger", "line3"}}));
+    EXPECT_EQ(no_line.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(no_line.message().find("trigger 'line3': the camera has no such trigger source; "
+                                     "it offers line0 (and free, software)"),
+              std::string::npos)
+        << no_line.toString();
+    Capture edge;
+    const Status no_edge =
+        edge.open(configOf({{"trigger", "line0"}, {"trigger_activation", "falling_edge"}}));
+    EXPECT_EQ(no_edge.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(no_edge.message().find("FallingEdge: the camera offers RisingEdge"),
+              std::string::npos)
+        << no_edge.toString();
+}
+
+TEST(AravisFake, PtpOnACameraWithoutPtpIsRefused) {
+    Capture capture;
+    const Status refused = capture.open(configOf({{"ptp", "true"}}));
+    EXPECT_EQ(refused.code(), ErrorCode::kUnsupported);
+    EXPECT_NE(refused.message().find("no IEEE 1588 (PTP): it has neither PtpEnable nor "
+                                     "GevIEEE1588"),
+              std::string::npos)
+        << refused.toString();
+    EXPECT_NE(refused.message().find("aravis device 'cam'"), std::string::npos);
 }
 
 TEST(AravisFake, UnknownCameraIsNotFound) {

@@ -5,12 +5,15 @@
 #include <arv.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace mixray::aravis {
 namespace {
@@ -80,6 +83,110 @@ std::string formatFps(double fps) {
     char text[32];
     std::snprintf(text, sizeof(text), "%g", fps);
     return text;
+}
+
+std::string lowered(std::string_view text) {
+    std::string out(text);
+    for (char& c : out)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return out;
+}
+
+// The entries of the camera's enumeration `feature`, or an error naming it.
+Result<std::vector<std::string>> enumerationEntries(ArvCamera* camera, const char* feature) {
+    GError* error = nullptr;
+    guint n = 0;
+    const char** entries =
+        arv_camera_dup_available_enumerations_as_strings(camera, feature, &n, &error);
+    if (error) {
+        g_free(entries);
+        return {ErrorCode::kUnsupported,
+                std::string("reading the camera's ") + feature + ": " + takeError(error)};
+    }
+    std::vector<std::string> out;
+    for (guint i = 0; i < n; ++i)
+        out.emplace_back(entries[i] ? entries[i] : "");
+    g_free(entries);
+    return out;
+}
+
+std::string joined(const std::vector<std::string>& items) {
+    std::string out;
+    for (const std::string& item : items)
+        out += (out.empty() ? "" : ", ") + item;
+    return out;
+}
+
+// The camera's TriggerSource entry for the line `requested` names ("line1" -> "Line1").
+// kInvalidArgument listing the camera's lines when it has no such line.
+Result<std::string> hardwareTriggerSource(ArvCamera* camera, const std::string& requested) {
+    if (!arv_camera_is_feature_available(camera, "TriggerSource", nullptr)) {
+        return {ErrorCode::kUnsupported,
+                "trigger " + requested + ": the camera has no TriggerSource (no hardware trigger)"};
+    }
+    auto entries = enumerationEntries(camera, "TriggerSource");
+    if (!entries)
+        return entries.status();
+    std::string match;
+    std::vector<std::string> lines;
+    for (const std::string& entry : *entries) {
+        // Software is chosen with trigger=software; it is no line.
+        if (lowered(entry) == "software")
+            continue;
+        lines.push_back(lowered(entry));
+        if (lowered(entry) == lowered(requested))
+            match = entry;
+    }
+    if (match.empty()) {
+        return {ErrorCode::kInvalidArgument,
+                "trigger '" + requested + "': the camera has no such trigger source; it offers " +
+                    (lines.empty() ? std::string("no hardware line") : joined(lines)) +
+                    " (and free, software)"};
+    }
+    return match;
+}
+
+// Sets TriggerActivation (FrameStart selected) to `activation`, a GenICam name.
+Status setTriggerActivation(ArvCamera* camera, const std::string& activation) {
+    if (!arv_camera_is_feature_available(camera, "TriggerActivation", nullptr)) {
+        return {ErrorCode::kUnsupported,
+                "trigger_activation: the camera has no TriggerActivation feature"};
+    }
+    auto entries = enumerationEntries(camera, "TriggerActivation");
+    if (!entries)
+        return entries.status();
+    if (std::find(entries->begin(), entries->end(), activation) == entries->end()) {
+        return {ErrorCode::kInvalidArgument,
+                "trigger_activation " + activation + ": the camera offers " + joined(*entries)};
+    }
+    GError* error = nullptr;
+    arv_camera_set_string(camera, "TriggerActivation", activation.c_str(), &error);
+    if (error) {
+        return {ErrorCode::kUnsupported,
+                "trigger_activation " + activation + ": " + takeError(error)};
+    }
+    return Status::ok();
+}
+
+// Features that switch IEEE 1588 on: SFNC 2.x names it PtpEnable, GigE Vision cameras before
+// it GevIEEE1588. The status features are read in the same order.
+constexpr const char* kPtpEnableFeatures[] = {"PtpEnable", "GevIEEE1588"};
+constexpr const char* kPtpStatusFeatures[] = {"PtpStatus", "GevIEEE1588Status"};
+
+Status enablePtp(ArvCamera* camera) {
+    for (const char* feature : kPtpEnableFeatures) {
+        if (!arv_camera_is_feature_available(camera, feature, nullptr))
+            continue;
+        GError* error = nullptr;
+        arv_camera_set_boolean(camera, feature, TRUE, &error);
+        if (error) {
+            return {ErrorCode::kUnsupported,
+                    std::string("ptp: enabling ") + feature + ": " + takeError(error)};
+        }
+        return Status::ok();
+    }
+    return {ErrorCode::kUnsupported,
+            "ptp: the camera offers no IEEE 1588 (PTP): it has neither PtpEnable nor GevIEEE1588"};
 }
 
 // Opens `id` as Aravis understands it (device id or address), else as a serial number or
@@ -152,16 +259,27 @@ Status configure(ArvCamera* camera, const AravisOptions& o) {
         arv_camera_set_trigger(camera, "Software", &error);
         if (error)
             return failed("software trigger");
-    } else {
-        if (arv_camera_is_feature_available(camera, "TriggerMode", nullptr)) {
-            arv_camera_clear_triggers(camera, &error);
-            if (error)
-                return failed("clearing triggers");
-        }
-        arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
+    } else if (o.trigger == TriggerMode::kHardware) {
+        auto source = hardwareTriggerSource(camera, o.trigger_source);
+        if (!source)
+            return source.status();
+        // Aravis sets FrameStart to the line, rising edge, and every other trigger off.
+        arv_camera_set_trigger(camera, source->c_str(), &error);
         if (error)
-            return failed("continuous acquisition");
+            return failed("trigger " + o.trigger_source);
+        if (!o.trigger_activation.empty())
+            MIXRAY_RETURN_IF_ERROR(setTriggerActivation(camera, o.trigger_activation));
+    } else if (arv_camera_is_feature_available(camera, "TriggerMode", nullptr)) {
+        arv_camera_clear_triggers(camera, &error);
+        if (error)
+            return failed("clearing triggers");
     }
+    // A triggered camera in single-frame mode would stop after the first trigger.
+    arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
+    if (error)
+        return failed("continuous acquisition");
+    if (o.ptp)
+        MIXRAY_RETURN_IF_ERROR(enablePtp(camera));
     if (arv_camera_is_gv_device(camera)) {
         if (o.packet_size > 0) {
             arv_camera_gv_set_packet_size(camera, o.packet_size, &error);
@@ -242,7 +360,7 @@ struct AravisDevice::Camera {
 AravisDevice::AravisDevice(std::string name, AravisOptions options)
     : name_(std::move(name)), options_(std::move(options)) {
     if (options_.clock_domain == kHostClockDomain)
-        options_.clock_domain = defaultClockDomain(name_);
+        options_.clock_domain = options_.ptp ? kPtpClockDomain : defaultClockDomain(name_);
 }
 
 AravisDevice::~AravisDevice() {
@@ -348,6 +466,23 @@ Result<std::unique_ptr<AravisDevice>> AravisDevice::open(std::string name, std::
     info.tags["model"] = d.model;
     info.tags["serial"] = d.serial;
     info.tags["aravis_pixel_format"] = o.pixel_format;
+    if (o.trigger == TriggerMode::kHardware) {
+        // The camera's spelling, so a reconnection and the tags name the same line.
+        auto source = hardwareTriggerSource(camera, o.trigger_source);
+        if (!source)
+            return source.status().withContext(context);
+        o.trigger_source = *source;
+        info.tags["trigger"] = o.trigger_source;
+    } else {
+        info.tags["trigger"] = o.trigger == TriggerMode::kSoftware ? "software" : "free";
+    }
+    // Tells the clock model (and a recording's reader) what the device stamps count: PTP time
+    // shared with every camera on the grandmaster, or the camera's own free-running clock.
+    info.tags["timestamp_clock"] = o.ptp ? "ptp" : "camera";
+    if (o.ptp) {
+        auto status = device->ptpStatus();
+        info.tags["ptp_status"] = status ? *status : "unknown";
+    }
     return device;
 }
 
@@ -438,8 +573,11 @@ bool AravisDevice::waitFor(int64_t ms) {
 
 Status AravisDevice::softwareTrigger() {
     if (options_.trigger != TriggerMode::kSoftware) {
-        return {ErrorCode::kUnsupported,
-                "aravis device '" + name_ + "' runs free; open it with trigger=software"};
+        return {ErrorCode::kUnsupported, "aravis device '" + name_ + "' " +
+                                             (options_.trigger == TriggerMode::kHardware
+                                                  ? "is triggered by " + options_.trigger_source
+                                                  : std::string("runs free")) +
+                                             "; open it with trigger=software"};
     }
     std::lock_guard lock(mutex_);
     if (!camera_ || !camera_->stream)
@@ -461,6 +599,36 @@ AravisStats AravisDevice::stats() const {
     if (pool_)
         s.pool_exhausted = pool_->exhaustedCount();
     return s;
+}
+
+Result<std::string> AravisDevice::feature(const std::string& name) const {
+    const std::string context = "aravis device '" + name_ + "': feature " + name;
+    std::lock_guard lock(mutex_);
+    if (!camera_)
+        return {ErrorCode::kUnavailable, context + ": the camera is lost"};
+    ArvGcNode* node = arv_device_get_feature(arv_camera_get_device(camera_->camera), name.c_str());
+    if (!node || !ARV_IS_GC_FEATURE_NODE(node))
+        return {ErrorCode::kNotFound, context + ": the camera has no such feature"};
+    GError* error = nullptr;
+    const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
+    if (error)
+        return {ErrorCode::kUnavailable, context + ": " + takeError(error)};
+    return std::string(value ? value : "");
+}
+
+Result<std::string> AravisDevice::ptpStatus() const {
+    if (!options_.ptp) {
+        return {ErrorCode::kUnsupported,
+                "aravis device '" + name_ + "' was opened without ptp; open it with ptp=true"};
+    }
+    Status last;
+    for (const char* feature : kPtpStatusFeatures) {
+        auto value = this->feature(feature);
+        if (value || value.status().code() != ErrorCode::kNotFound)
+            return value;
+        last = value.status();
+    }
+    return last;
 }
 
 uint64_t frameIdAdvance(uint64_t previous, uint64_t id) {

@@ -1,6 +1,7 @@
 // Aravis device options: parsing DeviceConfig::options into AravisOptions.
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -93,7 +94,29 @@ Status readStreamMode(const DeviceConfig& config, DeviceOptionReader& reader, Ar
     return Status::ok();
 }
 
+// A TriggerSource entry name as a user may write it: letters, digits and underscores.
+bool isLineName(std::string_view text) {
+    return !text.empty() && text.size() <= 64 && std::all_of(text.begin(), text.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+    });
+}
+
 }  // namespace
+
+std::string triggerActivationName(std::string_view option_value) {
+    static const std::array<std::pair<std::string_view, std::string_view>, 5> kNames = {{
+        {"rising_edge", "RisingEdge"},
+        {"falling_edge", "FallingEdge"},
+        {"any_edge", "AnyEdge"},
+        {"level_high", "LevelHigh"},
+        {"level_low", "LevelLow"},
+    }};
+    for (const auto& [option, genicam] : kNames) {
+        if (option == option_value)
+            return std::string(genicam);
+    }
+    return {};
+}
 
 Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
     AravisOptions o;
@@ -120,10 +143,23 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
             o.trigger = TriggerMode::kFreeRun;
         } else if (*trigger == "software") {
             o.trigger = TriggerMode::kSoftware;
+        } else if (isLineName(*trigger)) {
+            // Which lines exist is the camera's to say: checked at open.
+            o.trigger = TriggerMode::kHardware;
+            o.trigger_source = *trigger;
         } else {
-            return reader.error("trigger", *trigger, "free or software");
+            return reader.error("trigger", *trigger,
+                                "free, software or a hardware line (line0, line1, ...)");
         }
     }
+    if (const std::string* activation = reader.find("trigger_activation")) {
+        o.trigger_activation = triggerActivationName(*activation);
+        if (o.trigger_activation.empty()) {
+            return reader.error("trigger_activation", *activation,
+                                "rising_edge, falling_edge, any_edge, level_high or level_low");
+        }
+    }
+    MIXRAY_RETURN_IF_ERROR(reader.boolean("ptp", o.ptp));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer("buffers", o.buffers, size_t{2}, size_t{4096}, "2..4096"));
     MIXRAY_RETURN_IF_ERROR(
@@ -139,7 +175,8 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
     MIXRAY_RETURN_IF_ERROR(readStreamMode(config, reader, o));
     MIXRAY_RETURN_IF_ERROR(reader.leftovers(
         "pixel_format, debayer, exposure_us, gain, fps, width, height, offset_x, offset_y, "
-        "trigger, buffers, packet_size, packet_resend, lost_timeout_ms, reconnect_ms, "
+        "trigger, trigger_activation, ptp, buffers, packet_size, packet_resend, lost_timeout_ms, "
+        "reconnect_ms, "
         "clock_domain, and the rig's <stream>.width, .height, .fps, .format for mono or color"));
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("aravis device '" + config.name + "'"));
     return o;
@@ -158,6 +195,12 @@ Status AravisOptions::validate() const {
         return {ErrorCode::kInvalidArgument, "buffers must be >= 2"};
     if (packet_size < 0)
         return {ErrorCode::kInvalidArgument, "packet_size must be >= 0"};
+    if (trigger == TriggerMode::kHardware && trigger_source.empty())
+        return {ErrorCode::kInvalidArgument, "a hardware trigger needs a line (trigger=line0)"};
+    if (trigger != TriggerMode::kHardware && !trigger_activation.empty()) {
+        return {ErrorCode::kInvalidArgument,
+                "trigger_activation needs a hardware trigger (trigger=line0, ...)"};
+    }
     if (lost_timeout_ms < 100 || reconnect_ms < 10) {
         return {ErrorCode::kInvalidArgument,
                 "lost_timeout_ms must be >= 100 and reconnect_ms >= 10"};

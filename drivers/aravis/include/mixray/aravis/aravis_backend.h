@@ -23,6 +23,7 @@ namespace mixray::aravis {
 enum class TriggerMode : uint8_t {
     kFreeRun,   // the camera runs at its frame rate
     kSoftware,  // one frame per AravisDevice::softwareTrigger()
+    kHardware,  // one frame per edge (or level) on AravisOptions::trigger_source
 };
 
 // How an Aravis camera is set up. Parsed from DeviceConfig::options (all values are strings):
@@ -34,7 +35,14 @@ enum class TriggerMode : uint8_t {
 //   gain           gain in the camera's unit, >= 0 (default: the camera's)
 //   fps            frame rate in free run, > 0 (default: the camera's)
 //   width, height, offset_x, offset_y   region of interest in pixels (default: the camera's)
-//   trigger        free | software (default free)
+//   trigger        free | software | a hardware line as the camera's TriggerSource names it
+//                  (line0, line1, ...; matched without regard to case and checked against
+//                  the camera's list at open) (default free)
+//   trigger_activation  rising_edge | falling_edge | any_edge | level_high | level_low, with a
+//                  hardware trigger only; checked against the camera's TriggerActivation
+//                  (default: rising_edge where the camera has TriggerActivation)
+//   ptp            true | false: enable IEEE 1588 on the camera (PtpEnable or GevIEEE1588);
+//                  a camera without either is refused at open (default false)
 //   buffers        frames Aravis may hold and the graph pool holds, >= 2 (default: enough for
 //                  half a second at the frame rate, at least 8)
 //   packet_size    GigE Vision packet size in bytes, 0 = negotiated by Aravis (default 0)
@@ -42,7 +50,8 @@ enum class TriggerMode : uint8_t {
 //   lost_timeout_ms  free run without frames this long probes the camera; an unanswered
 //                  probe declares the connection lost (default 2000)
 //   reconnect_ms   pause between attempts to reopen a lost camera (default 500)
-//   clock_domain   ClockDomainId of the camera clock, >= 1 (default: a hash of the name)
+//   clock_domain   ClockDomainId of the camera clock, >= 1 (default: a hash of the name;
+//                  with ptp, kPtpClockDomain, shared by every PTP camera)
 // A rig file's stream list and stream modes arrive as DeviceConfig::streams (one of "mono",
 // "color") and "<stream>.width", ".height", ".fps", ".format" (graph format names: mono8,
 // mono16, rgb8, bayer_rggb8, ...); they set the same fields and must not repeat them.
@@ -58,6 +67,9 @@ struct AravisOptions {
     int offset_x = -1;       // < 0: keep
     int offset_y = -1;       // < 0: keep
     TriggerMode trigger = TriggerMode::kFreeRun;
+    std::string trigger_source;      // kHardware: as given ("line1"); the camera's name at open
+    std::string trigger_activation;  // GenICam name ("FallingEdge"); empty: rising edge
+    bool ptp = false;
     size_t buffers = 0;  // 0: from the frame rate
     int packet_size = 0;
     bool packet_resend = true;
@@ -69,6 +81,14 @@ struct AravisOptions {
     static Result<AravisOptions> fromConfig(const DeviceConfig& config);
     Status validate() const;
 };
+
+// The clock domain of cameras whose timestamps are PTP time. Cameras synchronised to one PTP
+// grandmaster stamp in one time base, so they share one domain and one clock model.
+inline constexpr ClockDomainId kPtpClockDomain = 0x50545031;  // "PTP1"
+
+// GenICam TriggerActivation name of an option value ("falling_edge" -> "FallingEdge"); empty
+// for unknown values.
+std::string triggerActivationName(std::string_view option_value);
 
 // The clock domain an Aravis device named `device_name` gets by default: a hash of the name,
 // never kHostClockDomain.
@@ -143,6 +163,14 @@ public:
     // the camera is lost.
     Status softwareTrigger();
     AravisStats stats() const;
+
+    // The camera's current value of the GenICam feature `name`, read through Aravis (for an
+    // enumeration its entry name: "On", "Line0"). kNotFound when the camera has no such
+    // feature, kUnavailable while the camera is lost or does not answer.
+    Result<std::string> feature(const std::string& name) const;
+    // The camera's IEEE 1588 state (PtpStatus or GevIEEE1588Status: "Master", "Slave",
+    // "Listening", ...). kUnsupported when the device was opened without ptp.
+    Result<std::string> ptpStatus() const;
 
 private:
     struct Camera;
