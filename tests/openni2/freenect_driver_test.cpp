@@ -45,13 +45,6 @@ std::string tree(const char* name) {
     return std::string(MIXRAY_SOURCE_DIR) + "/tests/usb/" + name;
 }
 
-#define MIXRAY_REQUIRE_UMOCKDEV()                                                               \
-    do {                                                                                        \
-        if (!mixray::test::umockdevPreloaded())                                                 \
-            GTEST_SKIP() << "umockdev's preload library (" << mixray::test::kUmockdevPreload    \
-                         << ", Debian package libumockdev0) is not installed: no emulated USB"; \
-    } while (0)
-
 // OpenNI2 initialised for one test: its drivers enumerate USB when it initialises, so each
 // test builds its bus first. (No stream waits here, so the re-initialisation the backend
 // avoids — see README — is safe.)
