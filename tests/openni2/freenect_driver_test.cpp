@@ -24,15 +24,6 @@
 #include "mixray/openni2/openni2_backend.h"
 #include "umockdev_preload.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-// OpenNI2 2.2.0.33 and its drivers leak on their own (see openni2_test.cpp); these suppressions
-// name those modules only, so the plug-in's and mixray's leaks are still reported.
-extern "C" const char* __lsan_default_suppressions() {
-    return "leak:libOpenNI2.so\nleak:libOniFile.so\nleak:libDummyDevice.so\nleak:libPS1080.so\n"
-           "leak:libPSLink.so\nleak:libjpeg.so\n";
-}
-#endif
-
 namespace mixray::openni2 {
 namespace {
 
@@ -558,9 +549,9 @@ int main(int argc, char** argv) {
     mixray::test::reexecWithUmockdevPreload(argc, argv);
 #if defined(__SANITIZE_ADDRESS__)
     // Each test shuts OpenNI2 down, which unloads its drivers; LeakSanitizer then cannot name
-    // the module of their leaks and the suppressions above do not apply. The system's drivers
-    // stay loaded (never the plug-in: its own leaks must be reported, and the first test
-    // checks that OpenNI2 itself loads it).
+    // the module of their leaks and the suppressions (support/openni2_lsan_suppressions.cpp)
+    // do not apply. The system's drivers stay loaded (never the plug-in: its own leaks must be
+    // reported, and the first test checks that OpenNI2 itself loads it).
     for (const char* driver :
          {"libDummyDevice.so.0", "libOniFile.so.0", "libPS1080.so.0", "libPSLink.so.0"}) {
         const std::string path = mixray::openni2::kPrivateOpenNI2 + "/OpenNI2/Drivers/" + driver;
