@@ -280,6 +280,19 @@ Result<Run> runAravis(const std::string& id, int width, int height, double fps, 
     return run;
 }
 
+// `row` with both runs, or failed with the error of the first that did not run.
+Row compared(Row row, const Result<Run>& run, const Result<Run>& peer) {
+    if (run)
+        row.mixray = *run;
+    if (peer)
+        row.peer_run = *peer;
+    if (!run || !peer) {
+        row.note = (!run ? run.status() : peer.status()).toString();
+        row.failed = true;
+    }
+    return row;
+}
+
 // The GigE Vision simulator as a child process, killed on destruction.
 class GvSimulator {
 public:
@@ -331,15 +344,7 @@ void benchReplay(const BenchDriversOptions& o, std::vector<Row>& rows) {
     config.options = {{"pace", "fast"}, {"loop", "true"}};
     auto run = runDevice(backend, config, true, o.frames, 1e9);
     auto peer = runReader(path, o.frames);
-    if (run)
-        row.mixray = *run;
-    if (peer)
-        row.peer_run = *peer;
-    if (!run || !peer) {
-        row.note = (!run ? run.status() : peer.status()).toString();
-        row.failed = true;
-    }
-    rows.push_back(row);
+    rows.push_back(compared(std::move(row), run, peer));
 }
 
 void benchOpenNI2(const BenchDriversOptions& o, std::vector<Row>& rows) {
@@ -360,15 +365,7 @@ void benchOpenNI2(const BenchDriversOptions& o, std::vector<Row>& rows) {
     config.options = {{"pace", "fast"}, {"loop", "true"}};
     auto run = runDevice(backend, config, true, o.frames, 1e9);
     auto peer = runOpenNI2(path, o.frames);
-    if (run)
-        row.mixray = *run;
-    if (peer)
-        row.peer_run = *peer;
-    if (!run || !peer) {
-        row.note = (!run ? run.status() : peer.status()).toString();
-        row.failed = true;
-    }
-    rows.push_back(row);
+    rows.push_back(compared(std::move(row), run, peer));
 }
 
 // Both runs on one camera: mixray's device first, then the bare stream.
@@ -388,15 +385,7 @@ void benchAravisCamera(const BenchDriversOptions& o, const std::string& label,
                       {"buffers", std::to_string(kBuffers)}};
     auto run = runDevice(backend, config, false, UINT64_MAX, o.duration_s);
     auto peer = runAravis(id, kWidth, kHeight, kFps, kBuffers, o.duration_s);
-    if (run)
-        row.mixray = *run;
-    if (peer)
-        row.peer_run = *peer;
-    if (!run || !peer) {
-        row.note = (!run ? run.status() : peer.status()).toString();
-        row.failed = true;
-    }
-    rows.push_back(row);
+    rows.push_back(compared(std::move(row), run, peer));
 }
 
 void benchAravis(const BenchDriversOptions& o, std::vector<Row>& rows) {

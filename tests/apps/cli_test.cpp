@@ -147,7 +147,7 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
 
 // A rig whose device is the Kinect v1 .oni recording, opened by the openni2 backend.
 TEST(Cli, RecordsAKinectRecordingThroughTheOpenNI2Backend) {
-    const fs::path oni = test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni";
+    const fs::path oni = test::kinectV1Oni();
     const fs::path empty =
         test::sharedDataDir() / "01_oni" / "negative" / "bloyot_empty_image_only.oni";
     MIXRAY_REQUIRE_SHARED_DATA(oni);
@@ -333,7 +333,7 @@ TEST(Cli, BenchDriversComparesEachBackendWithItsPeer) {
                              "ArvStream pop loop", "no V4L2 capture node here"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
-    if (std::filesystem::exists(test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni")) {
+    if (std::filesystem::exists(test::kinectV1Oni())) {
         EXPECT_NE(run.output.find("VideoStream::readFrame"), std::string::npos) << run.output;
     }
     if (access("/usr/bin/arv-fake-gv-camera-0.8", X_OK) == 0) {

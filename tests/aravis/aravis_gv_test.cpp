@@ -2,10 +2,6 @@
 // (arv-fake-gv-camera-0.8) on loopback, discovered and opened over GVCP, streaming over GVSP.
 #include <arv.h>
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -15,52 +11,21 @@
 #include <thread>
 #include <vector>
 
+#include "gv_simulator.h"
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/graph.h"
 #include "mixray/graph/rig.h"
 #include "test_data.h"
 
-extern char** environ;
-
 namespace mixray::aravis {
 namespace {
 
-constexpr const char* kSimulator = "/usr/bin/arv-fake-gv-camera-0.8";
-constexpr const char* kSerial = "MIXRAYGV";
-constexpr const char* kAddress = "127.0.0.1";
-
-// The simulator as a child process, killed when the test ends.
-class Simulator {
-public:
-    ~Simulator() { kill(); }
-
-    // Starts it, with `lost_per_thousand` GVSP packets dropped on purpose, describing itself
-    // with the GenICam file `genicam` when one is given.
-    bool start(int lost_per_thousand = 0, const std::string& genicam = {}) {
-        const std::string lost = std::to_string(lost_per_thousand);
-        std::vector<const char*> argv = {kSimulator, "-i", kAddress,    "-s",
-                                         kSerial,    "-r", lost.c_str()};
-        if (!genicam.empty()) {
-            argv.push_back("-g");
-            argv.push_back(genicam.c_str());
-        }
-        argv.push_back(nullptr);
-        return posix_spawn(&pid_, kSimulator, nullptr, nullptr, const_cast<char**>(argv.data()),
-                           environ) == 0;
-    }
-
-    void kill() {
-        if (pid_ <= 0)
-            return;
-        ::kill(pid_, SIGKILL);
-        waitpid(pid_, nullptr, 0);
-        pid_ = -1;
-    }
-
-private:
-    pid_t pid_ = -1;
-};
+using test::GvSimulator;
+using test::openWhenUp;
+constexpr const char* kSimulator = test::kGvSimulator;
+constexpr const char* kSerial = test::kGvSimulatorSerial;
+constexpr const char* kAddress = test::kGvSimulatorAddress;
 
 DeviceConfig configOf(std::map<std::string, std::string> options, std::string id = kAddress) {
     DeviceConfig config;
@@ -71,22 +36,10 @@ DeviceConfig configOf(std::map<std::string, std::string> options, std::string id
     return config;
 }
 
-// Opens the simulator, retrying while it starts up (it answers GVCP within a second).
-Result<std::unique_ptr<Device>> openWhenUp(AravisBackend& backend, const DeviceConfig& config) {
-    Result<std::unique_ptr<Device>> opened{ErrorCode::kNotFound, "not tried"};
-    for (int attempt = 0; attempt < 40; ++attempt) {
-        opened = backend.open(config);
-        if (opened || opened.status().code() != ErrorCode::kNotFound)
-            return opened;
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-    }
-    return opened;
-}
-
 class AravisGv : public ::testing::Test {
 protected:
     void SetUp() override {
-        if (access(kSimulator, X_OK) != 0) {
+        if (!GvSimulator::installed()) {
             GTEST_SKIP() << kSimulator << " is missing (Debian package aravis-tools): the "
                          << "GigE Vision peer these tests run against";
         }
@@ -129,7 +82,7 @@ protected:
         return done();
     }
 
-    Simulator simulator_;
+    GvSimulator simulator_;
     AravisBackend backend_;
     Graph graph_;
     AravisDevice* device_ = nullptr;

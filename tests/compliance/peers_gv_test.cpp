@@ -1,60 +1,27 @@
 // The compliance suite over the Aravis backend and Aravis's GigE Vision camera simulator
 // (arv-fake-gv-camera-0.8) on loopback, started for each test: a process of its own, as the
 // simulator binds 127.0.0.1:3956 (ctest resource lock arv_fake_gv_camera).
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <chrono>
-#include <thread>
 
 #include "compliance_suite.h"
+#include "gv_simulator.h"
 #include "mixray/aravis/aravis_backend.h"
-
-extern char** environ;
 
 namespace mixray::compliance {
 namespace {
 
-constexpr const char* kSimulator = "/usr/bin/arv-fake-gv-camera-0.8";
-constexpr const char* kSerial = "MIXRAYGV";
-constexpr const char* kAddress = "127.0.0.1";
-
 class AravisGvPeer : public CompliancePeer {
 public:
-    ~AravisGvPeer() override {
-        if (pid_ > 0) {
-            kill(pid_, SIGKILL);
-            waitpid(pid_, nullptr, 0);
-        }
-    }
     std::string missing() const override {
-        return access(kSimulator, X_OK) == 0
+        return test::GvSimulator::installed()
                    ? ""
-                   : std::string(kSimulator) +
+                   : std::string(test::kGvSimulator) +
                          " is missing (Debian package aravis-tools): the GigE Vision peer";
     }
     Status setUp() override {
-        const char* argv[] = {kSimulator, "-i", kAddress, "-s", kSerial, nullptr};
-        if (posix_spawn(&pid_, kSimulator, nullptr, nullptr, const_cast<char**>(argv), environ) !=
-            0) {
-            pid_ = -1;
-            return {ErrorCode::kUnavailable, std::string("cannot start ") + kSimulator};
-        }
-        // It answers GVCP within a second or two of starting.
-        auto b = backend();
-        Status last{ErrorCode::kNotFound, "not tried"};
-        for (int attempt = 0; attempt < 40; ++attempt) {
-            auto opened = b->open(config());
-            if (opened)
-                return Status::ok();
-            last = opened.status();
-            if (last.code() != ErrorCode::kNotFound)
-                return last;
-            std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        }
-        return last;
+        if (!simulator_.start())
+            return {ErrorCode::kUnavailable, std::string("cannot start ") + test::kGvSimulator};
+        auto opened = test::openWhenUp(*backend(), config());
+        return opened ? Status::ok() : opened.status();
     }
     std::unique_ptr<DeviceBackend> backend() const override {
         return std::make_unique<aravis::AravisBackend>();
@@ -69,7 +36,7 @@ private:
         DeviceConfig c;
         c.name = "gv";
         c.driver = "aravis";
-        c.id = kAddress;
+        c.id = test::kGvSimulatorAddress;
         c.options = {{"fps", "50"},
                      {"buffers", "4"},
                      {"width", std::to_string(width)},
@@ -77,7 +44,7 @@ private:
         return {c, ImageDesc::packed(PixelFormat::kMono8, width, height)};
     }
 
-    pid_t pid_ = -1;
+    test::GvSimulator simulator_;
 };
 
 INSTANTIATE_TEST_SUITE_P(Peers, Compliance,

@@ -12,15 +12,6 @@
 #include "mixray/replay/replay_backend.h"
 #include "test_data.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-// OpenNI2 2.2.0.33 and its drivers leak on their own (see tests/openni2/openni2_test.cpp);
-// these suppressions name those modules only.
-extern "C" const char* __lsan_default_suppressions() {
-    return "leak:libOpenNI2.so\nleak:libOniFile.so\nleak:libDummyDevice.so\nleak:libPS1080.so\n"
-           "leak:libPSLink.so\nleak:libjpeg.so\n";
-}
-#endif
-
 namespace mixray::compliance {
 namespace {
 
@@ -223,9 +214,7 @@ public:
     }
 
 private:
-    static std::filesystem::path path() {
-        return test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni";
-    }
+    static std::filesystem::path path() { return test::kinectV1Oni(); }
 };
 
 // OpenNI2's DummyDevice driver (Debian's libopenni2-0): a live device, depth 320x240@30 only.

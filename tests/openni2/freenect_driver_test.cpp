@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,15 +23,6 @@
 #include "mixray/graph/graph.h"
 #include "mixray/openni2/openni2_backend.h"
 #include "umockdev_preload.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-// OpenNI2 2.2.0.33 and its drivers leak on their own (see openni2_test.cpp); these suppressions
-// name those modules only, so the plug-in's and mixray's leaks are still reported.
-extern "C" const char* __lsan_default_suppressions() {
-    return "leak:libOpenNI2.so\nleak:libOniFile.so\nleak:libDummyDevice.so\nleak:libPS1080.so\n"
-           "leak:libPSLink.so\nleak:libjpeg.so\n";
-}
-#endif
 
 namespace mixray::openni2 {
 namespace {
@@ -44,13 +36,6 @@ const std::string kKinectUri = std::string("freenect://0/") + KinectUsbEmulator:
 std::string tree(const char* name) {
     return std::string(MIXRAY_SOURCE_DIR) + "/tests/usb/" + name;
 }
-
-#define MIXRAY_REQUIRE_UMOCKDEV()                                                               \
-    do {                                                                                        \
-        if (!mixray::test::umockdevPreloaded())                                                 \
-            GTEST_SKIP() << "umockdev's preload library (" << mixray::test::kUmockdevPreload    \
-                         << ", Debian package libumockdev0) is not installed: no emulated USB"; \
-    } while (0)
 
 // OpenNI2 initialised for one test: its drivers enumerate USB when it initialises, so each
 // test builds its bus first. (No stream waits here, so the re-initialisation the backend
@@ -74,13 +59,58 @@ std::vector<openni::DeviceInfo> devices() {
     return out;
 }
 
-TEST(FreenectDriver, LoadsThroughThePrivateOpenNI2AndListsNothingOnABusWithoutKinect) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto bus = KinectUsbEmulator::create(tree("root_hub.umockdev"), false, &why);
-    ASSERT_TRUE(bus) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
+void expectNoFreenectDevice() {
+    for (const auto& d : devices())
+        EXPECT_NE(std::string(d.getUri()).rfind("freenect://", 0), 0u) << d.getUri();
+}
+
+void expectKinectSerial(openni::Device& device) {
+    char serial[64] = {};
+    int size = sizeof(serial);
+    ASSERT_EQ(device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size),
+              openni::STATUS_OK);
+    EXPECT_STREQ(serial, KinectUsbEmulator::kCameraSerial);
+}
+
+// The emulated camera sends frames whose bytes all hold one value.
+template <typename Pixel>
+void expectUniform(const Pixel* data, int count, int step, const char* what, int n) {
+    for (int i = 0; i < count; i += step)
+        ASSERT_EQ(data[i], data[0]) << "element " << i << " of " << what << " " << n;
+}
+
+// Each test emulates its USB bus before OpenNI2 initialises, and tears down in the reverse
+// order: device, OpenNI2, bus.
+class FreenectDriver : public testing::Test {
+protected:
+    void SetUp() override { MIXRAY_REQUIRE_UMOCKDEV(); }
+
+    // The bus of tests/usb/<file>; the Kinect camera's usbfs node answered when `camera`.
+    void emulate(const char* file, bool camera) {
+        std::string why;
+        usb_ = KinectUsbEmulator::create(tree(file), camera, &why);
+        ASSERT_TRUE(usb_) << why;
+    }
+    void initialiseOpenNI2() {
+        session_.emplace();
+        ASSERT_TRUE(session_->ok()) << openni::OpenNI::getExtendedError();
+    }
+    // The emulated Kinect opened through OpenNI2 as device_.
+    void openKinect() {
+        ASSERT_NO_FATAL_FAILURE(emulate("kinect_v1.umockdev", true));
+        ASSERT_NO_FATAL_FAILURE(initialiseOpenNI2());
+        ASSERT_EQ(device_.open(kKinectUri.c_str()), openni::STATUS_OK)
+            << openni::OpenNI::getExtendedError();
+    }
+
+    std::unique_ptr<KinectUsbEmulator> usb_;
+    std::optional<Session> session_;
+    openni::Device device_;
+};
+
+TEST_F(FreenectDriver, LoadsThroughThePrivateOpenNI2AndListsNothingOnABusWithoutKinect) {
+    ASSERT_NO_FATAL_FAILURE(emulate("root_hub.umockdev", false));
+    ASSERT_NO_FATAL_FAILURE(initialiseOpenNI2());
 
     // The test links libOpenNI2.so.0 through its RUNPATH: the private copy, not the system's.
     Dl_info info{};
@@ -97,20 +127,14 @@ TEST(FreenectDriver, LoadsThroughThePrivateOpenNI2AndListsNothingOnABusWithoutKi
     EXPECT_NE(dlsym(plugin, "oniDriverCreate"), nullptr);
     dlclose(plugin);
 
-    for (const auto& d : devices())
-        EXPECT_NE(std::string(d.getUri()).rfind("freenect://", 0), 0u) << d.getUri();
+    expectNoFreenectDevice();
     // Opening a Kinect that is not there fails with the plug-in's error, not a crash.
-    openni::Device device;
-    EXPECT_NE(device.open(kKinectUri.c_str()), openni::STATUS_OK);
+    EXPECT_NE(device_.open(kKinectUri.c_str()), openni::STATUS_OK);
 }
 
-TEST(FreenectDriver, ListsTheEmulatedKinectCameraWithItsSerialAndUsbIds) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
+TEST_F(FreenectDriver, ListsTheEmulatedKinectCameraWithItsSerialAndUsbIds) {
+    ASSERT_NO_FATAL_FAILURE(emulate("kinect_v1.umockdev", true));
+    ASSERT_NO_FATAL_FAILURE(initialiseOpenNI2());
 
     const auto list = devices();
     ASSERT_EQ(list.size(), 1u) << "one Kinect camera (its motor and audio are not cameras)";
@@ -122,32 +146,19 @@ TEST(FreenectDriver, ListsTheEmulatedKinectCameraWithItsSerialAndUsbIds) {
     EXPECT_EQ(info.getUsbProductId(), 0x02ae);
 
     // libfreenect read the serial from the camera: language ids, then string 3 in en-US.
-    const auto requests = kinect->controlRequests();
+    const auto requests = usb_->controlRequests();
     EXPECT_NE(std::find(requests.begin(), requests.end(), "80:06:0300:0000"), requests.end());
     EXPECT_NE(std::find(requests.begin(), requests.end(), "80:06:0303:0409"), requests.end());
 }
 
-TEST(FreenectDriver, OpensTheEmulatedKinectWithItsSerialSensorsAndStreamProperties) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
-
-    openni::Device device;
-    ASSERT_EQ(device.open(kKinectUri.c_str()), openni::STATUS_OK)
-        << openni::OpenNI::getExtendedError();
+TEST_F(FreenectDriver, OpensTheEmulatedKinectWithItsSerialSensorsAndStreamProperties) {
+    ASSERT_NO_FATAL_FAILURE(openKinect());
+    openni::Device& device = device_;
     // libfreenect's camera set-up: padding lines, fixed parameters, constant shift.
-    const auto commands = kinect->commands();
+    const auto commands = usb_->commands();
     EXPECT_NE(std::find(commands.begin(), commands.end(), 0x04), commands.end());
     EXPECT_NE(std::find(commands.begin(), commands.end(), 0x16), commands.end());
-
-    char serial[64] = {};
-    int size = sizeof(serial);
-    ASSERT_EQ(device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size),
-              openni::STATUS_OK);
-    EXPECT_STREQ(serial, KinectUsbEmulator::kCameraSerial);
+    ASSERT_NO_FATAL_FAILURE(expectKinectSerial(device));
 
     struct Expected {
         openni::SensorType sensor;
@@ -225,29 +236,21 @@ private:
 };
 
 // libusb's hot-plug events (umockdev uevents) reach OpenNI2 as device (dis)connections.
-TEST(FreenectDriver, ReportsAKinectPluggedInAndOutWhileOpenNI2Runs) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto bus = KinectUsbEmulator::create(tree("root_hub.umockdev"), false, &why);
-    ASSERT_TRUE(bus) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
+TEST_F(FreenectDriver, ReportsAKinectPluggedInAndOutWhileOpenNI2Runs) {
+    ASSERT_NO_FATAL_FAILURE(emulate("root_hub.umockdev", false));
+    ASSERT_NO_FATAL_FAILURE(initialiseOpenNI2());
     DeviceEvents events;
     ASSERT_EQ(openni::OpenNI::addDeviceConnectedListener(&events), openni::STATUS_OK);
     ASSERT_EQ(openni::OpenNI::addDeviceDisconnectedListener(&events), openni::STATUS_OK);
-    for (const auto& d : devices())
-        EXPECT_NE(std::string(d.getUri()).rfind("freenect://", 0), 0u) << d.getUri();
+    expectNoFreenectDevice();
 
-    ASSERT_TRUE(bus->plug(tree("kinect_v1.umockdev"), &why)) << why;
+    std::string why;
+    ASSERT_TRUE(usb_->plug(tree("kinect_v1.umockdev"), &why)) << why;
     EXPECT_TRUE(events.waitConnected(kKinectUri)) << "no connection event for " << kKinectUri;
-    openni::Device device;
+    openni::Device& device = device_;
     ASSERT_EQ(device.open(kKinectUri.c_str()), openni::STATUS_OK)
         << openni::OpenNI::getExtendedError();
-    char serial[64] = {};
-    int size = sizeof(serial);
-    ASSERT_EQ(device.getProperty(ONI_DEVICE_PROPERTY_SERIAL_NUMBER, serial, &size),
-              openni::STATUS_OK);
-    EXPECT_STREQ(serial, KinectUsbEmulator::kCameraSerial);
+    ASSERT_NO_FATAL_FAILURE(expectKinectSerial(device));
     openni::VideoStream color;
     ASSERT_EQ(color.create(device, openni::SENSOR_COLOR), openni::STATUS_OK);
     ASSERT_EQ(color.start(), openni::STATUS_OK);
@@ -256,7 +259,7 @@ TEST(FreenectDriver, ReportsAKinectPluggedInAndOutWhileOpenNI2Runs) {
 
     // Unplugged while streaming: OpenNI2 hears of it, the stream stops delivering, nothing
     // crashes or hangs, and the device still closes.
-    bus->unplugCamera();
+    usb_->unplugCamera();
     EXPECT_TRUE(events.waitDisconnected(kKinectUri)) << "no disconnection event for " << kKinectUri;
     openni::VideoStream* streams[] = {&color};
     int ready = -1;
@@ -280,16 +283,9 @@ TEST(FreenectDriver, ReportsAKinectPluggedInAndOutWhileOpenNI2Runs) {
 
 // Frames through openni::VideoStream: libfreenect decodes the emulated camera's packets, the
 // plug-in hands them to OpenNI2 with its timestamps.
-TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
-    openni::Device device;
-    ASSERT_EQ(device.open(kKinectUri.c_str()), openni::STATUS_OK)
-        << openni::OpenNI::getExtendedError();
+TEST_F(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
+    ASSERT_NO_FATAL_FAILURE(openKinect());
+    openni::Device& device = device_;
     openni::VideoStream depth;
     openni::VideoStream color;
     ASSERT_EQ(depth.create(device, openni::SENSOR_DEPTH), openni::STATUS_OK);
@@ -297,7 +293,7 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
     ASSERT_EQ(depth.start(), openni::STATUS_OK) << openni::OpenNI::getExtendedError();
     ASSERT_EQ(color.start(), openni::STATUS_OK) << openni::OpenNI::getExtendedError();
     // libfreenect switched the camera's streams on through its registers.
-    const auto registers = kinect->registers();
+    const auto registers = usb_->registers();
     EXPECT_EQ(registers.at(0x06), 2);  // depth on
     EXPECT_EQ(registers.at(0x05), 1);  // colour (Bayer) on
 
@@ -328,8 +324,7 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
         // The camera's 60 MHz stamps (which wrap to 0 in the second frame) in microseconds.
         EXPECT_NEAR(static_cast<double>(frame.getTimestamp()) - first_color_us,
                     (k - first_color) * kPeriodUs, 1.0);
-        for (int i = 0; i < 640 * 480 * 3; i += 997)
-            ASSERT_EQ(rgb[i], rgb[0]) << "byte " << i << " of colour frame " << n;
+        ASSERT_NO_FATAL_FAILURE(expectUniform(rgb, 640 * 480 * 3, 997, "colour frame", n));
 
         ASSERT_EQ(depth.readFrame(&frame), openni::STATUS_OK);
         EXPECT_EQ(frame.getVideoMode().getPixelFormat(), openni::PIXEL_FORMAT_DEPTH_1_MM);
@@ -337,8 +332,7 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
         // Every raw disparity of a frame is the same, so libfreenect's conversion gives one
         // distance; larger disparities (later frames) are farther.
         const auto* mm = static_cast<const uint16_t*>(frame.getData());
-        for (int i = 0; i < 640 * 480; i += 991)
-            ASSERT_EQ(mm[i], mm[0]) << "pixel " << i << " of depth frame " << n;
+        ASSERT_NO_FATAL_FAILURE(expectUniform(mm, 640 * 480, 991, "depth frame", n));
         EXPECT_GT(mm[0], 500);
         EXPECT_LT(mm[0], 4000);
         // Depth runs on the same camera clock as colour: whole frame periods apart.
@@ -357,20 +351,13 @@ TEST(FreenectDriver, StreamsDepthAndColourFromTheEmulatedKinect) {
     depth.destroy();
     color.destroy();
     device.close();
-    EXPECT_GE(kinect->framesSent(0x82), 4u);
+    EXPECT_GE(usb_->framesSent(0x82), 4u);
 }
 
 // IR shares the colour endpoint: one of them at a time; IR frames are 640x488 GRAY16.
-TEST(FreenectDriver, StreamsInfraredAndRefusesItBesideColour) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
-    Session session;
-    ASSERT_TRUE(session.ok()) << openni::OpenNI::getExtendedError();
-    openni::Device device;
-    ASSERT_EQ(device.open(kKinectUri.c_str()), openni::STATUS_OK)
-        << openni::OpenNI::getExtendedError();
+TEST_F(FreenectDriver, StreamsInfraredAndRefusesItBesideColour) {
+    ASSERT_NO_FATAL_FAILURE(openKinect());
+    openni::Device& device = device_;
     openni::VideoStream color;
     openni::VideoStream ir;
     ASSERT_EQ(color.create(device, openni::SENSOR_COLOR), openni::STATUS_OK);
@@ -382,7 +369,7 @@ TEST(FreenectDriver, StreamsInfraredAndRefusesItBesideColour) {
         << openni::OpenNI::getExtendedError();
     color.stop();
     ASSERT_EQ(ir.start(), openni::STATUS_OK) << openni::OpenNI::getExtendedError();
-    EXPECT_EQ(kinect->registers().at(0x05), 3);  // IR on
+    EXPECT_EQ(usb_->registers().at(0x05), 3);  // IR on
     // IR pixel (x, y) of camera frame k is pixelValue(kInfrared, k) + x / 64: frames show the
     // camera's view as sent, then mirrored once mirroring is switched on.
     int last_unmirrored = 0;
@@ -420,11 +407,8 @@ TEST(FreenectDriver, StreamsInfraredAndRefusesItBesideColour) {
 
 // OpenNI2's recorder takes the plug-in's streams (it needs their video mode, cropping, stride,
 // mirroring and fields of view), and the .oni plays back through OpenNI2 with the same pixels.
-TEST(FreenectDriver, RecordsAnOniThatPlaysBack) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
+TEST_F(FreenectDriver, RecordsAnOniThatPlaysBack) {
+    ASSERT_NO_FATAL_FAILURE(emulate("kinect_v1.umockdev", true));
     const auto path = std::filesystem::temp_directory_path() /
                       ("mixray_freenect_" + std::to_string(::getpid()) + ".oni");
     std::vector<uint8_t> recorded;  // the colour value of each recorded frame
@@ -477,8 +461,7 @@ TEST(FreenectDriver, RecordsAnOniThatPlaysBack) {
         ASSERT_EQ(color.readFrame(&frame), openni::STATUS_OK);
         ASSERT_EQ(frame.getWidth(), 640);
         const auto* rgb = static_cast<const uint8_t*>(frame.getData());
-        for (int i = 0; i < 640 * 480 * 3; i += 997)
-            ASSERT_EQ(rgb[i], rgb[0]) << "byte " << i << " of played frame " << n;
+        ASSERT_NO_FATAL_FAILURE(expectUniform(rgb, 640 * 480 * 3, 997, "played frame", n));
         // Camera frames carry increasing values: playback keeps their order.
         EXPECT_GT(static_cast<int>(rgb[0]), previous);
         previous = rgb[0];
@@ -490,11 +473,8 @@ TEST(FreenectDriver, RecordsAnOniThatPlaysBack) {
 }
 
 // Last: the backend initialises OpenNI2 once per process and keeps it.
-TEST(FreenectDriver, TheOpenNI2BackendOpensTheEmulatedKinectByUriAndSerialAndStreams) {
-    MIXRAY_REQUIRE_UMOCKDEV();
-    std::string why;
-    auto kinect = KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, &why);
-    ASSERT_TRUE(kinect) << why;
+TEST_F(FreenectDriver, TheOpenNI2BackendOpensTheEmulatedKinectByUriAndSerialAndStreams) {
+    ASSERT_NO_FATAL_FAILURE(emulate("kinect_v1.umockdev", true));
     OpenNI2Backend backend;
     auto list = backend.enumerate();
     ASSERT_TRUE(list) << list.status().message();
@@ -569,9 +549,9 @@ int main(int argc, char** argv) {
     mixray::test::reexecWithUmockdevPreload(argc, argv);
 #if defined(__SANITIZE_ADDRESS__)
     // Each test shuts OpenNI2 down, which unloads its drivers; LeakSanitizer then cannot name
-    // the module of their leaks and the suppressions above do not apply. The system's drivers
-    // stay loaded (never the plug-in: its own leaks must be reported, and the first test
-    // checks that OpenNI2 itself loads it).
+    // the module of their leaks and the suppressions (support/openni2_lsan_suppressions.cpp)
+    // do not apply. The system's drivers stay loaded (never the plug-in: its own leaks must be
+    // reported, and the first test checks that OpenNI2 itself loads it).
     for (const char* driver :
          {"libDummyDevice.so.0", "libOniFile.so.0", "libPS1080.so.0", "libPSLink.so.0"}) {
         const std::string path = mixray::openni2::kPrivateOpenNI2 + "/OpenNI2/Drivers/" + driver;

@@ -16,25 +16,10 @@
 #include "mixray/openni2/openni2_backend.h"
 #include "test_data.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-// OpenNI2 2.2.0.33 and its drivers leak on their own (sensor info lists the OniFile driver
-// allocates for every getSensorInfo and nobody frees, per-stream JPEG decoders, DummyDevice
-// frame cookies, PS1080 and PSLink driver start-up); these suppressions name those modules only.
-// mixray allocates nothing from OpenNI2's threads, so its own leaks are still reported.
-extern "C" const char* __lsan_default_suppressions() {
-    return "leak:libOpenNI2.so\nleak:libOniFile.so\nleak:libDummyDevice.so\nleak:libPS1080.so\n"
-           "leak:libPSLink.so\nleak:libjpeg.so\n";
-}
-#endif
-
 namespace mixray::openni2 {
 namespace {
 
 using std::chrono::seconds;
-
-std::filesystem::path kinectOni() {
-    return test::sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni";
-}
 
 // One frame as OpenNI2's own API reports it.
 struct RawFrame {
@@ -106,7 +91,7 @@ DeviceConfig kinectConfig(std::map<std::string, std::string> options) {
     DeviceConfig config;
     config.name = "kinect";
     config.driver = "openni2";
-    config.id = kinectOni().string();
+    config.id = test::kinectV1Oni().string();
     config.options = std::move(options);
     return config;
 }
@@ -205,8 +190,8 @@ TEST(OpenNI2Options, RefusesUnknownKeysAndBadValues) {
 
 // The Kinect v1 recording plays through the backend exactly as OpenNI2 itself reads it.
 TEST(OpenNI2Recording, PlaysLikeOpenNI2ReadsIt) {
-    MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
-    const auto raw = readDirectly(kinectOni().string());
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
+    const auto raw = readDirectly(test::kinectV1Oni().string());
     ASSERT_EQ(raw.at(openni::SENSOR_DEPTH).size(), 12u);
     ASSERT_EQ(raw.at(openni::SENSOR_COLOR).size(), 12u);
 
@@ -277,7 +262,7 @@ TEST(OpenNI2Recording, PlaysLikeOpenNI2ReadsIt) {
 // Device time goes through the graph's clock model: every mapped stamp is at or before the
 // frame's arrival (the model fits the lower envelope), in device-time order.
 TEST(OpenNI2Recording, DeviceStampsMapThroughTheClockModel) {
-    MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
     Session session;
     ASSERT_TRUE(startSession(session, kinectConfig({{"speed", "1"}, {"buffers", "32"}})));
     const auto depth = drain(*session.queues.at("kinect/depth"));
@@ -307,7 +292,7 @@ TEST(OpenNI2Recording, DeviceStampsMapThroughTheClockModel) {
 }
 
 TEST(OpenNI2Recording, RepeatContinuesSequenceAndTime) {
-    MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
     Session session;
     ASSERT_TRUE(startSession(
         session,
@@ -332,7 +317,7 @@ TEST(OpenNI2Recording, RepeatContinuesSequenceAndTime) {
 }
 
 TEST(OpenNI2Recording, SeekStartsAtTheFrame) {
-    MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
     std::vector<FrameRef> depth;
     std::vector<FrameRef> color;
     {
@@ -374,7 +359,7 @@ TEST(OpenNI2Recording, SeekStartsAtTheFrame) {
 }
 
 TEST(OpenNI2Recording, RefusesWhatARecordingCannotDo) {
-    MIXRAY_REQUIRE_SHARED_DATA(kinectOni());
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
     OpenNI2Backend backend;
     auto registered = backend.open(kinectConfig({{"registration", "on"}}));
     ASSERT_FALSE(registered);

@@ -21,6 +21,10 @@ std::filesystem::path sharedDataDir() {
     return sourceDir().parent_path() / "shared" / "data";
 }
 
+std::filesystem::path kinectV1Oni() {
+    return sharedDataDir() / "01_oni" / "3dj_kinect1_test.oni";
+}
+
 std::filesystem::path tempDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "global";

@@ -10,6 +10,8 @@ std::filesystem::path sourceDir();
 std::filesystem::path fixturesDir();
 // ../shared/data beside the repository (override with MIXRAY_SHARED_DATA).
 std::filesystem::path sharedDataDir();
+// The Kinect v1 .oni recording under shared data that the OpenNI2 tests play.
+std::filesystem::path kinectV1Oni();
 // A fresh empty directory under the build tree, unique to the calling test.
 std::filesystem::path tempDir();
 

@@ -3,6 +3,8 @@
 // need no wrapper script.
 #pragma once
 
+#include <gtest/gtest.h>
+
 namespace mixray::test {
 
 inline constexpr const char* kUmockdevPreload = "libumockdev-preload.so.0";
@@ -16,3 +18,11 @@ bool umockdevPreloaded();
 void reexecWithUmockdevPreload(int argc, char** argv);
 
 }  // namespace mixray::test
+
+// Skips the calling test when umockdev's preload library is missing: no device can be emulated.
+#define MIXRAY_REQUIRE_UMOCKDEV()                                                                \
+    do {                                                                                         \
+        if (!::mixray::test::umockdevPreloaded())                                                \
+            GTEST_SKIP() << "umockdev's preload library (" << ::mixray::test::kUmockdevPreload   \
+                         << ") is not installed (Debian package umockdev): no emulated USB bus"; \
+    } while (0)

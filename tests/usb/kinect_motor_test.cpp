@@ -4,7 +4,6 @@
 #include "mixray/usb/kinect_motor.h"
 
 #include <gtest/gtest.h>
-#include <umockdev.h>
 
 #include <chrono>
 #include <functional>
@@ -19,6 +18,7 @@
 #include "mixray/graph/rig.h"
 #include "mixray/usb/usb_backend.h"
 #include "umockdev_preload.h"
+#include "usb_testbed.h"
 
 namespace mixray::usb {
 namespace {
@@ -30,44 +30,22 @@ using test::KinectMotorEmulator;
 constexpr double kGravity = 9.80665;  // libfreenect's GRAVITY
 constexpr double kCountsPerG = 819;   // FREENECT_COUNTS_PER_G
 
-#define MIXRAY_REQUIRE_UMOCKDEV()                                                    \
-    if (!mixray::test::umockdevPreloaded())                                          \
-    GTEST_SKIP() << "umockdev's preload library (" << mixray::test::kUmockdevPreload \
-                 << ") is not installed (Debian package umockdev): no emulated USB bus"
-
 // A testbed with the root hub and the Kinect (camera, motor, audio), the motor answering
 // through the emulator. Members are destroyed in reverse: the emulator before the testbed.
-class MotorBus {
-public:
-    MotorBus() : testbed_(umockdev_testbed_new()) {}
-    ~MotorBus() {
-        emulator.reset();
-        g_object_unref(testbed_);
-    }
-    MotorBus(const MotorBus&) = delete;
-    MotorBus& operator=(const MotorBus&) = delete;
-
+struct MotorBus {
     bool setUp() {
-        for (const char* file : {"root_hub.umockdev", "kinect_v1.umockdev"}) {
-            const std::string path = std::string(MIXRAY_SOURCE_DIR) + "/tests/usb/" + file;
-            GError* error = nullptr;
-            if (!umockdev_testbed_add_from_file(testbed_, path.c_str(), &error)) {
-                ADD_FAILURE() << "umockdev: " << path << ": " << error->message;
-                g_clear_error(&error);
+        for (const char* file : {"root_hub.umockdev", "kinect_v1.umockdev"})
+            if (!testbed.add(file))
                 return false;
-            }
-        }
         std::string why;
-        emulator = KinectMotorEmulator::create(testbed_, &why);
+        emulator = KinectMotorEmulator::create(testbed.get(), &why);
         if (!emulator)
             ADD_FAILURE() << why;
         return emulator != nullptr;
     }
 
+    test::Testbed testbed;
     std::unique_ptr<KinectMotorEmulator> emulator;
-
-private:
-    UMockdevTestbed* testbed_;
 };
 
 DeviceConfig motorConfig() {
@@ -112,6 +90,24 @@ ImuSample popSample(FrameQueue& queue, FrameMetadata* meta = nullptr) {
     EXPECT_TRUE(sample) << sample.status().toString();
     return sample ? *sample : ImuSample{};
 }
+
+// The motor of `config` streaming its gravity samples through a started graph.
+struct StreamingMotor {
+    void start(const DeviceConfig& config) {
+        auto motor = openMotor(config);
+        ASSERT_TRUE(motor) << motor.status().toString();
+        device = motor->get();
+        ASSERT_TRUE(graph.addNode(std::move(*motor)));
+        auto subscribed = graph.subscribe(*graph.findStream("kinect_motor/gravity"), {});
+        ASSERT_TRUE(subscribed);
+        queue = *subscribed;
+        ASSERT_TRUE(graph.start());
+    }
+
+    KinectMotorDevice* device = nullptr;
+    Graph graph;
+    std::shared_ptr<FrameQueue> queue;
+};
 
 TEST(KinectMotorOptions, BadOptionsAreClearErrors) {
     struct Case {
@@ -271,15 +267,12 @@ TEST(KinectMotor, UnplugIsReportedAndReplugResumes) {
     bus.emulator->setAccelerometer(0, 819, 0);
     DeviceConfig config = motorConfig();
     config.options = {{"tilt_deg", "10"}, {"rate_hz", "100"}};
-    auto motor = openMotor(config);
-    ASSERT_TRUE(motor) << motor.status().toString();
-    KinectMotorDevice* device = motor->get();
-    Graph graph;
-    ASSERT_TRUE(graph.addNode(std::move(*motor)));
-    auto queue = graph.subscribe(*graph.findStream("kinect_motor/gravity"), {});
-    ASSERT_TRUE(queue);
-    ASSERT_TRUE(graph.start());
-    popSample(**queue);
+    StreamingMotor motor;
+    ASSERT_NO_FATAL_FAILURE(motor.start(config));
+    KinectMotorDevice* device = motor.device;
+    Graph& graph = motor.graph;
+    FrameQueue& queue = *motor.queue;
+    popSample(queue);
     EXPECT_TRUE(device->error());
 
     bus.emulator->unplug();
@@ -290,8 +283,8 @@ TEST(KinectMotor, UnplugIsReportedAndReplugResumes) {
     // Asked for while lost: refused now, set when the motor returns.
     EXPECT_EQ(device->setTilt(-4).code(), ErrorCode::kUnavailable);
     EXPECT_TRUE(graph.running());
-    EXPECT_FALSE((*queue)->closed());
-    while ((*queue)->tryPop()) {
+    EXPECT_FALSE(queue.closed());
+    while (queue.tryPop()) {
     }
     const uint64_t published = device->publishedSamples();
 
@@ -302,7 +295,7 @@ TEST(KinectMotor, UnplugIsReportedAndReplugResumes) {
     EXPECT_TRUE(device->error()) << device->error().toString();
     ImuSample resumed;
     for (int i = 0; i < 100 && resumed.accel.x() == 0; ++i)
-        resumed = popSample(**queue);
+        resumed = popSample(queue);
     EXPECT_DOUBLE_EQ(resumed.accel.x(), 100 / kCountsPerG * kGravity);
     EXPECT_DOUBLE_EQ(resumed.accel.z(), -50 / kCountsPerG * kGravity);
     EXPECT_GT(device->publishedSamples(), published);
@@ -320,24 +313,20 @@ TEST(KinectMotor, WithoutReconnectTheStreamEnds) {
     ASSERT_TRUE(bus.setUp());
     DeviceConfig config = motorConfig();
     config.options = {{"reconnect", "false"}, {"rate_hz", "100"}};
-    auto motor = openMotor(config);
-    ASSERT_TRUE(motor) << motor.status().toString();
-    KinectMotorDevice* device = motor->get();
-    Graph graph;
-    ASSERT_TRUE(graph.addNode(std::move(*motor)));
-    auto queue = graph.subscribe(*graph.findStream("kinect_motor/gravity"), {});
-    ASSERT_TRUE(queue);
-    ASSERT_TRUE(graph.start());
-    popSample(**queue);
+    StreamingMotor motor;
+    ASSERT_NO_FATAL_FAILURE(motor.start(config));
+    KinectMotorDevice* device = motor.device;
+    FrameQueue& queue = *motor.queue;
+    popSample(queue);
     bus.emulator->unplug();
-    ASSERT_TRUE(eventually([&] { return (*queue)->closed(); }));
+    ASSERT_TRUE(eventually([&] { return queue.closed(); }));
     EXPECT_EQ(device->error().code(), ErrorCode::kUnavailable);
     EXPECT_NE(device->error().message().find("its stream ends"), std::string::npos)
         << device->error().message();
     std::string why;
     ASSERT_TRUE(bus.emulator->replug(&why)) << why;
     EXPECT_EQ(device->reconnects(), 0u);
-    graph.stop();
+    motor.graph.stop();
 }
 
 TEST(KinectMotor, OpensFromARigFile) {

@@ -2,7 +2,6 @@
 // attributes and descriptors of a Kinect v1, a UVC webcam and a USB3 Vision camera): libusb
 // enumerates them as if they were plugged in, and testbed uevents fire its hot-plug callbacks.
 #include <gtest/gtest.h>
-#include <umockdev.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,48 +14,16 @@
 
 #include "mixray/usb/usb_backend.h"
 #include "umockdev_preload.h"
+#include "usb_testbed.h"
 
 namespace mixray::usb {
 namespace {
 
 using std::chrono::seconds;
 
-using test::kUmockdevPreload;
 constexpr const char* kBus = "/sys/devices/pci0000:00/0000:00:14.0/usb1";
 
-// Owns a umockdev testbed; its devices vanish with it.
-class Testbed {
-public:
-    Testbed() : testbed_(umockdev_testbed_new()) {}
-    ~Testbed() { g_object_unref(testbed_); }
-    Testbed(const Testbed&) = delete;
-    Testbed& operator=(const Testbed&) = delete;
-
-    bool add(const char* file) {
-        const std::string path = std::string(MIXRAY_SOURCE_DIR) + "/tests/usb/" + file;
-        GError* error = nullptr;
-        if (!umockdev_testbed_add_from_file(testbed_, path.c_str(), &error)) {
-            ADD_FAILURE() << "umockdev: " << path << ": " << error->message;
-            g_clear_error(&error);
-            return false;
-        }
-        return true;
-    }
-    void uevent(const std::string& syspath, const char* action) {
-        umockdev_testbed_uevent(testbed_, syspath.c_str(), action);
-    }
-    void remove(const std::string& syspath) {
-        umockdev_testbed_remove_device(testbed_, syspath.c_str());
-    }
-
-private:
-    UMockdevTestbed* testbed_;
-};
-
-#define MIXRAY_REQUIRE_UMOCKDEV()                                      \
-    if (!test::umockdevPreloaded())                                    \
-    GTEST_SKIP() << "umockdev's preload library (" << kUmockdevPreload \
-                 << ") is not installed (Debian package umockdev): no emulated USB bus"
+using test::Testbed;
 
 const DeviceDescriptor* find(const std::vector<DeviceDescriptor>& devices, const std::string& id) {
     auto it = std::find_if(devices.begin(), devices.end(),

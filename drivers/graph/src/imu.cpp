@@ -2,9 +2,8 @@
 #include "mixray/graph/imu.h"
 
 #include <cmath>
-#include <cstring>
 
-#include "ffmpeg_util.h"
+#include "record_codec.h"
 
 namespace mixray {
 namespace {
@@ -12,44 +11,17 @@ namespace {
 // "MXIM" read as a little-endian u32.
 constexpr uint32_t kMagic = 0x4d49584d;
 
-using ffmpeg::getLe;
-using ffmpeg::putLe;
+using record::allZero;
+using record::getF32;
+using record::getF64;
+using record::putF32;
+using record::putF64;
 
 constexpr uint8_t kHasGyro = 0x01;
 constexpr uint8_t kHasTemperature = 0x02;
 
-constexpr size_t kOffVersion = 4, kOffFlags = 6, kOffReserved0 = 7, kOffAccel = 8, kOffGyro = 32,
+constexpr size_t kOffFlags = 6, kOffReserved0 = 7, kOffAccel = 8, kOffGyro = 32,
                  kOffTemperature = 56, kOffCrc = 60;
-
-void putF64(uint8_t* out, double v) {
-    uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    putLe(out, bits, 8);
-}
-double getF64(const uint8_t* in) {
-    const uint64_t bits = getLe(in, 8);
-    double v;
-    std::memcpy(&v, &bits, sizeof v);
-    return v;
-}
-void putF32(uint8_t* out, float v) {
-    uint32_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    putLe(out, bits, 4);
-}
-float getF32(const uint8_t* in) {
-    const auto bits = static_cast<uint32_t>(getLe(in, 4));
-    float v;
-    std::memcpy(&v, &bits, sizeof v);
-    return v;
-}
-
-bool allZero(const uint8_t* data, size_t n) {
-    for (size_t i = 0; i < n; ++i)
-        if (data[i] != 0)
-            return false;
-    return true;
-}
 
 }  // namespace
 
@@ -69,8 +41,7 @@ Status validate(const ImuSample& s) {
 Result<std::array<uint8_t, kImuRecordBytes>> encodeImuRecord(const ImuSample& s) {
     MIXRAY_RETURN_IF_ERROR(validate(s));
     std::array<uint8_t, kImuRecordBytes> out{};
-    putLe(out.data(), kMagic, 4);
-    putLe(out.data() + kOffVersion, kImuRecordVersion, 2);
+    record::putHeader(out.data(), kMagic, kImuRecordVersion);
     out[kOffFlags] =
         static_cast<uint8_t>((s.gyro ? kHasGyro : 0) | (s.temperature_c ? kHasTemperature : 0));
     for (int i = 0; i < 3; ++i)
@@ -81,24 +52,14 @@ Result<std::array<uint8_t, kImuRecordBytes>> encodeImuRecord(const ImuSample& s)
     }
     if (s.temperature_c)
         putF32(out.data() + kOffTemperature, *s.temperature_c);
-    putLe(out.data() + kOffCrc, ffmpeg::crc32(out.data(), kOffCrc), 4);
+    record::putCrc(out.data(), out.size());
     return out;
 }
 
 Result<ImuSample> decodeImuRecord(const uint8_t* data, size_t size) {
-    const auto corrupt = [](const std::string& what) {
-        return Status(ErrorCode::kCorruptData, "IMU record: " + what);
-    };
-    if (data == nullptr || size != kImuRecordBytes)
-        return corrupt("expected " + std::to_string(kImuRecordBytes) + " bytes, got " +
-                       std::to_string(data == nullptr ? 0 : size));
-    if (getLe(data, 4) != kMagic)
-        return corrupt("bad magic (not a mixray IMU record)");
-    if (getLe(data + kOffCrc, 4) != ffmpeg::crc32(data, kOffCrc))
-        return corrupt("CRC mismatch (the record is damaged)");
-    const auto version = static_cast<uint16_t>(getLe(data + kOffVersion, 2));
-    if (version != kImuRecordVersion)
-        return corrupt("unsupported version " + std::to_string(version));
+    const auto corrupt = [](const std::string& what) { return record::corrupt("IMU", what); };
+    MIXRAY_RETURN_IF_ERROR(
+        record::checkFrame(data, size, kImuRecordBytes, kMagic, kImuRecordVersion, "IMU"));
     const uint8_t flags = data[kOffFlags];
     if ((flags & ~(kHasGyro | kHasTemperature)) != 0)
         return corrupt("unknown flags " + std::to_string(flags));

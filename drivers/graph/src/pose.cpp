@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "ffmpeg_util.h"
+#include "record_codec.h"
 
 namespace mixray {
 namespace {
@@ -12,36 +12,17 @@ namespace {
 // "MXPO" read as a little-endian u32: a record that starts elsewhere is caught at once.
 constexpr uint32_t kMagic = 0x4f50584d;
 
-using ffmpeg::getLe;
-using ffmpeg::putLe;
-
-void putF64(uint8_t* out, double v) {
-    uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    putLe(out, bits, 8);
-}
-double getF64(const uint8_t* in) {
-    const uint64_t bits = getLe(in, 8);
-    double v;
-    std::memcpy(&v, &bits, sizeof v);
-    return v;
-}
-void putF32(uint8_t* out, float v) {
-    uint32_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    putLe(out, bits, 4);
-}
-float getF32(const uint8_t* in) {
-    const auto bits = static_cast<uint32_t>(getLe(in, 4));
-    float v;
-    std::memcpy(&v, &bits, sizeof v);
-    return v;
-}
+using record::getF32;
+using record::getF64;
+using record::getLe;
+using record::putF32;
+using record::putF64;
+using record::putLe;
 
 // Offsets in the record.
-constexpr size_t kOffVersion = 4, kOffStatus = 6, kOffReserved0 = 7, kOffSequence = 8,
-                 kOffStamp = 16, kOffMarker = 24, kOffError = 28, kOffTranslation = 32,
-                 kOffRotation = 56, kOffAnchor = 88, kOffReserved1 = 120, kOffCrc = 124;
+constexpr size_t kOffStatus = 6, kOffReserved0 = 7, kOffSequence = 8, kOffStamp = 16,
+                 kOffMarker = 24, kOffError = 28, kOffTranslation = 32, kOffRotation = 56,
+                 kOffAnchor = 88, kOffReserved1 = 120;
 constexpr size_t kAnchorField = kOffReserved1 - kOffAnchor;  // 32 bytes, NUL-padded
 
 }  // namespace
@@ -98,8 +79,7 @@ Status validate(const PoseRecord& r) {
 Result<std::array<uint8_t, kPoseRecordBytes>> encodePoseRecord(const PoseRecord& r) {
     MIXRAY_RETURN_IF_ERROR(validate(r));
     std::array<uint8_t, kPoseRecordBytes> out{};
-    putLe(out.data(), kMagic, 4);
-    putLe(out.data() + kOffVersion, kPoseRecordVersion, 2);
+    record::putHeader(out.data(), kMagic, kPoseRecordVersion);
     out[kOffStatus] = static_cast<uint8_t>(r.status);
     out[kOffReserved0] = 0;
     putLe(out.data() + kOffSequence, r.frame_sequence, 8);
@@ -112,24 +92,14 @@ Result<std::array<uint8_t, kPoseRecordBytes>> encodePoseRecord(const PoseRecord&
     for (int i = 0; i < 4; ++i)
         putF64(out.data() + kOffRotation + 8 * i, q[i]);
     std::memcpy(out.data() + kOffAnchor, r.anchor.data(), r.anchor.size());
-    putLe(out.data() + kOffCrc, ffmpeg::crc32(out.data(), kOffCrc), 4);
+    record::putCrc(out.data(), out.size());
     return out;
 }
 
 Result<PoseRecord> decodePoseRecord(const uint8_t* data, size_t size) {
-    const auto corrupt = [](const std::string& what) {
-        return Status(ErrorCode::kCorruptData, "pose record: " + what);
-    };
-    if (data == nullptr || size != kPoseRecordBytes)
-        return corrupt("expected " + std::to_string(kPoseRecordBytes) + " bytes, got " +
-                       std::to_string(data == nullptr ? 0 : size));
-    if (getLe(data, 4) != kMagic)
-        return corrupt("bad magic (not a mixray pose record)");
-    if (getLe(data + kOffCrc, 4) != ffmpeg::crc32(data, kOffCrc))
-        return corrupt("CRC mismatch (the record is damaged)");
-    const auto version = static_cast<uint16_t>(getLe(data + kOffVersion, 2));
-    if (version != kPoseRecordVersion)
-        return corrupt("unsupported version " + std::to_string(version));
+    const auto corrupt = [](const std::string& what) { return record::corrupt("pose", what); };
+    MIXRAY_RETURN_IF_ERROR(
+        record::checkFrame(data, size, kPoseRecordBytes, kMagic, kPoseRecordVersion, "pose"));
     if (data[kOffReserved0] != 0 || getLe(data + kOffReserved1, 4) != 0)
         return corrupt("reserved bytes are not zero");
     PoseRecord r;
