@@ -746,6 +746,10 @@ TEST(FreenectDriver, TheOpenNI2BackendEndsTheStreamsOfAnUnpluggedKinectWithoutRe
     EXPECT_TRUE(patternDeliversUntil(
         g, [&] { return pattern_frames >= ended_at + 5; }, &pattern_frames));
     g.graph.stop();
+    // Released, it cannot start again.
+    const Status restarted = g.kinect->start();
+    EXPECT_EQ(restarted.code(), ErrorCode::kUnavailable) << restarted.toString();
+    EXPECT_NE(restarted.message().find("was lost"), std::string::npos) << restarted.toString();
     // Back on the bus for the tests after this one.
     ASSERT_TRUE(kinect->replugCamera(tree("kinect_v1.umockdev"), &why)) << why;
 }

@@ -508,7 +508,6 @@ struct OpenNI2Device::Impl {
     std::string uri;
     std::string serial;
     uint64_t disconnects_seen = 0;
-    bool lost = false;
     // Live devices: the last frame's stamps and the shift of later ones after a reconnect.
     bool have_last = false;
     int64_t last_device_ns = 0;
@@ -681,7 +680,6 @@ bool OpenNI2Device::reopen(std::vector<std::string>& known_uris) {
     }
     impl.uri = uri;
     impl.disconnects_seen = disconnects;
-    impl.lost = false;
     impl.rebase_pending = impl.have_last;
     return true;
 }
@@ -716,6 +714,11 @@ Status OpenNI2Device::start() {
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
     if (capture_)
         return Status::ok();
+    if (!impl_->is_file && !impl_->device.isValid()) {
+        // Released when it was lost (and stopped before it came back, or reconnect=false).
+        return {ErrorCode::kUnavailable,
+                "openni2 device '" + name_ + "' cannot start: " + status().message()};
+    }
     if (!impl_->is_file && impl_->streamed) {
         // DummyDevice's stream thread checks its running flag once per frame: a stream started
         // again before the old thread saw it stopped keeps that thread too, and two threads
