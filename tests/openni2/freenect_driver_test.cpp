@@ -22,6 +22,7 @@
 #include "kinect_usb_emulator.h"
 #include "mixray/graph/graph.h"
 #include "mixray/openni2/openni2_backend.h"
+#include "mixray/pattern/pattern_backend.h"
 #include "umockdev_preload.h"
 
 namespace mixray::openni2 {
@@ -472,9 +473,21 @@ TEST_F(FreenectDriver, RecordsAnOniThatPlaysBack) {
     std::filesystem::remove(path);
 }
 
-// Last: the backend initialises OpenNI2 once per process and keeps it.
-TEST_F(FreenectDriver, TheOpenNI2BackendOpensTheEmulatedKinectByUriAndSerialAndStreams) {
-    ASSERT_NO_FATAL_FAILURE(emulate("kinect_v1.umockdev", true));
+// The backend's OpenNI2 stays initialised (see below), and libusb inside its Kinect plug-in keeps
+// listening to the hot-plug events of the bus it first saw: the backend's tests share that bus,
+// kept for the whole process (never destroyed: OpenNI2's threads may use it until exit).
+KinectUsbEmulator* backendKinect(std::string* why) {
+    static KinectUsbEmulator* kinect =
+        KinectUsbEmulator::create(tree("kinect_v1.umockdev"), true, why).release();
+    return kinect;
+}
+
+// Last (with the two after it): the backend initialises OpenNI2 once per process and keeps it.
+TEST(FreenectOpenNI2Backend, OpensTheEmulatedKinectByUriAndSerialAndStreams) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    std::string why;
+    KinectUsbEmulator* kinect = backendKinect(&why);
+    ASSERT_TRUE(kinect) << why;
     OpenNI2Backend backend;
     auto list = backend.enumerate();
     ASSERT_TRUE(list) << list.status().message();
@@ -540,6 +553,188 @@ TEST_F(FreenectDriver, TheOpenNI2BackendOpensTheEmulatedKinectByUriAndSerialAndS
                                                color.front().meta().device_stamp_ns) /
                            (2e9 / 60);
     EXPECT_NEAR(periods, std::round(periods), 1e-3);
+}
+
+// The emulated Kinect streaming through the backend beside a pattern device, in one graph.
+struct KinectInAGraph {
+    OpenNI2Device* kinect = nullptr;
+    Graph graph;
+    std::map<std::string, std::shared_ptr<FrameQueue>> queues;
+};
+
+void openKinectInAGraph(KinectInAGraph& out, const std::string& reconnect) {
+    OpenNI2Backend backend;
+    DeviceConfig config;
+    config.name = "kinect";
+    config.driver = "openni2";
+    config.id = KinectUsbEmulator::kCameraSerial;
+    config.options = {{"streams", "depth,color"}, {"reconnect", reconnect}};
+    auto opened = backend.open(config);
+    ASSERT_TRUE(opened) << opened.status().message();
+    out.kinect = static_cast<OpenNI2Device*>(opened->get());
+    ASSERT_TRUE(out.graph.addNode(std::move(*opened)));
+    pattern::PatternBackend patterns;
+    DeviceConfig pattern_config;
+    pattern_config.name = "pattern";
+    pattern_config.driver = "pattern";
+    pattern_config.id = "rgbd";
+    pattern_config.options = {{"streams", "color"}};
+    auto pattern = patterns.open(pattern_config);
+    ASSERT_TRUE(pattern) << pattern.status().message();
+    ASSERT_TRUE(out.graph.addNode(std::move(*pattern)));
+    for (const StreamInfo& info : out.graph.streams()) {
+        // Live queues: a consumer that looks away never holds a device back.
+        auto queue =
+            out.graph.subscribe(*out.graph.findStream(info.name), {8, QueuePolicy::kLive, "test"});
+        ASSERT_TRUE(queue);
+        out.queues[info.name] = *queue;
+    }
+    ASSERT_EQ(out.queues.size(), 3u);
+    ASSERT_TRUE(out.graph.start());
+}
+
+// Pops pattern frames (the graph's other device) until `done` holds; false if the pattern
+// stopped delivering or 20 s of its frames passed without it.
+template <typename Done>
+bool patternDeliversUntil(KinectInAGraph& g, Done done, uint64_t* pattern_frames) {
+    std::optional<uint64_t> last;
+    for (int i = 0; i < 600; ++i) {
+        auto frame = g.queues.at("pattern/color")->pop(std::chrono::seconds(5));
+        if (!frame)
+            return false;
+        if (last && frame->meta().sequence <= *last)
+            return false;
+        last = frame->meta().sequence;
+        ++*pattern_frames;
+        if (done())
+            return true;
+    }
+    return false;
+}
+
+void drain(FrameQueue& queue) {
+    while (queue.tryPop()) {
+    }
+}
+
+// Issue 5: a Kinect unplugged while streaming through the graph is reported lost, the graph's
+// other device keeps delivering, and the camera plugged in again streams on through the same
+// graph streams.
+TEST(FreenectOpenNI2Backend, ReportsAnUnpluggedKinectAndReopensItWhenItReturns) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    std::string why;
+    KinectUsbEmulator* kinect = backendKinect(&why);
+    ASSERT_TRUE(kinect) << why;
+    KinectInAGraph g;
+    openKinectInAGraph(g, "true");
+    ASSERT_FALSE(HasFatalFailure());
+    FrameQueue& depth = *g.queues.at("kinect/depth");
+    FrameQueue& color = *g.queues.at("kinect/color");
+    std::optional<FrameRef> before_depth;
+    std::optional<FrameRef> before_color;
+    for (int i = 0; i < 3; ++i) {
+        before_depth = depth.pop(std::chrono::seconds(10));
+        before_color = color.pop(std::chrono::seconds(10));
+        ASSERT_TRUE(before_depth && before_color) << "the emulated Kinect did not stream";
+    }
+    EXPECT_TRUE(g.kinect->error()) << g.kinect->error().toString();
+    EXPECT_EQ(g.kinect->reconnects(), 0u);
+
+    kinect->unplugCamera();
+    uint64_t pattern_frames = 0;
+    ASSERT_TRUE(patternDeliversUntil(
+        g, [&] { return g.kinect->error().code() == ErrorCode::kUnavailable; }, &pattern_frames))
+        << "no loss reported: " << g.kinect->error().toString();
+    const std::string message = g.kinect->error().message();
+    EXPECT_NE(message.find("'kinect'"), std::string::npos) << message;
+    EXPECT_NE(message.find(KinectUsbEmulator::kCameraSerial), std::string::npos) << message;
+    EXPECT_NE(message.find("reopening it when it returns"), std::string::npos) << message;
+    // Released: the frames queued before the loss are all there is while it lasts; the pattern
+    // device goes on meanwhile.
+    drain(depth);
+    drain(color);
+    const uint64_t lost_at = pattern_frames;
+    ASSERT_TRUE(patternDeliversUntil(
+        g, [&] { return pattern_frames >= lost_at + 10; }, &pattern_frames));
+    EXPECT_FALSE(depth.tryPop());
+    EXPECT_FALSE(color.tryPop());
+    EXPECT_EQ(g.kinect->error().code(), ErrorCode::kUnavailable);
+    EXPECT_EQ(g.kinect->reconnects(), 0u);
+
+    ASSERT_TRUE(kinect->replugCamera(tree("kinect_v1.umockdev"), &why)) << why;
+    std::vector<FrameRef> after_depth;
+    std::vector<FrameRef> after_color;
+    while (after_depth.size() < 3 || after_color.size() < 3) {
+        auto d = depth.pop(std::chrono::seconds(20));
+        auto c = color.pop(std::chrono::seconds(20));
+        ASSERT_TRUE(d && c) << "no frames after the replug: " << g.kinect->error().toString();
+        after_depth.push_back(std::move(*d));
+        after_color.push_back(std::move(*c));
+    }
+    EXPECT_TRUE(g.kinect->error()) << g.kinect->error().toString();
+    EXPECT_EQ(g.kinect->reconnects(), 1u);
+    // The pattern device never stopped.
+    const uint64_t replugged_at = pattern_frames;
+    ASSERT_TRUE(patternDeliversUntil(
+        g, [&] { return pattern_frames >= replugged_at + 3; }, &pattern_frames));
+    g.graph.stop();
+
+    // The camera restarted its frame count and 60 MHz clock; the graph's streams go on: later
+    // sequences, later device and host stamps, frames still one camera period apart.
+    for (const auto& [before, after] :
+         {std::pair{&*before_depth, &after_depth}, std::pair{&*before_color, &after_color}}) {
+        const FrameMetadata& last = before->meta();
+        const FrameMetadata& first = after->front().meta();
+        EXPECT_GT(first.sequence, last.sequence);
+        EXPECT_GT(first.host_stamp_ns, last.host_stamp_ns);
+        EXPECT_GT(first.device_stamp_ns, last.device_stamp_ns);
+        EXPECT_EQ(first.clock_domain, last.clock_domain);
+        EXPECT_EQ(after->front().image().desc, before->image().desc);
+        for (size_t i = 1; i < after->size(); ++i) {
+            const FrameMetadata& a = (*after)[i - 1].meta();
+            const FrameMetadata& b = (*after)[i].meta();
+            ASSERT_GT(b.sequence, a.sequence);
+            EXPECT_NEAR(static_cast<double>(b.device_stamp_ns - a.device_stamp_ns),
+                        static_cast<double>(b.sequence - a.sequence) * 2e9 / 60, 1000.0);
+        }
+    }
+    // The emulated camera powered up again: libfreenect set it up and it streamed anew.
+    EXPECT_GT(kinect->framesSent(0x82), 0u);
+}
+
+// reconnect=false: the lost Kinect's streams end; the rest of the graph runs on.
+TEST(FreenectOpenNI2Backend, EndsTheStreamsOfAnUnpluggedKinectWithoutReconnect) {
+    MIXRAY_REQUIRE_UMOCKDEV();
+    std::string why;
+    KinectUsbEmulator* kinect = backendKinect(&why);
+    ASSERT_TRUE(kinect) << why;
+    KinectInAGraph g;
+    openKinectInAGraph(g, "false");
+    ASSERT_FALSE(HasFatalFailure());
+    FrameQueue& depth = *g.queues.at("kinect/depth");
+    FrameQueue& color = *g.queues.at("kinect/color");
+    ASSERT_TRUE(depth.pop(std::chrono::seconds(10))) << "the emulated Kinect did not stream";
+    ASSERT_TRUE(color.pop(std::chrono::seconds(10)));
+
+    kinect->unplugCamera();
+    uint64_t pattern_frames = 0;
+    ASSERT_TRUE(patternDeliversUntil(
+        g, [&] { return depth.closed() && color.closed(); }, &pattern_frames))
+        << "the lost Kinect's streams did not end: " << g.kinect->error().toString();
+    EXPECT_EQ(g.kinect->error().code(), ErrorCode::kUnavailable);
+    EXPECT_NE(g.kinect->error().message().find("its streams end"), std::string::npos)
+        << g.kinect->error().message();
+    EXPECT_EQ(g.kinect->reconnects(), 0u);
+    const uint64_t ended_at = pattern_frames;
+    EXPECT_TRUE(patternDeliversUntil(
+        g, [&] { return pattern_frames >= ended_at + 5; }, &pattern_frames));
+    g.graph.stop();
+    // Released, it cannot start again.
+    const Status restarted = g.kinect->start();
+    EXPECT_EQ(restarted.code(), ErrorCode::kUnavailable) << restarted.toString();
+    EXPECT_NE(restarted.message().find("was lost"), std::string::npos) << restarted.toString();
+    // Back on the bus for the tests after this one.
+    ASSERT_TRUE(kinect->replugCamera(tree("kinect_v1.umockdev"), &why)) << why;
 }
 
 }  // namespace

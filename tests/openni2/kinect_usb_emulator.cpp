@@ -13,6 +13,8 @@
 #include <cstring>
 #include <ctime>
 #include <deque>
+#include <fstream>
+#include <sstream>
 
 namespace mixray::openni2::test {
 
@@ -576,6 +578,46 @@ void KinectUsbEmulator::unplugCamera() {
     auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
     umockdev_testbed_uevent(testbed, kCameraSysfs, "remove");
     umockdev_testbed_remove_device(testbed, kCameraSysfs);
+}
+
+bool KinectUsbEmulator::replugCamera(const std::string& tree, std::string* why) {
+    // The camera's own entry of the device file: the hub, motor and audio are still there.
+    std::ifstream in(tree);
+    std::stringstream camera;
+    std::string line;
+    bool inside = false;
+    const std::string camera_path = std::string(kCameraSysfs).substr(std::strlen("/sys"));
+    while (std::getline(in, line)) {
+        if (line.rfind("P: ", 0) == 0)
+            inside = line.substr(3) == camera_path;
+        if (inside && !line.empty())
+            camera << line << "\n";
+    }
+    if (camera.str().empty()) {
+        if (why)
+            *why = "no camera (" + camera_path + ") in " + tree;
+        return false;
+    }
+    auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
+    GError* error = nullptr;
+    if (!umockdev_testbed_add_from_string(testbed, camera.str().c_str(), &error)) {
+        if (why)
+            *why = std::string("umockdev: adding the camera again: ") + error->message;
+        g_clear_error(&error);
+        return false;
+    }
+    {
+        std::lock_guard lock(state_->mutex);
+        for (UMockdevIoctlData* urb : state_->completed)
+            g_object_unref(urb);
+        state_->completed.clear();
+        state_->streams.clear();
+        state_->registers.clear();
+        state_->reply.clear();
+        state_->unplugged = false;
+    }
+    umockdev_testbed_uevent(testbed, kCameraSysfs, "add");
+    return true;
 }
 
 KinectUsbEmulator::~KinectUsbEmulator() {

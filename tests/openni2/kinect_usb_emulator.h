@@ -41,6 +41,11 @@ public:
     // Announces the camera's departure (uevent "remove") and removes it from the bus; its URBs
     // in flight come back with -ESHUTDOWN, then its open node answers ENODEV, as the kernel's.
     void unplugCamera();
+    // Plugs the camera in again after unplugCamera(): the camera of `tree` is added to the bus
+    // again and announced (uevent "add"); it starts as a camera that has just powered up (no
+    // registers set, streams off, frame counts and 60 MHz stamps from the start). Call it once
+    // the client has closed the unplugged camera: URBs of that node still unreaped are dropped.
+    bool replugCamera(const std::string& tree, std::string* why);
     KinectUsbEmulator(const KinectUsbEmulator&) = delete;
     KinectUsbEmulator& operator=(const KinectUsbEmulator&) = delete;
 

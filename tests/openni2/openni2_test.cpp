@@ -170,6 +170,14 @@ TEST(OpenNI2Options, RefusesUnknownKeysAndBadValues) {
     EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
     config.options = {{"streams", "depth"}, {"color.fps", "30"}};
     EXPECT_EQ(OpenNI2Options::fromConfig(config).status().code(), ErrorCode::kInvalidArgument);
+    config.options = {{"reconnect", "later"}};
+    auto reconnect = OpenNI2Options::fromConfig(config);
+    ASSERT_FALSE(reconnect);
+    EXPECT_NE(reconnect.status().message().find("reconnect"), std::string::npos);
+    config.options = {};
+    EXPECT_TRUE(OpenNI2Options::fromConfig(config)->reconnect);
+    config.options = {{"reconnect", "false"}};
+    EXPECT_FALSE(OpenNI2Options::fromConfig(config)->reconnect);
 
     config.options = {{"streams", "ir, depth"}, {"depth.width", "640"}, {"seek", "3"},
                       {"loop", "on"},           {"buffers", "16"},      {"clock_domain", "7"}};
@@ -374,6 +382,11 @@ TEST(OpenNI2Recording, RefusesWhatARecordingCannotDo) {
     auto ir = backend.open(kinectConfig({{"streams", "ir"}}));
     ASSERT_FALSE(ir);
     EXPECT_EQ(ir.status().code(), ErrorCode::kNotFound);
+    // A recording is never unplugged.
+    auto reconnect = backend.open(kinectConfig({{"reconnect", "true"}}));
+    ASSERT_FALSE(reconnect);
+    EXPECT_EQ(reconnect.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(reconnect.status().message().find("reconnect"), std::string::npos);
     // What was recorded is accepted.
     auto same = backend.open(
         kinectConfig({{"depth.width", "640"}, {"depth.fps", "30.0"}, {"depth.format", "depth16"}}));

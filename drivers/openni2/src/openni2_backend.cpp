@@ -27,7 +27,10 @@ constexpr auto kDriverDrain = std::chrono::milliseconds(200);
 constexpr const char* kKnownOptions =
     "streams, <stream>.width, <stream>.height, <stream>.fps, <stream>.format, registration, "
     "sync, pace, speed, "
-    "loop, seek, buffers, clock_domain";
+    "loop, seek, buffers, reconnect, clock_domain";
+// How often the capture thread looks for a lost device, and how it waits meanwhile.
+constexpr auto kReopenPeriod = std::chrono::milliseconds(250);
+constexpr auto kLostSlice = std::chrono::milliseconds(25);
 
 int64_t hostNowNs() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -137,14 +140,45 @@ public:
                 return {ErrorCode::kInternal, "OpenNI2 failed to initialise: " + openniError()};
             }
             library.reset(new Library());
+            // The listener lives as long as OpenNI2 (never shut down, see above).
+            static Hotplug hotplug;
+            library->hotplug_ = &hotplug;
+            if (openni::OpenNI::addDeviceDisconnectedListener(&hotplug) != openni::STATUS_OK) {
+                library.reset();
+                return {ErrorCode::kInternal,
+                        "OpenNI2 refused a device-disconnected listener: " + openniError()};
+            }
         }
         return library;
     }
     Library(const Library&) = delete;
     Library& operator=(const Library&) = delete;
 
+    // How many times OpenNI2 announced the device `uri` disconnected since initialisation: a
+    // capture thread compares it with the count when it opened the device.
+    uint64_t disconnects(const std::string& uri) const { return hotplug_->count(uri); }
+
 private:
+    // OpenNI2 calls the listener on its own thread (the drivers' hot-plug events).
+    class Hotplug : public openni::OpenNI::DeviceDisconnectedListener {
+    public:
+        void onDeviceDisconnected(const openni::DeviceInfo* info) override {
+            std::lock_guard lock(mutex_);
+            ++counts_[info->getUri()];
+        }
+        uint64_t count(const std::string& uri) const {
+            std::lock_guard lock(mutex_);
+            auto it = counts_.find(uri);
+            return it == counts_.end() ? 0 : it->second;
+        }
+
+    private:
+        mutable std::mutex mutex_;
+        std::map<std::string, uint64_t> counts_;
+    };
+
     Library() = default;
+    Hotplug* hotplug_ = nullptr;
 };
 
 // Recordings open in this process. OpenNI2 hands a second open of the same file the first
@@ -394,6 +428,8 @@ Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {
         } else if (key == "buffers") {
             if (!parseNumber(value, o.buffers) || o.buffers < 1 || o.buffers > 1024)
                 return badOption(config, key, value, "a whole number from 1 to 1024");
+        } else if (key == "reconnect") {
+            MIXRAY_RETURN_IF_ERROR(parseSwitch(config, key, value, o.reconnect));
         } else if (key == "clock_domain") {
             if (!parseNumber(value, o.clock_domain) || o.clock_domain == kHostClockDomain)
                 return badOption(config, key, value, "an integer >= 1 (0 is the host clock)");
@@ -453,6 +489,9 @@ struct OpenNI2Device::Impl {
         int last_index = 0;
         uint64_t pass = 0;
         bool done = false;
+        // Live devices: the last sequence read, and what later ones add after a reconnect.
+        uint64_t last_sequence = 0;
+        uint64_t sequence_offset = 0;
     };
 
     std::shared_ptr<Library> library;
@@ -465,6 +504,16 @@ struct OpenNI2Device::Impl {
     std::vector<std::unique_ptr<Stream>> streams;
     int64_t pass_length_ns = 0;
     int64_t max_stamp_ns = 0;
+    // Live devices: how to find the device again, and whether OpenNI2 announced it gone.
+    std::string uri;
+    std::string serial;
+    uint64_t disconnects_seen = 0;
+    // Live devices: the last frame's stamps and the shift of later ones after a reconnect.
+    bool have_last = false;
+    int64_t last_device_ns = 0;
+    int64_t last_host_ns = 0;
+    int64_t stamp_offset_ns = 0;
+    bool rebase_pending = false;
 
     ~Impl() {
         for (auto& s : streams) {
@@ -539,6 +588,105 @@ void OpenNI2Device::setError(Status status) {
         status_ = std::move(status);
 }
 
+void OpenNI2Device::resetError(Status status) {
+    std::lock_guard lock(mutex_);
+    status_ = std::move(status);
+}
+
+void OpenNI2Device::release() {
+    Impl& impl = *impl_;
+    for (auto& s : impl.streams) {
+        if (s->started)
+            s->stream.stop();
+        s->started = false;
+    }
+    // The driver's stream threads may still be finishing a frame (see ~Impl).
+    std::this_thread::sleep_for(kDriverDrain);
+    for (auto& s : impl.streams)
+        s->stream.destroy();
+    if (impl.device.isValid())
+        impl.device.close();
+}
+
+bool OpenNI2Device::reopen(std::vector<std::string>& known_uris) {
+    Impl& impl = *impl_;
+    openni::Array<openni::DeviceInfo> list;
+    openni::OpenNI::enumerateDevices(&list);
+    std::string uri;
+    for (int i = 0; i < list.getSize() && uri.empty(); ++i) {
+        if (impl.uri == list[i].getUri())
+            uri = impl.uri;
+    }
+    // A device that comes back on another port has another URI: a newly listed one with the
+    // lost device's serial is it. Devices listed while it was gone are not probed again.
+    for (int i = 0; i < list.getSize() && uri.empty() && !impl.serial.empty(); ++i) {
+        const std::string candidate_uri = list[i].getUri();
+        if (std::find(known_uris.begin(), known_uris.end(), candidate_uri) != known_uris.end())
+            continue;
+        known_uris.push_back(candidate_uri);
+        openni::Device candidate;
+        if (candidate.open(candidate_uri.c_str()) != openni::STATUS_OK)
+            continue;
+        if (serialOf(candidate) == impl.serial)
+            uri = candidate_uri;
+        candidate.close();
+    }
+    if (uri.empty())
+        return false;
+    const auto fail = [&](const std::string& why) {
+        resetError({ErrorCode::kUnavailable, "openni2 device '" + name_ + "' (" + uri +
+                                                 ") is back but cannot be reopened: " + why +
+                                                 "; trying again"});
+        release();
+        return false;
+    };
+    // The disconnect count is read before opening: an unplug during the reopen is not missed.
+    const uint64_t disconnects = impl.library->disconnects(uri);
+    if (impl.device.open(uri.c_str()) != openni::STATUS_OK)
+        return fail(openniError());
+    for (auto& s : impl.streams) {
+        const std::string sensor(toString(s->sensor));
+        if (s->stream.create(impl.device, sensorType(s->sensor)) != openni::STATUS_OK)
+            return fail("creating the " + sensor + " stream: " + openniError());
+        const openni::VideoMode current = s->stream.getVideoMode();
+        if ((current.getResolutionX() != s->mode.getResolutionX() ||
+             current.getResolutionY() != s->mode.getResolutionY() ||
+             current.getFps() != s->mode.getFps() ||
+             current.getPixelFormat() != s->mode.getPixelFormat()) &&
+            s->stream.setVideoMode(s->mode) != openni::STATUS_OK) {
+            return fail("setting " + modeText(s->sensor, s->mode) + ": " + openniError());
+        }
+        if (!s->unmirror && s->stream.getMirroringEnabled() &&
+            (s->stream.setMirroringEnabled(false) != openni::STATUS_OK ||
+             s->stream.getMirroringEnabled())) {
+            return fail("mirroring of " + sensor + " cannot be turned off any more");
+        }
+    }
+    if (options_.registration &&
+        impl.device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
+            openni::STATUS_OK) {
+        return fail("turning registration on: " + openniError());
+    }
+    const auto has = [&](Sensor sensor) {
+        return std::any_of(impl.streams.begin(), impl.streams.end(),
+                           [&](const auto& s) { return s->sensor == sensor; });
+    };
+    if (has(Sensor::kDepth) && has(Sensor::kColor) && options_.sync != 0 &&
+        impl.device.setDepthColorSyncEnabled(true) != openni::STATUS_OK && options_.sync == 1) {
+        return fail("depth/color sync: " + openniError());
+    }
+    for (auto& s : impl.streams) {
+        if (s->stream.start() != openni::STATUS_OK)
+            return fail("starting " + std::string(toString(s->sensor)) + ": " + openniError());
+        s->started = true;
+        s->sequence_offset = s->last_sequence;
+    }
+    impl.uri = uri;
+    impl.disconnects_seen = disconnects;
+    impl.rebase_pending = impl.have_last;
+    return true;
+}
+
 Status OpenNI2Device::connect(Graph& graph) {
     if (graph_)
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "' connected twice"};
@@ -569,6 +717,11 @@ Status OpenNI2Device::start() {
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "': not connected"};
     if (capture_)
         return Status::ok();
+    if (!impl_->is_file && !impl_->device.isValid()) {
+        // Released when it was lost (and stopped before it came back, or reconnect=false).
+        return {ErrorCode::kUnavailable,
+                "openni2 device '" + name_ + "' cannot start: " + status().message()};
+    }
     if (!impl_->is_file && impl_->streamed) {
         // DummyDevice's stream thread checks its running flag once per frame: a stream started
         // again before the old thread saw it stopped keeps that thread too, and two threads
@@ -622,7 +775,48 @@ void OpenNI2Device::run() {
     for (auto& s : impl.streams)
         s->done = impl.is_file && s->recorded_frames <= 0;
 
+    // A lost live device is released and reported, then looked for until it is back (true) or
+    // the device stops or must not reconnect (false).
+    const auto lose = [&](const std::string& why) {
+        release();
+        resetError({ErrorCode::kUnavailable,
+                    "openni2 device '" + name_ + "' (" + impl.uri +
+                        (impl.serial.empty() ? "" : ", serial " + impl.serial) + ") was lost (" +
+                        why + "); " +
+                        (options_.reconnect ? "reopening it when it returns" : "its streams end")});
+        if (!options_.reconnect) {
+            for (StreamId id : ids_)
+                graph_->endStream(id);
+            return false;
+        }
+        std::vector<std::string> known_uris;
+        openni::Array<openni::DeviceInfo> list;
+        openni::OpenNI::enumerateDevices(&list);
+        for (int i = 0; i < list.getSize(); ++i) {
+            if (impl.uri != list[i].getUri())
+                known_uris.emplace_back(list[i].getUri());
+        }
+        auto next_try = std::chrono::steady_clock::now();
+        while (!stop_requested_) {
+            if (std::chrono::steady_clock::now() >= next_try) {
+                if (reopen(known_uris)) {
+                    reconnects_.fetch_add(1);
+                    resetError(Status::ok());
+                    return true;
+                }
+                next_try = std::chrono::steady_clock::now() + kReopenPeriod;
+            }
+            std::this_thread::sleep_for(kLostSlice);
+        }
+        return false;
+    };
+
     while (!stop_requested_) {
+        if (!impl.is_file && impl.library->disconnects(impl.uri) != impl.disconnects_seen) {
+            if (!lose("OpenNI2 reported it disconnected"))
+                break;
+            continue;
+        }
         int index = -1;
         const openni::Status rc =
             openni::OpenNI::waitForAnyStream(handles.data(), static_cast<int>(n), &index, kWaitMs);
@@ -637,6 +831,11 @@ void OpenNI2Device::run() {
             continue;
         }
         if (rc != openni::STATUS_OK || index < 0 || static_cast<size_t>(index) >= n) {
+            if (!impl.is_file) {
+                if (!lose("waiting for frames: " + openniError()))
+                    break;
+                continue;
+            }
             setError({ErrorCode::kUnavailable,
                       "openni2 device '" + name_ + "': waiting for frames: " + openniError()});
             break;
@@ -645,6 +844,11 @@ void OpenNI2Device::run() {
         Impl::Stream& s = *impl.streams[static_cast<size_t>(index)];
         openni::VideoFrameRef frame;
         if (s.stream.readFrame(&frame) != openni::STATUS_OK || !frame.isValid()) {
+            if (!impl.is_file) {
+                if (!lose("reading a frame: " + openniError()))
+                    break;
+                continue;
+            }
             setError({ErrorCode::kUnavailable,
                       "openni2 device '" + name_ + "': reading a frame: " + openniError()});
             break;
@@ -671,6 +875,23 @@ void OpenNI2Device::run() {
                 seeking = false;
             }
             device_ns += static_cast<int64_t>(s.pass) * impl.pass_length_ns;
+        }
+        uint64_t sequence = static_cast<uint64_t>(frame_index) +
+                            s.pass * static_cast<uint64_t>(std::max(s.recorded_frames, 0));
+        if (!impl.is_file) {
+            // After a reconnect the device counts frames and time from its start again: the
+            // graph's sequences and stamps continue instead (see the header).
+            if (impl.rebase_pending) {
+                impl.stamp_offset_ns =
+                    impl.last_device_ns + (host_ns - impl.last_host_ns) - device_ns;
+                impl.rebase_pending = false;
+            }
+            device_ns += impl.stamp_offset_ns;
+            sequence += s.sequence_offset;
+            s.last_sequence = sequence;
+            impl.have_last = true;
+            impl.last_device_ns = device_ns;
+            impl.last_host_ns = host_ns;
         }
 
         const int width = frame.getWidth();
@@ -710,8 +931,7 @@ void OpenNI2Device::run() {
             }
             FrameMetadata& meta = out.meta();
             meta.stream = ids_[static_cast<size_t>(index)];
-            meta.sequence = static_cast<uint64_t>(frame_index) +
-                            s.pass * static_cast<uint64_t>(std::max(s.recorded_frames, 0));
+            meta.sequence = sequence;
             meta.device_stamp_ns = device_ns;
             meta.host_stamp_ns = host_ns;
             meta.clock_domain = options_.clock_domain;
@@ -822,7 +1042,14 @@ Result<std::unique_ptr<Device>> OpenNI2Backend::open(const DeviceConfig& config)
     impl->is_file = impl->device.isFile();
     OpenNI2Options& o = *options;
 
+    if (impl->is_file && config.options.count("reconnect")) {
+        return {ErrorCode::kInvalidArgument,
+                context + ": option 'reconnect' applies to live devices only"};
+    }
     if (!impl->is_file) {
+        impl->uri = impl->device.getDeviceInfo().getUri();
+        impl->serial = serialOf(impl->device);
+        impl->disconnects_seen = (*library)->disconnects(impl->uri);
         for (const char* key : {"pace", "speed", "loop", "seek"}) {
             if (config.options.count(key)) {
                 return {ErrorCode::kInvalidArgument,

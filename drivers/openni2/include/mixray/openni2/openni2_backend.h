@@ -49,6 +49,8 @@ struct SensorRequest {
 //                  playback's pace; recordings only (default 1)
 //   buffers        pool buffers per stream, 1..1024 (default 8)
 //   clock_domain   ClockDomainId of the device clock, >= 1 (default: a hash of the name)
+//   reconnect      true | false: a live device lost while streaming is reopened when it returns
+//                  (default), or its streams end (Graph::endStream)
 // Mirroring is always off: a device or recording that cannot turn it off is un-mirrored in
 // software (see README.md).
 struct OpenNI2Options {
@@ -64,6 +66,7 @@ struct OpenNI2Options {
     bool loop = false;
     int seek = 1;
     size_t buffers = 8;
+    bool reconnect = true;
     ClockDomainId clock_domain = kHostClockDomain;  // kHostClockDomain: derived from the name
 
     // kInvalidArgument naming the device and option for unknown keys and bad values.
@@ -85,6 +88,14 @@ ClockDomainId defaultClockDomain(std::string_view device_name);
 // stream (Graph::endStream) after its last frame. A full pool drops the frame (counted),
 // except with pace=fast, which waits for a buffer. One recording can back one device at a
 // time in a process (OpenNI2 would share its player); a second open is kUnavailable.
+// A live device lost while streaming (OpenNI2's device-disconnected event for its URI, or a
+// failed wait or read) is released and error() is kUnavailable naming it; the graph keeps
+// running. With reconnect (the default) the capture thread looks for it again (its URI, else a
+// newly listed device with its serial), reopens it with the same modes, registration and sync,
+// clears error() and counts reconnects(); sequences continue from the last one published and
+// device stamps are shifted so that the first frame after the gap lies the host time of the
+// gap after the last one (the camera's clock restarts when it powers up). With reconnect=false
+// its streams end (Graph::endStream) and error() stays kUnavailable.
 // Thread-safety: connect/start/stop from the graph's owner; counters from any thread.
 class OpenNI2Device : public Device {
 public:
@@ -130,8 +141,13 @@ public:
     uint64_t publishedFrames() const { return published_.load(); }
     uint64_t droppedFrames() const { return dropped_.load(); }
     bool finished() const { return finished_.load(); }
-    // ok while running and after a clean end; what went wrong otherwise.
+    // ok while running and after a clean end; what went wrong otherwise (kUnavailable while a
+    // live device is lost, ok again once it is reopened).
     Status status() const;
+    // The same as status(), under the name the other live backends use.
+    Status error() const { return status(); }
+    // Times a lost device was reopened.
+    uint64_t reconnects() const { return reconnects_.load(); }
 
 private:
     friend class OpenNI2Backend;
@@ -139,6 +155,12 @@ private:
     OpenNI2Device(std::string name, OpenNI2Options options, std::unique_ptr<Impl> impl);
     void run();
     void setError(Status status);
+    // Sets the status whatever it was: a loss replaces ok, a reopen clears the loss.
+    void resetError(Status status);
+    // Stops and destroys the streams and closes the lost device.
+    void release();
+    // Reopens the lost device and restarts its streams as they were; false to try again later.
+    bool reopen(std::vector<std::string>& known_uris);
 
     std::string name_;
     OpenNI2Options options_;
@@ -152,6 +174,7 @@ private:
     std::atomic<bool> finished_{false};
     std::atomic<uint64_t> published_{0};
     std::atomic<uint64_t> dropped_{0};
+    std::atomic<uint64_t> reconnects_{0};
     mutable std::mutex mutex_;
     Status status_;
 };
