@@ -51,6 +51,17 @@ int64_t worstMappingError(const ClockModel& model, const Link& link, uint64_t fr
     return worst;
 }
 
+// One hash names every backend's device clocks: stable, distinct per backend and device name,
+// never the host domain; FNV-1a of "<backend>/<name>" as the backends named them before.
+TEST(DeviceClockDomain, IsAStableHashOfBackendAndDeviceName) {
+    EXPECT_EQ(deviceClockDomain("aravis", "cam"), deviceClockDomain("aravis", "cam"));
+    EXPECT_NE(deviceClockDomain("aravis", "cam"), deviceClockDomain("v4l2", "cam"));
+    EXPECT_NE(deviceClockDomain("aravis", "cam"), deviceClockDomain("aravis", "cam2"));
+    EXPECT_EQ(deviceClockDomain("", ""), 0x2a0c975eu);  // FNV-1a 32 of "/"
+    for (const char* name : {"", "kinect", "env", "a/b"})
+        EXPECT_NE(deviceClockDomain("pattern", name), kHostClockDomain);
+}
+
 TEST(ClockModel, RecoversDriftUnderExponentialJitter) {
     // Several seeds: the 1 ppm bound is not luck of one draw.
     for (uint64_t seed = 1; seed <= 5; ++seed) {

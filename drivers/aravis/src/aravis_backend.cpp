@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "mixray/graph/clock.h"
+
 namespace mixray::aravis {
 namespace {
 
@@ -42,15 +44,6 @@ std::string takeError(GError*& error) {
     std::string message = error && error->message ? error->message : "unknown Aravis error";
     g_clear_error(&error);
     return message;
-}
-
-uint32_t fnv1a(std::string_view text) {
-    uint32_t h = 2166136261u;
-    for (char c : text) {
-        h ^= static_cast<uint8_t>(c);
-        h *= 16777619u;
-    }
-    return h;
 }
 
 PixelFormat toPixelFormat(ArvPixelFormat format) {
@@ -295,8 +288,7 @@ Status configure(ArvCamera* camera, const AravisOptions& o) {
 }  // namespace
 
 ClockDomainId defaultClockDomain(std::string_view device_name) {
-    const uint32_t h = fnv1a("aravis/" + std::string(device_name));
-    return h == kHostClockDomain ? 1 : h;
+    return deviceClockDomain("aravis", device_name);
 }
 
 // The Aravis objects of one connection to the camera. Owned by the device; the capture

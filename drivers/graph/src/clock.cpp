@@ -25,6 +25,20 @@ long double cross(const auto& o, const auto& a, const auto& b) {
 
 }  // namespace
 
+ClockDomainId deviceClockDomain(std::string_view backend, std::string_view device_name) {
+    uint32_t h = 2166136261u;
+    const auto mix = [&h](std::string_view text) {
+        for (char c : text) {
+            h ^= static_cast<uint8_t>(c);
+            h *= 16777619u;
+        }
+    };
+    mix(backend);
+    mix("/");
+    mix(device_name);
+    return h == kHostClockDomain ? 1 : h;
+}
+
 Status ClockModelOptions::validate() const {
     if (window_ns <= 0)
         return {ErrorCode::kInvalidArgument, "clock model: window_ns must be > 0"};

@@ -17,6 +17,7 @@
 #include <set>
 #include <thread>
 
+#include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 
 namespace mixray::openni2 {
@@ -294,15 +295,6 @@ Status parseSwitch(const DeviceConfig& config, const std::string& key, const std
     return Status::ok();
 }
 
-uint32_t fnv1a(std::string_view text) {
-    uint32_t h = 2166136261u;
-    for (char c : text) {
-        h ^= static_cast<uint8_t>(c);
-        h *= 16777619u;
-    }
-    return h;
-}
-
 std::string serialOf(openni::Device& device) {
     std::array<char, 256> serial{};
     int size = static_cast<int>(serial.size());
@@ -350,8 +342,7 @@ std::string_view toString(Sensor sensor) {
 }
 
 ClockDomainId defaultClockDomain(std::string_view device_name) {
-    const uint32_t h = fnv1a("openni2/" + std::string(device_name));
-    return h == kHostClockDomain ? 1 : h;
+    return deviceClockDomain("openni2", device_name);
 }
 
 Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {

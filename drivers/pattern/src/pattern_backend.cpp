@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/pattern/random.h"
 
@@ -75,8 +76,7 @@ int64_t hostNowNs() {
 }  // namespace
 
 ClockDomainId defaultClockDomain(std::string_view device_name) {
-    const uint32_t h = fnv1a("pattern/" + std::string(device_name));
-    return h == kHostClockDomain ? 1 : h;
+    return deviceClockDomain("pattern", device_name);
 }
 
 Result<PatternOptions> PatternOptions::fromConfig(const DeviceConfig& config) {

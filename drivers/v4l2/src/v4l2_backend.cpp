@@ -19,6 +19,7 @@
 #include <ctime>
 #include <filesystem>
 
+#include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/v4l2/mjpeg.h"
 
@@ -70,15 +71,6 @@ std::string formatFps(double fps) {
     char text[32];
     std::snprintf(text, sizeof(text), "%g", fps);
     return text;
-}
-
-ClockDomainId hashDomain(std::string_view text) {
-    uint32_t h = 2166136261u;
-    for (char c : text) {
-        h ^= static_cast<uint8_t>(c);
-        h *= 16777619u;
-    }
-    return h == kHostClockDomain ? 1 : h;
 }
 
 // The frame rates of one size, highest first; empty when the driver lists none.
@@ -549,7 +541,7 @@ Status V4l2Device::connect(Graph& graph) {
     info.nominal_fps = nominal_fps_;
     clock_domain_ = kHostClockDomain;
     if (options_.clock == V4l2Options::ClockMode::kDevice)
-        clock_domain_ = hashDomain(name_);
+        clock_domain_ = deviceClockDomain("v4l2", name_);
     info.clock_domain = clock_domain_;
     info.tags["v4l2_card"] = descriptor_.model;
     info.tags["v4l2_path"] = path_;
@@ -832,7 +824,7 @@ void V4l2Device::run() {
                     (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
                 // Kernel stamps on CLOCK_MONOTONIC are host time already; any other stamp
                 // needs the clock model of a domain of its own.
-                meta.clock_domain = monotonic ? clock_domain_ : hashDomain(name_);
+                meta.clock_domain = monotonic ? clock_domain_ : deviceClockDomain("v4l2", name_);
                 meta.status =
                     (buf.flags & V4L2_BUF_FLAG_ERROR) ? FrameStatus::kIncomplete : FrameStatus::kOk;
                 graph_->publish(std::move(frame).publish());

@@ -5,6 +5,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -13,6 +14,11 @@
 #include "mixray/graph/stream.h"
 
 namespace mixray {
+
+// The clock domain of a device that stamps frames with its own clock: an FNV-1a hash of
+// "<backend>/<device name>", never kHostClockDomain. Stable across runs, so a rig's recordings and
+// logs name the same device's clock with the same id every time.
+ClockDomainId deviceClockDomain(std::string_view backend, std::string_view device_name);
 
 // Options of a ClockModel. Every field has a working default.
 struct ClockModelOptions {
