@@ -1,0 +1,129 @@
+// Camera calibration from target views: one camera's intrinsics, and a rig of cameras' intrinsics
+// and extrinsics by joint bundle adjustment. Solved through mrcal's C API where mrcal has the
+// lens model, Ceres otherwise; residuals per view and per point, outlier rejection, covariances
+// and mrcal's projection uncertainty, so a user sees how far the result can be trusted.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mixray/calibration/camera_model.h"
+#include "mixray/calibration/target.h"
+#include "mixray/graph/result.h"
+
+namespace mixray::calibration {
+
+enum class Solver : uint8_t {
+    kAuto,   // mrcal where it has the lens model, Ceres otherwise
+    kCeres,  // Ceres, analytic Jacobians (pinhole OpenCV 4/5/8, Kannala–Brandt fish-eye)
+    kMrcal,  // mrcal_optimize (OpenCV 4/5/8, splined stereographic); kInvalidArgument otherwise
+};
+
+std::string_view toString(Solver solver);
+std::optional<Solver> solverFromString(std::string_view name);
+
+// Called during long solves: `fraction` of the work done (0..1) and what is being done.
+using ProgressCallback = std::function<void(double fraction, std::string_view stage)>;
+
+// How to calibrate. Every field has a working default.
+struct CalibrationOptions {
+    // The lens model to fit: "opencv4", "opencv5", "opencv8" (pinhole with that many OpenCV
+    // distortion coefficients), "fisheye" (Kannala–Brandt, cv::fisheye), or a mrcal model name
+    // ("LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=16_Ny=12_fov_x_deg=120").
+    std::string model = "opencv5";
+    Solver solver = Solver::kAuto;
+    bool fix_aspect_ratio = false;  // fx = fy, as OpenCV's CALIB_FIX_ASPECT_RATIO (Ceres only)
+    // Points whose residual exceeds this many standard deviations of all residuals are dropped
+    // and the solve repeated (mrcal's scheme), until none are.
+    double outlier_sigma = 3.0;
+    int min_views = 4;          // fewer usable views: kInvalidArgument
+    int min_corners_per_view = 8;
+    // All usable views within this angle of each other (board normals): kInvalidArgument, the
+    // focal length is not observable from fronto-parallel views alone.
+    double min_tilt_spread_deg = 5.0;
+    ProgressCallback progress;
+};
+
+// A corner's fit after the solve.
+struct PointResidual {
+    size_t view = 0;  // index into CameraViews::views
+    int id = 0;
+    Eigen::Vector2d observed{0, 0};
+    Eigen::Vector2d residual{0, 0};  // projected − observed, pixels
+    bool outlier = false;
+};
+
+struct ViewFit {
+    size_t view = 0;  // index into CameraViews::views
+    int corners = 0;
+    int outliers = 0;
+    double rms_px = 0;
+    Eigen::Isometry3d T_camera_target = Eigen::Isometry3d::Identity();
+};
+
+// One camera's calibration.
+struct CameraCalibration {
+    std::string camera;
+    CameraModel model;
+    Solver solver = Solver::kAuto;  // which one solved it
+    double rms_px = 0;              // over inliers
+    std::vector<ViewFit> views;     // used views, in CameraViews order
+    std::vector<PointResidual> residuals;
+    int outliers = 0;
+    // The solve's state covariance, σ² (JᵀJ)⁻¹ with σ the observed residual noise, over
+    // [intrinsics (model order: fx fy cx cy then distortion), then 6 per used view (rotation
+    // vector, translation of T_camera_target)]: what projectionUncertainty() propagates.
+    Eigen::MatrixXd covariance;
+    Eigen::VectorXd intrinsicsStddev() const;  // square roots of the intrinsics' diagonal
+};
+
+// kInvalidArgument naming the cause: too few usable views, mismatched sizes, degenerate views
+// (all fronto-parallel), an unknown model or one the solver lacks; kFailedPrecondition when the
+// solve does not converge.
+Result<CameraCalibration> calibrateCamera(const CameraViews& views,
+                                          const CalibrationOptions& options = {});
+
+// mrcal's projection uncertainty (mrcal docs "Projection uncertainty"): how far, 1σ in pixels,
+// the projection of a point at `distance_m` (0: at infinity) seen through each pixel moves when
+// the calibration data is perturbed by its noise, with the reference frame defined by the
+// target poses as mrcal does. Sampled on a grid of `step_px`.
+struct UncertaintyMap {
+    int cols = 0, rows = 0;
+    double step_px = 0;
+    double distance_m = 0;
+    std::vector<float> stddev_px;  // row-major, cols × rows; worst direction (largest axis)
+    float at(int col, int row) const { return stddev_px[static_cast<size_t>(row) * cols + col]; }
+};
+
+Result<UncertaintyMap> projectionUncertainty(const CameraCalibration& calibration,
+                                             double step_px = 20, double distance_m = 0);
+
+// A rig of rigidly mounted cameras seeing a moving target.
+struct RigOptions {
+    CalibrationOptions camera;      // for each camera's own intrinsic solve
+    bool refine_intrinsics = false;  // in the joint solve too (else fixed after their own)
+    std::string reference;           // the camera whose frame is the rig's; empty: the first
+};
+
+struct RigCalibration {
+    std::string reference;
+    std::vector<CameraCalibration> cameras;      // every camera's own solve, input order
+    std::vector<Eigen::Isometry3d> T_ref_camera;  // per camera, reference → identity
+    // Per camera, covariance of T_ref_camera as [rotation vector, translation] (6×6).
+    std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
+    double rms_px = 0;  // joint solve, all cameras
+};
+
+// Joint bundle adjustment (Ceres) of every camera's pose in the reference frame and the
+// target's pose at every key seen by any camera. Cameras that never see the target at the same
+// key as the reference are linked through chains of views; a camera linked to no other is
+// kInvalidArgument naming it.
+Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
+                                    const RigOptions& options = {});
+
+}  // namespace mixray::calibration
