@@ -47,6 +47,11 @@ mixray_require(embree_FOUND "Embree 3" libembree-dev)
 find_path(MRCAL_INCLUDE_DIR mrcal.h PATH_SUFFIXES mrcal)
 find_library(MRCAL_LIBRARY mrcal)
 mixray_require(MRCAL_LIBRARY "mrcal 2.2" libmrcal-dev)
+if(NOT TARGET mrcal::mrcal)
+    add_library(mrcal::mrcal UNKNOWN IMPORTED)
+    set_target_properties(mrcal::mrcal PROPERTIES IMPORTED_LOCATION ${MRCAL_LIBRARY}
+                                                  INTERFACE_INCLUDE_DIRECTORIES ${MRCAL_INCLUDE_DIR})
+endif()
 
 find_package(assimp QUIET)
 mixray_require(assimp_FOUND "assimp" libassimp-dev)
