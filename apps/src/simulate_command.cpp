@@ -22,6 +22,7 @@ struct SimulateCommandOptions {
     int samples = 4;
     int env_every = 0;
     int threads = 0;
+    std::string depth;  // registered | raw; empty: the scenario's default
 };
 
 Result<std::pair<int, int>> parseSize(const std::string& text) {
@@ -52,6 +53,8 @@ int runSimulate(const SimulateCommandOptions& o) {
     options.samples_per_pixel = o.samples;
     options.env_every = o.env_every;
     options.threads = o.threads;
+    if (!o.depth.empty())
+        options.register_depth = o.depth == "registered";
     if (Status s = options.validate(); !s)
         return fail("simulate", s);
     const fs::path output =
@@ -116,6 +119,11 @@ void registerSimulateCommand(CLI::App& app, Commands& commands) {
                     "calibration)")
         ->check(CLI::Range(0, 100000))
         ->capture_default_str();
+    sub->add_option("--depth", o->depth,
+                    "kinect/depth registered to colour, or raw (aligned with the IR camera, as a "
+                    "Kinect records with registration off); default: registered for tabletop, raw "
+                    "for calibration")
+        ->check(CLI::IsMember({"registered", "raw"}));
     sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
         ->check(CLI::Range(0, 1024));
     commands.push_back({sub, [o] { return runSimulate(*o); }});

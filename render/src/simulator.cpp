@@ -337,6 +337,7 @@ Result<SimSetup> buildScenario(const SimulatorOptions& options, const fs::path& 
     t.fps = calib ? 2 : 30;
     const int frames = options.frames > 0 ? options.frames : (calib ? 20 : 45);
     t.env_every = options.env_every > 0 ? options.env_every : (calib ? 1 : 15);
+    t.depth_registered = options.register_depth.value_or(!calib);
 
     // Kinect v1-like intrinsics at 640x480: colour with mild distortion, the IR camera at
     // f ≈ 580 px with its own, 2.5 cm to the colour camera's left, slightly rotated.
@@ -627,7 +628,8 @@ public:
             return color.status();
         out.color = std::move(color).value();
         auto depth =
-            detail::kinectDepth(t, *geometry_, f.T_world_color, color_rays_, options_.seed, index);
+            detail::kinectDepth(t, *geometry_, f.T_world_color,
+                                t.depth_registered ? color_rays_ : ir_rays_, options_.seed, index);
         if (!depth)
             return depth.status();
         out.depth = std::move(depth).value();
@@ -664,6 +666,8 @@ public:
     Status init() {
         const SimTruth& t = setup_.truth;
         color_rays_ = detail::pixelRays(t.color);
+        if (!t.depth_registered)
+            ir_rays_ = detail::pixelRays(t.ir);
         background_rays_.push_back(detail::pixelRays(t.color, background_samples_));
         background_rays_.push_back(t.scenario == SimScenario::kCalibration
                                        ? detail::pixelRays(t.ir, background_samples_)
@@ -721,7 +725,8 @@ private:
     int background_samples_ = 2;
     std::vector<std::unique_ptr<Renderer>> renderers_;  // colour, IR, environment
     std::unique_ptr<detail::SimGeometry> geometry_;
-    std::vector<Eigen::Vector3f> color_rays_;                    // pixel centres, for depth
+    std::vector<Eigen::Vector3f> color_rays_;  // pixel centres, for depth
+    std::vector<Eigen::Vector3f> ir_rays_;     // IR pixel centres, for IR-aligned depth
     std::vector<std::vector<Eigen::Vector3f>> background_rays_;  // per camera, as renderers_
 };
 

@@ -52,10 +52,11 @@ Image environmentView(const EnvironmentMap& map, const calibration::CameraModel&
                       const std::vector<Eigen::Vector3f>& rays, int n,
                       const Eigen::Isometry3d& T_world_cam, int threads);
 
-// Kinect depth registered to the colour camera (docs/simulation.md).
+// Kinect depth (docs/simulation.md), registered to the colour camera or aligned with the IR
+// camera as truth.depth_registered says; `rays` are that camera's pixel-centre rays.
 Result<Image> kinectDepth(const SimTruth& truth, const SimGeometry& geometry,
                           const Eigen::Isometry3d& T_world_color,
-                          const std::vector<Eigen::Vector3f>& color_rays, uint64_t seed, int frame);
+                          const std::vector<Eigen::Vector3f>& rays, uint64_t seed, int frame);
 
 // An IR image (ir16, 10-bit like the Kinect's) from a grey render of the IR camera's view.
 Image toInfrared(const Image& rgb);

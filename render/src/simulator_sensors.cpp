@@ -146,19 +146,22 @@ Image environmentView(const EnvironmentMap& map, const calibration::CameraModel&
 }
 
 Result<Image> kinectDepth(const SimTruth& t, const SimGeometry& geometry,
-                          const Eigen::Isometry3d& T_world_color,
-                          const std::vector<Vector3f>& color_rays, uint64_t seed, int frame) {
-    const calibration::CameraModel& cam = t.color;
+                          const Eigen::Isometry3d& T_world_color, const std::vector<Vector3f>& rays,
+                          uint64_t seed, int frame) {
+    // The image is the colour camera's (registered) or the IR camera's own (raw).
+    const calibration::CameraModel& cam = t.depth_registered ? t.color : t.ir;
     const KinectDepthModel& model = t.depth_model;
     const int w = cam.width, h = cam.height;
     const size_t count = static_cast<size_t>(w) * h;
-    if (color_rays.size() != count)
-        return Status(ErrorCode::kInternal, "simulator: colour rays do not match the camera");
+    if (rays.size() != count)
+        return Status(ErrorCode::kInternal, "simulator: depth rays do not match the camera");
     const Eigen::Isometry3d T_world_ir = T_world_color * t.T_color_ir;
     const Eigen::Isometry3d T_ir_world = T_world_ir.inverse();
-    const Eigen::Isometry3d T_color_ir = t.T_color_ir;
-    const Vector3f eye = T_world_color.translation().cast<float>();
-    const Eigen::Matrix3f R = T_world_color.linear().cast<float>();
+    const Eigen::Isometry3d T_cam_ir =
+        t.depth_registered ? t.T_color_ir : Eigen::Isometry3d::Identity();
+    const Eigen::Isometry3d& T_world_cam = t.depth_registered ? T_world_color : T_world_ir;
+    const Vector3f eye = T_world_cam.translation().cast<float>();
+    const Eigen::Matrix3f R = T_world_cam.linear().cast<float>();
     const Vector3f ir_centre = T_world_ir.translation().cast<float>();
     const Vector3f projector = (T_world_ir * Vector3d(model.baseline_m, 0, 0)).cast<float>();
     const double fb = model.focal_px * model.baseline_m;
@@ -170,7 +173,7 @@ Result<Image> kinectDepth(const SimTruth& t, const SimGeometry& geometry,
     parallelRows(h, 0, [&](int y) {
         for (int x = 0; x < w; ++x) {
             const size_t i = static_cast<size_t>(y) * w + x;
-            const Vector3f& d_cam = color_rays[i];
+            const Vector3f& d_cam = rays[i];
             if (!d_cam.allFinite())
                 continue;
             const SimGeometry::SurfaceHit hit = geometry.intersect(eye, R * d_cam);
@@ -209,7 +212,7 @@ Result<Image> kinectDepth(const SimTruth& t, const SimGeometry& geometry,
             if (quantised <= 0)
                 continue;
             const Vector3d measured_ir = p_ir * ((fb / quantised) / p_ir.z());
-            z_measured[i] = static_cast<float>((T_color_ir * measured_ir).z());
+            z_measured[i] = static_cast<float>((T_cam_ir * measured_ir).z());
         }
     });
 

@@ -162,14 +162,19 @@ std::string truthText(const SimTruth& t, const SimulatorOptions& options, const 
       << "simulation: {scenario: " << toString(t.scenario) << ", frames: " << t.frames.size()
       << ", seed: " << t.seed << ", width: " << t.color.width << ", height: " << t.color.height
       << ", samples_per_pixel: " << options.samples_per_pixel << ", env_every: " << env_every
-      << ", env_map_width: " << options.env_map_width << "}\n";
+      << ", env_map_width: " << options.env_map_width
+      << ", depth: " << (t.depth_registered ? "registered" : "raw") << "}\n";
     o << "frame_count: " << t.frames.size() << "\n";
     o << "fps: " << num(t.fps) << "\n";
     o << "cameras:\n";
     o << "  kinect/color:\n    model: " << calibration::cameraModelYaml(t.color)
       << "\n    pose: per frame (frames[].T_world_color, " << stem << ".tum, truth/pose)\n";
-    o << "  kinect/depth:\n    registered_to: kinect/color\n    model: "
-      << calibration::cameraModelYaml(t.color) << "\n";
+    if (t.depth_registered)
+        o << "  kinect/depth:\n    registered_to: kinect/color\n    model: "
+          << calibration::cameraModelYaml(t.color) << "\n";
+    else
+        o << "  kinect/depth:\n    aligned_with: kinect/ir\n    model: "
+          << calibration::cameraModelYaml(t.ir) << "\n";
     o << "  kinect/ir:\n    model: " << calibration::cameraModelYaml(t.ir)
       << "\n    T_color_ir: " << poseText(t.T_color_ir)
       << "\n    recorded: " << (calib ? "true" : "false") << "\n";
@@ -288,9 +293,9 @@ StreamInfo imageStream(const std::string& name, StreamKind kind, PixelFormat for
 
 Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
                                                std::string_view source_name) {
-    static constexpr std::array<std::string_view, 8> kKeys = {
-        "scenario",          "frames",    "seed",         "width", "height",
-        "samples_per_pixel", "env_every", "env_map_width"};
+    static constexpr std::array<std::string_view, 9> kKeys = {
+        "scenario",          "frames",    "seed",          "width", "height",
+        "samples_per_pixel", "env_every", "env_map_width", "depth"};
     try {
         yaml::Reader r{std::string(source_name)};
         auto root = r.load(truth_text, 64 << 20, 64, "a truth file");
@@ -308,7 +313,8 @@ Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
         if (!sim)
             return sim.status();
         for (std::string_view key : kKeys)
-            MIXRAY_RETURN_IF_ERROR(r.require(*sim, *section, key));
+            if (key != "depth")  // written since IR-aligned depth exists; older files: default
+                MIXRAY_RETURN_IF_ERROR(r.require(*sim, *section, key));
         const auto integer = [&](std::string_view key, int64_t lo, int64_t hi) {
             return r.integer(*yaml::find(*sim, key), lo, hi);
         };
@@ -341,6 +347,14 @@ Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
         if (!seed)
             return seed.status();
         o.seed = static_cast<uint64_t>(*seed);
+        if (const yaml::Item* depth = yaml::find(*sim, "depth")) {
+            auto text = r.text(*depth);
+            if (!text)
+                return text.status();
+            if (*text != "registered" && *text != "raw")
+                return r.expected(*depth, "registered or raw");
+            o.register_depth = *text == "registered";
+        }
         MIXRAY_RETURN_IF_ERROR(o.validate());
         return o;
     } catch (const YAML::Exception& e) {
@@ -394,9 +408,13 @@ Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
     const int w = t.color.width, h = t.color.height;
     header.streams.push_back(
         imageStream("kinect/color", StreamKind::kColor, PixelFormat::kRGB8, w, h, t.fps, 1));
-    header.streams.push_back(
-        imageStream("kinect/depth", StreamKind::kDepth, PixelFormat::kDepth16, w, h, t.fps, 1));
-    header.streams.back().tags["registered_to"] = "kinect/color";
+    const calibration::CameraModel& depth_camera = t.depth_registered ? t.color : t.ir;
+    header.streams.push_back(imageStream("kinect/depth", StreamKind::kDepth, PixelFormat::kDepth16,
+                                         depth_camera.width, depth_camera.height, t.fps, 1));
+    if (t.depth_registered)
+        header.streams.back().tags["registered_to"] = "kinect/color";
+    else
+        header.streams.back().tags["aligned_with"] = "kinect/ir";
     header.streams.push_back(imageStream("env/color", StreamKind::kColor, PixelFormat::kRGB8,
                                          t.env.width, t.env.height, t.fps / env_every, 2));
     StreamInfo pose = makePoseStreamInfo("truth/pose", "kinect/color", t.fps, true);

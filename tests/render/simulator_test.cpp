@@ -347,23 +347,25 @@ TEST(Simulator, MarkerCellsAndCornersLandWhereTheTrueCameraProjectsThem) {
     }
 }
 
-TEST(Simulator, DepthMatchesTheTrueGeometryWithinTheNoiseModel) {
-    const TabletopFrame& f = tabletop();
-    const SimTruth& t = f.sim->truth();
+// Checks a simulated depth image against the analytic scene seen by the camera it is aligned
+// with: the colour camera (registered) or the IR camera (raw).
+void expectDepthMatchesGeometry(const SimTruth& t, const Image& depth_image, bool registered) {
     const Isometry3d& T_world_color = t.frames[0].T_world_color;
-    const Vector3d eye = T_world_color.translation();
     const Isometry3d T_world_ir = T_world_color * t.T_color_ir;
+    const calibration::CameraModel& cam = registered ? t.color : t.ir;
+    const Isometry3d& T_world_cam = registered ? T_world_color : T_world_ir;
+    const Vector3d eye = T_world_cam.translation();
     const Vector3d projector = T_world_ir * Vector3d(t.depth_model.baseline_m, 0, 0);
-    const int w = t.color.width, h = t.color.height;
+    const int w = cam.width, h = cam.height;
     std::vector<double> z_true(static_cast<size_t>(w) * h, NAN);
     std::vector<Vector3d> points(z_true.size());
     std::vector<Vector3d> normals(z_true.size());
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
-            auto d_cam = t.color.unproject(Vector2d(x, y));
+            auto d_cam = cam.unproject(Vector2d(x, y));
             if (!d_cam)
                 continue;
-            const Vector3d d = T_world_color.linear() * *d_cam;
+            const Vector3d d = T_world_cam.linear() * *d_cam;
             const AnalyticHit hit = castRay(t.scene, eye, d);
             if (hit.object < 0)
                 continue;
@@ -375,7 +377,8 @@ TEST(Simulator, DepthMatchesTheTrueGeometryWithinTheNoiseModel) {
     int valid = 0, within = 0, shadow_violations = 0, edge_violations = 0, shadowed = 0,
         grazing_violations = 0;
     double sum_error = 0;
-    const ImageView depth = f.frame.depth.view();
+    const ImageView depth = depth_image.view();
+    ASSERT_EQ(depth.desc.width, w);
     ASSERT_EQ(depth.desc.format, PixelFormat::kDepth16);
     for (int y = 1; y < h - 1; ++y)
         for (int x = 1; x < w - 1; ++x) {
@@ -425,10 +428,33 @@ TEST(Simulator, DepthMatchesTheTrueGeometryWithinTheNoiseModel) {
     EXPECT_GT(valid, w * h / 2);
     EXPECT_GE(within, valid - valid / 1000) << "of " << valid;
     EXPECT_LT(std::abs(sum_error / valid), 0.001) << "depth is unbiased";
+    if (!registered)
+        return;
     // The IR camera's narrower view leaves the registered image's left and right edges empty.
     for (int y = 0; y < h; ++y)
         for (int x : {0, 1, 2, w - 3, w - 2, w - 1})
             EXPECT_EQ(depth.row<uint16_t>(y)[x], 0) << x << "," << y;
+}
+
+TEST(Simulator, DepthMatchesTheTrueGeometryWithinTheNoiseModel) {
+    const TabletopFrame& f = tabletop();
+    expectDepthMatchesGeometry(f.sim->truth(), f.frame.depth, true);
+}
+
+TEST(Simulator, RawDepthIsAlignedWithTheIrCamera) {
+    SimulatorOptions o;
+    o.frames = 1;
+    o.width = 320;
+    o.height = 240;
+    o.samples_per_pixel = 1;
+    o.register_depth = false;
+    o.asset_dir = fs::path(MIXRAY_BINARY_DIR) / "test-tmp" / "simulator_raw_depth";
+    auto sim = Simulator::create(o);
+    ASSERT_TRUE(sim) << sim.status().toString();
+    ASSERT_FALSE((*sim)->truth().depth_registered);
+    auto frame = (*sim)->render(0);
+    ASSERT_TRUE(frame) << frame.status().toString();
+    expectDepthMatchesGeometry((*sim)->truth(), frame->depth, false);
 }
 
 TEST(Simulator, ProbesShowTheLightsWhereTheGeometrySays) {

@@ -33,12 +33,16 @@ struct SimulatorOptions {
     SimScenario scenario = SimScenario::kTabletop;
     int frames = 0;     // colour frames (calibration: board views); 0: 45 / 20
     uint64_t seed = 1;  // depth noise, calibration board poses, antialiasing jitter
-    int width = 640;    // Kinect colour and registered depth size; intrinsics scale with it
+    int width = 640;    // Kinect colour, IR and depth size; intrinsics scale with it
     int height = 480;
     int samples_per_pixel = 4;  // antialiasing, a square number
     int env_every = 0;          // an environment-camera frame every N colour frames; 0: 15 / 1
     int threads = 0;            // render threads; 0: all cores
     int env_map_width = 512;    // equirectangular environment map (height = width / 2)
+    // kinect/depth registered to the colour camera (true), or aligned with the IR camera as a
+    // Kinect delivers it with registration off (false: what a depth calibration needs); empty:
+    // registered for tabletop, IR-aligned for calibration.
+    std::optional<bool> register_depth;
     // Where the scene's textures and environment map are written; empty: a temporary folder
     // removed with the Simulator.
     std::filesystem::path asset_dir;
@@ -106,7 +110,8 @@ struct SimTruth {
     uint64_t seed = 1;
     double fps = 30;
     int env_every = 1;               // an env/color frame with every N-th colour frame
-    calibration::CameraModel color;  // kinect/color; kinect/depth is registered to it
+    calibration::CameraModel color;  // kinect/color
+    bool depth_registered = true;    // kinect/depth registered to colour; false: IR-aligned
     calibration::CameraModel ir;     // the Kinect's IR (depth) camera
     calibration::CameraModel env;    // fish-eye environment camera
     Eigen::Isometry3d T_color_ir = Eigen::Isometry3d::Identity();
@@ -135,7 +140,7 @@ struct SimTruth {
 struct SimFrame {
     int index = 0;
     Image color;  // rgb8, sRGB
-    Image depth;  // depth16 mm registered to colour, 0 = no measurement
+    Image depth;  // depth16 mm (registered to colour or IR-aligned), 0 = no measurement
     Image ir;     // ir16 (calibration scenario only), else empty
     Image env;    // rgb8 fish-eye, only on env frames, else empty
 };
