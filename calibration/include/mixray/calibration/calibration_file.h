@@ -73,12 +73,17 @@ std::string_view toString(CalibrationFormat format);
 std::optional<CalibrationFormat> calibrationFormatFromString(std::string_view name);
 
 // Reads any of the formats, recognised from the content when `format` is absent. Formats
-// with one camera name it after the file unless the file names it.
+// with one camera name it after the file unless the file names it. An OpenCV file without
+// image_width/image_height gives a model of width = height = 0 (not known): set the size
+// before writing it anywhere. kNotFound for a missing file; kCorruptData naming the file (and
+// line and field where the format has them) for content mixray cannot read or hold.
 Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
                                           std::optional<CalibrationFormat> format = {});
-// Writes `file` in `format`. Single-camera formats (OpenCV, mrcal, ROS) write `camera`;
-// kInvalidArgument when the format cannot hold the model (ROS and OpenCV's pinhole YAML take
-// no splined model) naming both.
+// Writes `file` in `format`. Single-camera formats (OpenCV, mrcal, ROS) write `camera`, which
+// may be left empty when the file has one; the multi-camera formats (mixray, Kalibr) write
+// every camera and take no `camera`. kInvalidArgument when the format cannot hold the model
+// (Kalibr's radtan has no k3..k6; ROS and OpenCV's pinhole YAML take no splined model) naming
+// both; depth registrations are written by the mixray format only.
 Status exportCalibration(const std::filesystem::path& path, const CalibrationFile& file,
                          CalibrationFormat format, std::string_view camera = {});
 
