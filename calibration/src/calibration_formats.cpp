@@ -573,29 +573,32 @@ private:
     yaml::Reader r_;
 };
 
+// OpenCV's, Kalibr's and ROS's files hold OpenCV's two lens families only.
+Status holdsLens(CalibrationFormat format, const CalibratedCamera& c) {
+    if (c.model.lens == LensModel::kPinhole || c.model.lens == LensModel::kFisheye)
+        return Status::ok();
+    return invalid("the " + std::string(toString(format)) + " format cannot hold camera " + c.name +
+                   "'s model: " + std::string(toString(c.model.lens)) +
+                   " (it holds pinhole models with OpenCV's distortion and cv::fisheye's)");
+}
+
 // Kalibr's distortion model for a mixray model; kInvalidArgument when it has none.
 Result<std::pair<std::string, std::vector<double>>> kalibrDistortion(const CalibratedCamera& c) {
     const CameraModel& m = c.model;
-    switch (m.lens) {
-        case LensModel::kFisheye:
-            return std::pair{std::string("equidistant"), m.distortion};
-        case LensModel::kPinhole: {
-            if (m.distortion.empty())
-                return std::pair{std::string("none"), std::vector<double>{}};
-            // Higher terms that are zero project exactly as radtan's four.
-            if (std::all_of(m.distortion.begin() + 4, m.distortion.end(),
-                            [](double v) { return v == 0; })) {
-                return std::pair{
-                    std::string("radtan"),
-                    std::vector<double>(m.distortion.begin(), m.distortion.begin() + 4)};
-            }
-            return invalid("Kalibr's camchain cannot hold camera " + c.name + "'s model: pinhole " +
-                           "with " + std::to_string(m.distortion.size()) +
-                           " OpenCV coefficients (k3 and above non-zero); Kalibr's radtan has "
-                           "k1 k2 p1 p2 only");
-        }
+    if (m.lens == LensModel::kFisheye)
+        return std::pair{std::string("equidistant"), m.distortion};
+    if (m.distortion.empty())
+        return std::pair{std::string("none"), std::vector<double>{}};
+    // Higher terms that are zero project exactly as radtan's four.
+    if (std::all_of(m.distortion.begin() + 4, m.distortion.end(),
+                    [](double v) { return v == 0; })) {
+        return std::pair{std::string("radtan"),
+                         std::vector<double>(m.distortion.begin(), m.distortion.begin() + 4)};
     }
-    return invalid("camera " + c.name + ": unknown lens model");
+    return invalid("Kalibr's camchain cannot hold camera " + c.name + "'s model: pinhole with " +
+                   std::to_string(m.distortion.size()) +
+                   " OpenCV coefficients (k3 and above non-zero); Kalibr's radtan has k1 k2 p1 "
+                   "p2 only");
 }
 
 std::string matrixRow(const Eigen::Matrix4d& M, int row) {
@@ -608,6 +611,7 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
     std::ostringstream o;
     for (size_t i = 0; i < file.cameras.size(); ++i) {
         const CalibratedCamera& c = file.cameras[i];
+        MIXRAY_RETURN_IF_ERROR(holdsLens(CalibrationFormat::kKalibr, c));
         auto distortion = kalibrDistortion(c);
         if (!distortion)
             return distortion.status();
@@ -649,19 +653,14 @@ Status writeRos(const std::filesystem::path& path, const CalibratedCamera& c) {
     const CameraModel& m = c.model;
     std::string model;
     std::vector<double> d = m.distortion;
-    switch (m.lens) {
-        case LensModel::kFisheye:
-            model = "equidistant";
-            break;
-        case LensModel::kPinhole:
-            if (d.size() == 8) {
-                model = "rational_polynomial";
-            } else {
-                // plumb_bob is always k1 k2 t1 t2 k3: the missing terms are zero.
-                model = "plumb_bob";
-                d.resize(5, 0.0);
-            }
-            break;
+    if (m.lens == LensModel::kFisheye) {
+        model = "equidistant";
+    } else if (d.size() == 8) {
+        model = "rational_polynomial";
+    } else {
+        // plumb_bob is always k1 k2 t1 t2 k3: the missing terms are zero.
+        model = "plumb_bob";
+        d.resize(5, 0.0);
     }
     std::ostringstream o;
     o << "image_width: " << m.width << "\nimage_height: " << m.height << "\n";
@@ -788,6 +787,8 @@ Status exportCalibration(const std::filesystem::path& path, const CalibrationFil
             if (Status s = c.model.validate(); !s)
                 return invalid("writing " + path.string() + ": camera " + c.name + ": " +
                                s.message());
+            if (format != CalibrationFormat::kMrcal)
+                MIXRAY_RETURN_IF_ERROR(holdsLens(format, c));
             if (format == CalibrationFormat::kOpenCV)
                 status = writeOpenCV(path, c, file);
             else if (format == CalibrationFormat::kRos)
