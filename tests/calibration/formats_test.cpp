@@ -640,5 +640,38 @@ TEST(MrcalFormat, RoundTripsOpenCVModels) {
     }
 }
 
+// mrcal's splined lens: the mixray and mrcal formats hold it; OpenCV, Kalibr and ROS refuse it
+// by name.
+TEST(MrcalFormat, SplinedModelsGoWhereTheyFit) {
+    const fs::path dir = test::tempDir();
+    const fs::path path = test::sharedDataDir() / "04_mrcal/cam0.splined.cameramodel";
+    MIXRAY_REQUIRE_SHARED_DATA(path);
+    auto f = importCalibration(path);
+    ASSERT_TRUE(f.isOk()) << f.status().toString();
+    const CameraModel& splined = f->cameras[0].model;
+    EXPECT_EQ(toString(splined.lens), "splined_stereographic");
+    for (CalibrationFormat format :
+         {CalibrationFormat::kOpenCV, CalibrationFormat::kKalibr, CalibrationFormat::kRos}) {
+        SCOPED_TRACE(toString(format));
+        const Status s = exportCalibration(dir / "x.yaml", *f, format);
+        EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument);
+        EXPECT_NE(s.message().find("cannot hold camera cam0.splined's model: "
+                                   "splined_stereographic"),
+                  std::string::npos)
+            << s.message();
+        EXPECT_FALSE(fs::exists(dir / "x.yaml"));
+    }
+    for (CalibrationFormat format : {CalibrationFormat::kMixray, CalibrationFormat::kMrcal}) {
+        SCOPED_TRACE(toString(format));
+        const fs::path out = dir / (std::string("splined.") + std::string(toString(format)));
+        ASSERT_TRUE(exportCalibration(out, *f, format).isOk());
+        auto back = importCalibration(out);
+        ASSERT_TRUE(back.isOk()) << back.status().toString();
+        EXPECT_EQ(back->cameras[0].model.lens, splined.lens);
+        EXPECT_EQ(back->cameras[0].model.distortion.size(), splined.distortion.size());
+        expectSameProjection(splined, back->cameras[0].model);
+    }
+}
+
 }  // namespace
 }  // namespace mixray::calibration
