@@ -51,7 +51,9 @@ struct CalibrationFile {
     std::string created;  // ISO 8601 UTC and the tool that made it
 
     const CalibratedCamera* find(std::string_view name) const;
-    // The camera's pose in `frame` by composing parents; kNotFound when they are not linked.
+    // The camera's pose in `frame` (a camera, or a frame some camera names as its parent) by
+    // composing parents; kNotFound naming both chains when they are not linked or a name is
+    // unknown, kCorruptData when parents form a cycle.
     Result<Eigen::Isometry3d> pose(std::string_view frame, std::string_view camera) const;
     // The registration of a depth stream: its cameras and T_color_depth.
     Result<DepthRegistration> depthRegistration(std::string_view stream) const;
