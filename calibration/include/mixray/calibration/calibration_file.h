@@ -51,7 +51,9 @@ struct CalibrationFile {
     std::string created;  // ISO 8601 UTC and the tool that made it
 
     const CalibratedCamera* find(std::string_view name) const;
-    // The camera's pose in `frame` by composing parents; kNotFound when they are not linked.
+    // The camera's pose in `frame` (a camera, or a frame some camera names as its parent) by
+    // composing parents; kNotFound naming both chains when they are not linked or a name is
+    // unknown, kCorruptData when parents form a cycle.
     Result<Eigen::Isometry3d> pose(std::string_view frame, std::string_view camera) const;
     // The registration of a depth stream: its cameras and T_color_depth.
     Result<DepthRegistration> depthRegistration(std::string_view stream) const;
@@ -73,12 +75,17 @@ std::string_view toString(CalibrationFormat format);
 std::optional<CalibrationFormat> calibrationFormatFromString(std::string_view name);
 
 // Reads any of the formats, recognised from the content when `format` is absent. Formats
-// with one camera name it after the file unless the file names it.
+// with one camera name it after the file unless the file names it. An OpenCV file without
+// image_width/image_height gives a model of width = height = 0 (not known): set the size
+// before writing it anywhere. kNotFound for a missing file; kCorruptData naming the file (and
+// line and field where the format has them) for content mixray cannot read or hold.
 Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
                                           std::optional<CalibrationFormat> format = {});
-// Writes `file` in `format`. Single-camera formats (OpenCV, mrcal, ROS) write `camera`;
-// kInvalidArgument when the format cannot hold the model (ROS and OpenCV's pinhole YAML take
-// no splined model) naming both.
+// Writes `file` in `format`. Single-camera formats (OpenCV, mrcal, ROS) write `camera`, which
+// may be left empty when the file has one; the multi-camera formats (mixray, Kalibr) write
+// every camera and take no `camera`. kInvalidArgument when the format cannot hold the model
+// (Kalibr's radtan has no k3..k6; ROS and OpenCV's pinhole YAML take no splined model) naming
+// both; depth registrations are written by the mixray format only.
 Status exportCalibration(const std::filesystem::path& path, const CalibrationFile& file,
                          CalibrationFormat format, std::string_view camera = {});
 
