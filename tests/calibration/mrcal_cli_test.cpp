@@ -4,6 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "mrcal_format.h"
@@ -49,15 +53,16 @@ struct BothSolves {
     double cli_board_rms_px = 0;
 };
 
-std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, const std::string& lensmodel,
-                                    const std::string& option, std::string* log) {
+// Solves `data.views` both ways; `focal` is the rough guess both start from.
+std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, test::SyntheticViews data,
+                                    const std::string& lensmodel, const std::string& option,
+                                    double focal, std::string* log) {
     BothSolves both;
-    const CameraModel truth = opencv8Truth();
-    both.data = test::syntheticViews(truth, chessboard(), 20, 0.3, 2024);
-    test::writeCornersVnl(dir / "corners.vnl", both.data.views);
-    const double focal = 600;  // the same rough guess both get
+    both.data = std::move(data);
+    const CameraViews& views = both.data.views;
+    test::writeCornersVnl(dir / "corners.vnl", views);
     auto cli = test::runMrcalCalibrateCameras(
-        dir / "corners.vnl", both.data.views, lensmodel, focal,
+        dir / "corners.vnl", views, lensmodel, focal,
         "--skip-outlier-rejection --skip-calobject-warp-solve", dir / "cli", log);
     if (!cli)
         return std::nullopt;
@@ -81,18 +86,24 @@ std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, const std:
     if (!rms)
         return std::nullopt;
     both.cli_board_rms_px = std::stod(*rms);
-    CameraModel seed = CameraModel::pinhole(truth.width, truth.height, focal, focal,
-                                            (truth.width - 1) / 2.0, (truth.height - 1) / 2.0);
-    const detail::SolveInput input = test::seededInput(both.data.views, seed);
+    const CameraModel seed = CameraModel::pinhole(
+        views.width, views.height, focal, focal, (views.width - 1) / 2.0, (views.height - 1) / 2.0);
     CalibrationOptions options;
     options.model = option;
-    auto ours = detail::solveWithMrcal(input, options);
+    auto ours = detail::solveWithMrcal(test::seededInput(views, seed), options);
     if (!ours) {
         *log += ours.status().toString();
         return std::nullopt;
     }
     both.ours = *ours;
     return both;
+}
+
+// The generated problem above.
+std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, const std::string& lensmodel,
+                                    const std::string& option, std::string* log) {
+    return solveBoth(dir, test::syntheticViews(opencv8Truth(), chessboard(), 20, 0.3, 2024),
+                     lensmodel, option, 600, log);
 }
 
 TEST(MrcalCliTest, Opencv8SameLensAndRmsAsMrcalCalibrateCameras) {
@@ -139,6 +150,67 @@ TEST(MrcalCliTest, SplinedSameLensAsMrcalCalibrateCameras) {
               << " px; RMS per coordinate mixray " << both->ours.rms_px / std::sqrt(2.0)
               << " px, mrcal-calibrate-cameras " << both->cli_board_rms_px
               << " px (printed, with regularisation: " << both->cli.rms_px << ")\n";
+}
+
+// OpenCV's own chessboard photos (left*.jpg, 9x6 inner corners, 25 mm): corners found by
+// cv::findChessboardCorners + cornerSubPix as OpenCV's calibration sample does.
+std::optional<test::SyntheticViews> opencvLeftViews() {
+    const std::filesystem::path dir =
+        mixray::test::sharedDataDir() / "03_calib_chessboard_stereo_opencv";
+    test::SyntheticViews data;
+    CameraViews& views = data.views;
+    views.camera = "left";
+    views.target = chessboard();
+    views.target.cols = 9;
+    views.target.rows = 6;
+    views.target.square_m = 0.025;
+    for (int i = 1; i <= 14; ++i) {
+        char name[32];
+        std::snprintf(name, sizeof name, "left%02d.jpg", i);
+        const cv::Mat image = cv::imread((dir / name).string(), cv::IMREAD_GRAYSCALE);
+        if (image.empty())
+            continue;  // the set has no left10.jpg
+        views.width = image.cols;
+        views.height = image.rows;
+        std::vector<cv::Point2f> corners;
+        if (!cv::findChessboardCorners(image, cv::Size(9, 6), corners))
+            return std::nullopt;
+        cv::cornerSubPix(
+            image, corners, cv::Size(11, 11), cv::Size(-1, -1),
+            cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 30, 0.0001));
+        TargetView view;
+        view.source = name;
+        view.key = i;
+        for (size_t k = 0; k < corners.size(); ++k)
+            view.corners.push_back({static_cast<int>(k), {corners[k].x, corners[k].y}, 1.0});
+        views.views.push_back(view);
+    }
+    return data;
+}
+
+TEST(MrcalCliTest, OpencvLeftPhotosSameLensAndRmsAsMrcalCalibrateCameras) {
+    MIXRAY_REQUIRE_SHARED_DATA(mixray::test::sharedDataDir() /
+                               "03_calib_chessboard_stereo_opencv/left01.jpg");
+    MIXRAY_REQUIRE_MRCAL_PYTHON();
+    auto data = opencvLeftViews();
+    ASSERT_TRUE(data.has_value());
+    ASSERT_EQ(data->views.views.size(), 13u);
+    std::string log;
+    auto both =
+        solveBoth(mixray::test::tempDir(), *data, "LENSMODEL_OPENCV5", "opencv5", 500, &log);
+    ASSERT_TRUE(both.has_value()) << log;
+    const double difference =
+        test::maxProjectionDifferencePx(both->ours.model, both->theirs.model, 8);
+    EXPECT_LT(difference, 0.01);
+    EXPECT_NEAR(both->ours.rms_px / std::sqrt(2.0), both->cli_board_rms_px,
+                1e-4 * both->cli_board_rms_px);
+    // OpenCV's published left_intrinsics.yml (fx = fy fixed there, so only near): 535.9 px.
+    EXPECT_NEAR(both->ours.model.fx, 535.9, 0.01 * 535.9);
+    std::cout << "left*.jpg opencv5: max projection difference " << difference
+              << " px; RMS per point mixray " << both->ours.rms_px << " px, mrcal "
+              << both->cli_board_rms_px * std::sqrt(2.0) << " px; fx fy cx cy "
+              << both->ours.model.fx << " " << both->ours.model.fy << " " << both->ours.model.cx
+              << " " << both->ours.model.cy << "\n";
 }
 
 TEST(MrcalCliTest, ProjectionUncertaintyMatchesMrcalPython) {
