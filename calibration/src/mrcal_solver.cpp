@@ -335,7 +335,9 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
                               mrcalLensModelName(*seed_lens) == mrcalLensModelName(*lens) &&
                               static_cast<int>(input.seed.distortion.size()) + 4 == nparams;
     progress(0.0, "mrcal: intrinsics core and board poses");
-    if (splined) {
+    // A splined seed of the same configuration already holds a core and a spline made for each
+    // other: a stereographic pre-solve would move the core under the spline.
+    if (splined && !seed_matches) {
         const mrcal_lensmodel_t stereographic = makeMrcalLensModel(MRCAL_LENSMODEL_STEREOGRAPHIC);
         const mrcal_stats_t stats =
             problem.optimize(stereographic, intrinsics, selections(true, false, false));

@@ -167,6 +167,26 @@ TEST(MrcalSolverTest, SplinedFitsAWideLens) {
     }
 }
 
+TEST(MrcalSolverTest, ASolvedSplinedSeedStaysPut) {
+    // Seeding with a solution of the same configuration starts at the optimum: the solve keeps
+    // its core (no stereographic pre-solve moves it) and returns the same lens.
+    const CameraModel truth = opencv8Truth();
+    const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 12, 0.2, 9);
+    CalibrationOptions options;
+    options.model = "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=8_Ny=6_fov_x_deg=120";
+    auto first = solveWithMrcal(test::seededInput(data.views, pinholeSeed(truth)), options);
+    ASSERT_TRUE(first.isOk()) << first.status().toString();
+    detail::SolveInput again = test::seededInput(data.views, first->model);
+    for (size_t v = 0; v < again.T_camera_target.size(); ++v)
+        again.T_camera_target[v] = first->views[v].T_camera_target;
+    auto second = solveWithMrcal(again, options);
+    ASSERT_TRUE(second.isOk()) << second.status().toString();
+    EXPECT_EQ(second->model.fx, first->model.fx);
+    EXPECT_EQ(second->model.cx, first->model.cx);
+    EXPECT_LT(test::maxProjectionDifferencePx(first->model, second->model, 32), 1e-3);
+    EXPECT_NEAR(second->rms_px, first->rms_px, 1e-6);
+}
+
 TEST(MrcalSolverTest, RefusesWhatMrcalCannotSolve) {
     const CameraModel truth = opencv8Truth();
     const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 5, 0.2, 1);
