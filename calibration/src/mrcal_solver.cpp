@@ -183,11 +183,22 @@ Result<Eigen::MatrixXd> stateCovariance(Problem& problem, const mrcal_lensmodel_
                       "mrcal solver: mrcal_optimizer_callback failed at the solution");
     }
 
-    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(nmeasurements, nstate);
+    // JᵀJ and its board-observation part J_obsᵀJ_obs, accumulated from the sparse rows: each
+    // measurement touches only the intrinsics and one board pose, so this costs a few million
+    // operations where a dense J would cost billions for tens of views.
+    Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(nstate, nstate);
+    Eigen::MatrixXd JotJo = Eigen::MatrixXd::Zero(nstate, nstate);
     for (int m = 0; m < nmeasurements; ++m) {
-        for (int k = Jp[static_cast<size_t>(m)]; k < Jp[static_cast<size_t>(m) + 1]; ++k)
-            J(m, Ji[static_cast<size_t>(k)]) = Jx[static_cast<size_t>(k)];
+        const int begin = Jp[static_cast<size_t>(m)], end = Jp[static_cast<size_t>(m) + 1];
+        Eigen::MatrixXd& target = m < nboard ? JotJo : JtJ;
+        for (int a = begin; a < end; ++a) {
+            const int row = Ji[static_cast<size_t>(a)];
+            const double value = Jx[static_cast<size_t>(a)];
+            for (int b = begin; b < end; ++b)
+                target(row, Ji[static_cast<size_t>(b)]) += value * Jx[static_cast<size_t>(b)];
+        }
     }
+    JtJ += JotJo;
 
     // σ over the inlier board measurements: outliers have weight < 0 and x = 0.
     double sum = 0, sum2 = 0;
@@ -208,16 +219,16 @@ Result<Eigen::MatrixXd> stateCovariance(Problem& problem, const mrcal_lensmodel_
     const double mean = sum / static_cast<double>(n);
     const double variance = std::max(0.0, sum2 / static_cast<double>(n) - mean * mean);
 
-    const Eigen::MatrixXd JtJ = J.transpose() * J;
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(JtJ);
     if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
         return Status(kNotConverged,
                       "mrcal solver: the solution's JᵀJ is singular (the views do not determine "
                       "the model)");
     }
-    const Eigen::MatrixXd JoM =
-        J.topRows(nboard) * ldlt.solve(Eigen::MatrixXd::Identity(nstate, nstate));
-    Eigen::MatrixXd covariance_packed = JoM.transpose() * JoM * variance;
+    // M J_obsᵀJ_obs M with M = (JᵀJ)⁻¹ symmetric: X = M·J_obsᵀJ_obs, then (M·Xᵀ)ᵀ = X·M.
+    const Eigen::MatrixXd X = ldlt.solve(JotJo);
+    const Eigen::MatrixXd covariance_packed =
+        Eigen::MatrixXd(ldlt.solve(X.transpose()).transpose()) * variance;
 
     // Unpack: b = D b*, with D's diagonal the unpacking of a vector of ones.
     Eigen::VectorXd D = Eigen::VectorXd::Ones(nstate);

@@ -167,9 +167,11 @@ std::optional<test::SyntheticViews> opencvLeftViews() {
     for (int i = 1; i <= 14; ++i) {
         char name[32];
         std::snprintf(name, sizeof name, "left%02d.jpg", i);
+        if (!std::filesystem::exists(dir / name))
+            continue;  // the set has no left10.jpg
         const cv::Mat image = cv::imread((dir / name).string(), cv::IMREAD_GRAYSCALE);
         if (image.empty())
-            continue;  // the set has no left10.jpg
+            return std::nullopt;
         views.width = image.cols;
         views.height = image.rows;
         std::vector<cv::Point2f> corners;
