@@ -15,6 +15,7 @@
 
 #include "alloc_counter.h"
 #include "backends.h"
+#include "bench_calibrate.h"
 #include "bench_drivers.h"
 #include "bench_render.h"
 #include "bench_track.h"
@@ -441,6 +442,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
     graph->add_option("--shared-data", options->shared_data,
                       "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({graph, [options] { return runBenchGraph(*options); }});
+    registerBenchCalibrate(*bench, commands);
     registerBenchDrivers(*bench, commands);
     registerBenchRender(*bench, commands);
     registerBenchTrack(*bench, commands);
