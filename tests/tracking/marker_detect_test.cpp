@@ -181,7 +181,7 @@ TEST(MarkerDetect, CharucoCornersAreShiftedHalfAPixelIntoOurConvention) {
     const cv::Mat grey = greyOf(img);
     auto found = detectMarkers(img.view(), "DICT_6X6_250");
     ASSERT_TRUE(found);
-    const auto c = detail::correspond(board, *found, grey);
+    const auto c = detail::correspond(board, *found, img.view());
     ASSERT_GE(c.points.size(), 10u);
     ErrorStats err;
     for (size_t i = 0; i < c.points.size(); ++i) {
