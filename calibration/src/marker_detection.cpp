@@ -68,11 +68,27 @@ struct AprilFamily {
     // code and has no plain edge to fit.
     int cells;
 };
-constexpr std::array<AprilFamily, 9> kApril = {{
+// tag36h11 as Kalibr prints its AprilGrids (kalibr_create_target_pdf, borderBits=2): the same
+// codes inside a black border two cells wide. Same decoding, the bits one cell further in.
+apriltag_family_t* tag36h11b2Create() {
+    apriltag_family_t* tf = tag36h11_create();
+    if (!tf)
+        return nullptr;
+    for (uint32_t i = 0; i < tf->nbits; ++i) {
+        ++tf->bit_x[i];
+        ++tf->bit_y[i];
+    }
+    tf->width_at_border += 2;
+    tf->total_width += 2;
+    return tf;
+}
+
+constexpr std::array<AprilFamily, 10> kApril = {{
     {"tag16h5", tag16h5_create, tag16h5_destroy, 6},
     {"tag25h9", tag25h9_create, tag25h9_destroy, 7},
     {"tag36h10", tag36h10_create, tag36h10_destroy, 8},
     {"tag36h11", tag36h11_create, tag36h11_destroy, 8},
+    {"tag36h11b2", tag36h11b2Create, tag36h11_destroy, 10},
     {"tagCircle21h7", tagCircle21h7_create, tagCircle21h7_destroy, 0},
     {"tagCircle49h12", tagCircle49h12_create, tagCircle49h12_destroy, 0},
     {"tagCustom48h12", tagCustom48h12_create, tagCustom48h12_destroy, 0},

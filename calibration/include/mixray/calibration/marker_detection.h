@@ -54,7 +54,9 @@ struct DetectorOptions {
 };
 
 // Dictionary names: OpenCV's ("DICT_4X4_50" ... "DICT_ARUCO_ORIGINAL", "DICT_APRILTAG_36h11")
-// and libapriltag's families ("apriltag:tag36h11", "apriltag:tag25h9", ...).
+// and libapriltag's families ("apriltag:tag36h11", "apriltag:tag25h9", ...), plus
+// "apriltag:tag36h11b2": tag36h11 with a black border two cells wide, as Kalibr prints its
+// AprilGrids.
 bool isKnownDictionary(std::string_view name);
 
 // The value of OpenCV's cv::aruco::PREDEFINED_DICTIONARY_NAME for one of its dictionary names;
