@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
+#include <string_view>
 #include <system_error>
 #include <utility>
 
@@ -284,9 +285,33 @@ std::vector<Corner> findChessboard(const cv::Mat& grey, const CalibrationTarget&
     return out;
 }
 
+// Markers of `dictionary`; when `expected` is not reached and `upsample` is set, a second pass
+// on the image upsampled 2× (cubic) finds markers too small for the first, and the pass with
+// more markers is kept (corners mapped back about pixel centres). The corners are refined on
+// the original image afterwards.
+Result<std::vector<MarkerDetection>> findMarkers(const cv::Mat& grey, std::string_view dictionary,
+                                                 const DetectorOptions& options, size_t expected,
+                                                 bool upsample) {
+    auto found = detectMarkers(viewOf(grey), dictionary, options);
+    if (!found || !upsample || found->size() >= expected)
+        return found;
+    cv::Mat big;
+    cv::resize(grey, big, cv::Size(), 2, 2, cv::INTER_CUBIC);
+    auto more = detectMarkers(viewOf(big), dictionary, options);
+    if (!more || more->size() <= found->size())
+        return found;
+    const Vector2d half(0.5, 0.5);
+    for (MarkerDetection& m : *more)
+        for (Vector2d& c : m.corners)
+            c = (c + half) / 2 - half;
+    return more;
+}
+
 Result<std::vector<Corner>> findCharuco(const cv::Mat& grey, const CalibrationTarget& target,
-                                        const DetectorOptions& markers, size_t& marker_count) {
-    auto found = detectMarkers(viewOf(grey), target.dictionary, markers);
+                                        const DetectionOptions& options, size_t& marker_count) {
+    auto found = findMarkers(grey, target.dictionary, options.markers,
+                             static_cast<size_t>(target.cols * target.rows / 2),
+                             options.upsample_small_markers);
     if (!found)
         return found.status();
     marker_count = found->size();
@@ -304,9 +329,11 @@ Result<std::vector<Corner>> findCharuco(const cv::Mat& grey, const CalibrationTa
 
 // Kalibr's AprilGrid point ids for each tag found (target.h).
 Result<std::vector<Corner>> findAprilGrid(const cv::Mat& grey, const CalibrationTarget& target,
-                                          const DetectorOptions& markers, size_t& marker_count) {
+                                          const DetectionOptions& options, size_t& marker_count) {
     // Kalibr prints the grid's tag36h11 tags with a two-cell border.
-    auto found = detectMarkers(viewOf(grey), "apriltag:tag36h11b2", markers);
+    auto found =
+        findMarkers(grey, "apriltag:tag36h11b2", options.markers,
+                    static_cast<size_t>(target.cols * target.rows), options.upsample_small_markers);
     if (!found)
         return found.status();
     marker_count = found->size();
@@ -384,14 +411,14 @@ Result<TargetView> detectTarget(const ImageView& image, const CalibrationTarget&
             view.corners = findChessboard(*grey, target);
             break;
         case TargetKind::kCharuco: {
-            auto found = findCharuco(*grey, target, options.markers, markers);
+            auto found = findCharuco(*grey, target, options, markers);
             if (!found)
                 return found.status();
             view.corners = std::move(found).value();
             break;
         }
         case TargetKind::kAprilGrid: {
-            auto found = findAprilGrid(*grey, target, options.markers, markers);
+            auto found = findAprilGrid(*grey, target, options, markers);
             if (!found)
                 return found.status();
             view.corners = std::move(found).value();

@@ -402,7 +402,12 @@ TEST(Detect, SimulatedCalibrationSessionViewsShareKeysAcrossCameras) {
         }
         std::printf("%s corners found/in view per frame:%s\n", names[k], counts.c_str());
         if (k < 2) {  // the Kinect's cameras: most views complete
-            EXPECT_GE(agree, k == 0 ? 10 : 16) << names[k];
+            EXPECT_GE(agree, k == 0 ? 14 : 17) << names[k];
+        } else {  // the fish-eye: corners in most views held over it
+            int with = 0;
+            for (const TargetView& v : c.views)
+                with += !v.corners.empty();
+            EXPECT_GE(with, 9) << names[k];
         }
     }
 }
