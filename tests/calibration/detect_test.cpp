@@ -3,14 +3,18 @@
 // folders with bad files, and the simulated calibration session.
 #include "mixray/calibration/detect.h"
 
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -174,6 +178,28 @@ TEST(Detect, SyntheticAprilGridCornersInKalibrsOrder) {
     std::printf("synthetic AprilGrid: %d corners, rms %.3f max %.3f px\n", e.n, e.rms(), e.max);
     EXPECT_LT(e.rms(), 0.1);
     EXPECT_LT(e.max, 0.25);  // a wrong id order would be off by whole tags
+}
+
+// The renders draw AprilGrid tags as libapriltag's tag images, upright along +y. Kalibr's
+// kalibr_create_target_pdf draws cell (row i from the top, column j) of an upright tag white
+// where bit 35 − 6i − j of its code is set (its codes, from Kaess's AprilTags library, are
+// listed MSB first, turned twice by np.rot90): for ids 0–2 that is libapriltag's image, cell
+// for cell, in the same orientation.
+TEST(Detect, AprilGridTagsAreDrawnAsKalibrPrintsThem) {
+    const uint64_t kalibr_codes[3] = {0xd5d628584, 0xd97f18b49, 0xdd280910e};
+    std::unique_ptr<apriltag_family_t, void (*)(apriltag_family_t*)> tf(tag36h11_create(),
+                                                                        tag36h11_destroy);
+    for (int id = 0; id < 3; ++id) {
+        image_u8_t* im = apriltag_to_image(tf.get(), id);
+        for (int i = 0; i < 6; ++i)
+            for (int j = 0; j < 6; ++j) {
+                const bool white = im->buf[(i + 2) * im->stride + (j + 2)] > 127;
+                EXPECT_EQ(white, ((kalibr_codes[id] >> (35 - 6 * i - j)) & 1) != 0)
+                    << id << " " << i << " " << j;
+            }
+        std::free(im->buf);  // libapriltag does not export image_u8_destroy
+        std::free(im);
+    }
 }
 
 TEST(Detect, IrImagesAreStretched) {
