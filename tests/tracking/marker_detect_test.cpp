@@ -1,6 +1,6 @@
-// Marker detection (tracking/src/markers.cpp): corners against synthetic truth (the pixel
-// convention offsets of OpenCV and libapriltag, the edge fit against OpenCV's refinement), and
-// against OpenCV's and libapriltag's own results on real photos.
+// Marker detection (calibration/src/marker_detection.cpp): corners against synthetic truth (the
+// pixel convention offsets of OpenCV and libapriltag, the edge fit against OpenCV's refinement),
+// and against OpenCV's and libapriltag's own results on real photos.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -181,7 +181,7 @@ TEST(MarkerDetect, CharucoCornersAreShiftedHalfAPixelIntoOurConvention) {
     const cv::Mat grey = greyOf(img);
     auto found = detectMarkers(img.view(), "DICT_6X6_250");
     ASSERT_TRUE(found);
-    const auto c = detail::correspond(board, *found, grey);
+    const auto c = detail::correspond(board, *found, img.view());
     ASSERT_GE(c.points.size(), 10u);
     ErrorStats err;
     for (size_t i = 0; i < c.points.size(); ++i) {
@@ -344,7 +344,7 @@ TEST(MarkerDetect, RealAprilTagPhotoMatchesLibapriltagsExpectedCorners) {
     ASSERT_EQ(expected.size(), 12u);
     const cv::Mat grey = readGrey(dir / "33369213973_9d9bb4cc96_c.jpg");
     ASSERT_FALSE(grey.empty());
-    constexpr std::array<int, 4> kFromApril = {1, 0, 3, 2};  // as markers.cpp maps p[]
+    constexpr std::array<int, 4> kFromApril = {1, 0, 3, 2};  // as marker_detection.cpp maps p[]
     for (bool refine : {false, true}) {
         DetectorOptions o;  // libapriltag's test settings (its test/test_detection.c)
         o.apriltag_quad_decimate = 1;

@@ -25,11 +25,12 @@ bool finite(double v) {
 cv::Ptr<cv::aruco::Board> makeBoard(const MarkerTarget& t) {
     if (t.kind == TargetKind::kMarker)
         return {};
-    const auto dictionary_id = detail::arucoDictionaryId(t.dictionary);
+    const auto dictionary_id = calibration::openCvDictionaryId(t.dictionary);
     if (!dictionary_id)
         return {};
     try {
-        const auto dict = cv::aruco::getPredefinedDictionary(*dictionary_id);
+        const auto dict = cv::aruco::getPredefinedDictionary(
+            static_cast<cv::aruco::PREDEFINED_DICTIONARY_NAME>(*dictionary_id));
         if (t.kind == TargetKind::kGridBoard)
             return cv::aruco::GridBoard::create(t.squares_x, t.squares_y,
                                                 static_cast<float>(t.size_m),
@@ -44,19 +45,6 @@ cv::Ptr<cv::aruco::Board> makeBoard(const MarkerTarget& t) {
     } catch (const cv::Exception&) {
         return {};
     }
-}
-
-int dictionarySize(std::string_view name) {
-    const auto board = [&] {
-        MarkerTarget probe;
-        probe.kind = TargetKind::kGridBoard;
-        probe.dictionary = std::string(name);
-        probe.squares_x = probe.squares_y = 1;
-        probe.size_m = 0.01;
-        probe.separation_m = 0.001;
-        return makeBoard(probe);
-    }();
-    return board ? board->dictionary->bytesList.rows : 0;
 }
 
 // T <- exp(delta) * T, rotation first: a small motion of the camera-side frame.
@@ -119,7 +107,7 @@ Status MarkerTarget::validate() const {
     } else if (!finite(separation_m) || separation_m <= 0) {
         return {ErrorCode::kInvalidArgument, where + "separation_m must be > 0"};
     }
-    if (id + markers > dictionarySize(dictionary))
+    if (id + markers > calibration::openCvDictionarySize(dictionary))
         return {ErrorCode::kInvalidArgument, where + "ids " + std::to_string(id) + ".." +
                                                  std::to_string(id + markers - 1) +
                                                  " do not all exist in " + dictionary};
@@ -257,7 +245,7 @@ std::optional<PoseFit> planarPose(const calibration::CameraModel& camera,
 }
 
 Correspondences correspond(const MarkerTarget& target,
-                           const std::vector<MarkerDetection>& detections, const cv::Mat& grey) {
+                           const std::vector<MarkerDetection>& detections, const ImageView& image) {
     Correspondences out;
     const std::vector<MarkerTarget::Point> pts = target.points();
     if (target.kind == TargetKind::kMarker) {
@@ -298,39 +286,17 @@ Correspondences correspond(const MarkerTarget& target,
         }
         return out;
     }
-    const cv::Ptr<cv::aruco::Board> board = makeBoard(target);
-    if (!board)
+    const calibration::CharucoBoardSpec spec{target.squares_x, target.squares_y,  target.square_m,
+                                             target.size_m,    target.dictionary, target.id};
+    const auto corners = calibration::charucoCorners(image, spec, detections);
+    if (!corners)
         return out;
-    std::vector<std::vector<cv::Point2f>> corners;
-    std::vector<int> ids;
-    for (const MarkerDetection& d : detections) {
-        if (d.dictionary != target.dictionary ||
-            std::find(board->ids.begin(), board->ids.end(), d.id) == board->ids.end())
-            continue;
-        std::vector<cv::Point2f> c;
-        for (const Vector2d& p : d.corners)
-            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
-                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
-        corners.push_back(std::move(c));
-        ids.push_back(d.id);
-    }
-    if (ids.size() < 2)
-        return out;
-    std::vector<cv::Point2f> charuco;
-    std::vector<int> charuco_ids;
-    try {
-        cv::aruco::interpolateCornersCharuco(
-            corners, ids, grey, std::static_pointer_cast<cv::aruco::CharucoBoard>(board), charuco,
-            charuco_ids);
-    } catch (const cv::Exception&) {
-        return out;
-    }
-    for (size_t i = 0; i < charuco_ids.size(); ++i) {
-        const auto idx = static_cast<size_t>(charuco_ids[i]);
+    for (const calibration::Corner& c : *corners) {
+        const auto idx = static_cast<size_t>(c.id);
         if (idx >= pts.size())
             continue;
         out.points.push_back(pts[idx].p_target);
-        out.pixels.emplace_back(charuco[i].x - kCharucoOffsetPx, charuco[i].y - kCharucoOffsetPx);
+        out.pixels.push_back(c.pixel);
     }
     return out;
 }

@@ -56,13 +56,9 @@ public:
                           "image is " + std::to_string(image.desc.width) + "x" +
                               std::to_string(image.desc.height) + ", the camera model " +
                               std::to_string(camera_.width) + "x" + std::to_string(camera_.height));
-        auto grey = detail::toGrey(image);
-        if (!grey)
-            return grey.status();
-
         CameraTrack out;
         for (const std::string& dict : dictionaries_) {
-            auto found = detail::detectGrey(*grey, dict, options_.detector, &camera_);
+            auto found = calibration::detectMarkers(image, dict, options_.detector, &camera_);
             if (!found)
                 return found.status();
             for (MarkerDetection& d : *found)
@@ -77,7 +73,7 @@ public:
         std::optional<Isometry3d> start;
         int start_points = 0;
         for (const MarkerTarget& t : targets_) {
-            const detail::Correspondences c = detail::correspond(t, out.detections, *grey);
+            const detail::Correspondences c = detail::correspond(t, out.detections, image);
             if (c.points.size() < 4) {
                 problems.push_back(describe(t) + " not seen");
                 continue;

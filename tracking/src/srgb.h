@@ -1,4 +1,5 @@
-// sRGB decoding shared by the marker edge fit and the light estimators.
+// sRGB decoding shared by the light estimators (the marker edge fit, now in calibration, has its
+// own table).
 #pragma once
 
 #include <array>

@@ -21,9 +21,11 @@ enum class TargetKind : uint8_t {
 
 std::string_view toString(TargetKind kind);
 
-// A planar target. Its frame is OpenCV's board frame: origin at the first corner (chessboard,
-// AprilGrid) or the board's top-left corner (ChArUco), +x along a row, +y down the columns, +z
-// into the board; every point has z = 0. Plain value.
+// A planar target; every point has z = 0 in its frame. Chessboard and ChArUco use OpenCV's
+// board frame: origin at the first corner (chessboard) or the board's top-left corner
+// (ChArUco), +x along a row, +y down the columns, +z into the board. AprilGrid uses Kalibr's:
+// origin at tag 0's lower-left corner, +x along the tag rows, +y up the print towards the
+// higher tag rows, +z out of the print. Plain value.
 struct CalibrationTarget {
     TargetKind kind = TargetKind::kChessboard;
     // kChessboard: inner corners per row (cols) and per column (rows), as OpenCV's patternSize;
@@ -39,10 +41,17 @@ struct CalibrationTarget {
     // kInvalidArgument naming the field.
     Status validate() const;
 
-    // Every point the target has, indexed by point id: chessboard corners row-major (OpenCV's
-    // findChessboardCorners order), ChArUco corner ids (OpenCV's), AprilGrid 4 × tag id +
-    // corner (Kalibr's order: tags row-major from the first, each tag's corners counter-
-    // clockwise from its lower left as Kalibr lists them).
+    // Every point the target has, indexed by point id:
+    // - kChessboard: id = row × cols + col at (col, row) × square_m (OpenCV's
+    //   findChessboardCorners order);
+    // - kCharuco: OpenCV's CharucoBoard corner ids, id = row × (cols − 1) + col at
+    //   (col + 1, row + 1) × square_m (its chessboardCorners);
+    // - kAprilGrid: Kalibr's GridCalibrationTargetAprilgrid grid of 2·cols × 2·rows points, id =
+    //   r × 2·cols + c at x = ⌊c/2⌋·(1 + tag_spacing)·square_m + (c mod 2)·square_m, y likewise
+    //   with r. Tag t (row-major from tag 0 at the origin: tag row ⌊t/cols⌋, column t mod cols)
+    //   owns ids b, b + 1, b + 2·cols + 1, b + 2·cols with b = ⌊t/cols⌋·4·cols + (t mod cols)·2:
+    //   its lower-left, lower-right, upper-right and upper-left corners as printed (libapriltag's
+    //   p[0..3] for its tag image upright, Kalibr's p[0..3]).
     std::vector<Eigen::Vector3d> points() const;
     int pointCount() const;
 

@@ -1,7 +1,6 @@
-// Fiducial markers: detection with subpixel corners (ArUco and ChArUco through OpenCV contrib,
-// AprilTag through libapriltag), target poses (IPPE for single markers, all corners for
-// boards), several targets each binding scene objects, and a camera tracker with One-Euro
-// smoothing, loss and re-acquisition.
+// Fiducial markers: target poses (IPPE for single markers, all corners for boards) from the
+// detections of mixray/calibration/marker_detection.h, several targets each binding scene
+// objects, and a camera tracker with One-Euro smoothing, loss and re-acquisition.
 #pragma once
 
 #include <Eigen/Core>
@@ -15,45 +14,19 @@
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
+#include "mixray/calibration/marker_detection.h"
 #include "mixray/graph/image.h"
 #include "mixray/graph/result.h"
 #include "mixray/tracking/estimate.h"
 
 namespace mixray::tracking {
 
-// One detected marker. Corners follow docs/conventions.md (pixel (0,0) = centre of the
-// top-left pixel; OpenCV's own corner output is shifted to it) in OpenCV's order: top-left,
-// top-right, bottom-right, bottom-left of the upright marker. Plain value.
-struct MarkerDetection {
-    std::string dictionary;  // "DICT_6X6_250", "apriltag:tag36h11"
-    int id = 0;
-    std::array<Eigen::Vector2d, 4> corners;
-};
-
-// How markers are found. Every field has a working default.
-struct DetectorOptions {
-    // Corner refinement after detection: OpenCV's subpixel refinement alone is off by up to
-    // 0.9 px on small markers (gamma pulls it inwards); this fits the marker's outer edges in
-    // linear intensity and crosses the lines (≤ 0.13 px on synthetic markers; docs/tracking.md).
-    // Off: OpenCV's subpixel corners, or libapriltag's.
-    bool refine_corners = true;
-    // AprilTag (libapriltag) settings, as its detector names them.
-    float apriltag_quad_decimate = 1.0f;
-    bool apriltag_refine_edges = true;
-    int threads = 1;
-
-    Status validate() const;
-};
-
-// Dictionary names: OpenCV's ("DICT_4X4_50" ... "DICT_ARUCO_ORIGINAL", "DICT_APRILTAG_36h11")
-// and libapriltag's families ("apriltag:tag36h11", "apriltag:tag25h9", ...).
-bool isKnownDictionary(std::string_view name);
-
-// Finds every marker of `dictionary` in an 8-bit image (kMono8, kRGB8 or kBGR8).
-// kInvalidArgument for an unknown dictionary or another pixel format. Reentrant.
-Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
-                                                   std::string_view dictionary,
-                                                   const DetectorOptions& options = {});
+// Marker detection lives in calibration (mixray/calibration/marker_detection.h), shared with
+// the calibration targets; these names keep tracking's vocabulary.
+using calibration::detectMarkers;
+using calibration::DetectorOptions;
+using calibration::isKnownDictionary;
+using calibration::MarkerDetection;
 
 enum class TargetKind : uint8_t {
     kMarker,        // one square marker; its frame: centre, +x right, +y up, +z out

@@ -1,5 +1,8 @@
-// Marker detection: OpenCV's aruco dictionaries and libapriltag's families, corners moved to
-// mixray's pixel convention and refined by fitting the marker's outer edges.
+// Marker detection (marker_detection.h): OpenCV's aruco dictionaries and libapriltag's families,
+// corners moved to mixray's pixel convention and refined by fitting the marker's outer edges;
+// ChArUco corners interpolated from the markers.
+#include "mixray/calibration/marker_detection.h"
+
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
 #include <apriltag/tag25h9.h>
@@ -17,17 +20,13 @@
 #include <cmath>
 #include <memory>
 #include <opencv2/aruco.hpp>
+#include <opencv2/aruco/charuco.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
+#include <utility>
 
-#include "marker_internal.h"
-#include "srgb.h"
-
-namespace mixray::tracking {
+namespace mixray::calibration {
 namespace {
-
-using detail::kAprilTagOffsetPx;
-using detail::kOpenCvArucoOffsetPx;
 
 using Eigen::Vector2d;
 using Eigen::Vector3d;
@@ -69,11 +68,27 @@ struct AprilFamily {
     // code and has no plain edge to fit.
     int cells;
 };
-constexpr std::array<AprilFamily, 9> kApril = {{
+// tag36h11 as Kalibr prints its AprilGrids (kalibr_create_target_pdf, borderBits=2): the same
+// codes inside a black border two cells wide. Same decoding, the bits one cell further in.
+apriltag_family_t* tag36h11b2Create() {
+    apriltag_family_t* tf = tag36h11_create();
+    if (!tf)
+        return nullptr;
+    for (uint32_t i = 0; i < tf->nbits; ++i) {
+        ++tf->bit_x[i];
+        ++tf->bit_y[i];
+    }
+    tf->width_at_border += 2;
+    tf->total_width += 2;
+    return tf;
+}
+
+constexpr std::array<AprilFamily, 10> kApril = {{
     {"tag16h5", tag16h5_create, tag16h5_destroy, 6},
     {"tag25h9", tag25h9_create, tag25h9_destroy, 7},
     {"tag36h10", tag36h10_create, tag36h10_destroy, 8},
     {"tag36h11", tag36h11_create, tag36h11_destroy, 8},
+    {"tag36h11b2", tag36h11b2Create, tag36h11_destroy, 10},
     {"tagCircle21h7", tagCircle21h7_create, tagCircle21h7_destroy, 0},
     {"tagCircle49h12", tagCircle49h12_create, tagCircle49h12_destroy, 0},
     {"tagCustom48h12", tagCustom48h12_create, tagCustom48h12_destroy, 0},
@@ -155,7 +170,7 @@ std::optional<Line> fitLine(std::vector<Vector2d> pts) {
 // Moves a pixel into the plane where straight edges are straight (undistorted, normalised
 // coordinates) and back.
 struct EdgePlane {
-    const calibration::CameraModel* camera = nullptr;
+    const CameraModel* camera = nullptr;
     std::optional<Vector2d> to(const Vector2d& px) const {
         if (!camera)
             return px;
@@ -265,8 +280,16 @@ std::array<Vector2d, 4> refineCorners(const cv::Mat& lin, const std::array<Vecto
 // half-covered pixel reads 188, not 128, which pulls every edge towards the dark side (OpenCV's
 // cornerSubPix on raw values puts corners 0.2–0.4 px inside the marker).
 cv::Mat linearImage(const cv::Mat& grey) {
+    static const std::array<float, 256> lut = [] {
+        std::array<float, 256> t{};  // IEC 61966-2-1 decoding
+        for (size_t i = 0; i < t.size(); ++i) {
+            const double c = static_cast<double>(i) / 255.0;
+            t[i] =
+                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+        }
+        return t;
+    }();
     cv::Mat lin(grey.rows, grey.cols, CV_32F);
-    const auto& lut = detail::srgbToLinearTable();
     for (int y = 0; y < grey.rows; ++y) {
         const uint8_t* src = grey.ptr<uint8_t>(y);
         float* dst = lin.ptr<float>(y);
@@ -356,32 +379,7 @@ Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const Apri
     return out;
 }
 
-}  // namespace
-
-Status DetectorOptions::validate() const {
-    if (!(apriltag_quad_decimate >= 1.0f && apriltag_quad_decimate <= 8.0f))
-        return {ErrorCode::kInvalidArgument,
-                "detector.apriltag_quad_decimate must be in [1, 8], got " +
-                    std::to_string(apriltag_quad_decimate)};
-    if (threads < 1 || threads > 256)
-        return {ErrorCode::kInvalidArgument,
-                "detector.threads must be in [1, 256], got " + std::to_string(threads)};
-    return Status::ok();
-}
-
-bool isKnownDictionary(std::string_view name) {
-    return findAruco(name) != nullptr || findApril(name) != nullptr;
-}
-
-namespace detail {
-
-std::optional<cv::aruco::PREDEFINED_DICTIONARY_NAME> arucoDictionaryId(std::string_view name) {
-    const ArucoName* a = findAruco(name);
-    if (!a)
-        return std::nullopt;
-    return a->id;
-}
-
+// An 8-bit grey copy of a kMono8, kRGB8 or kBGR8 image; kInvalidArgument for anything else.
 Result<cv::Mat> toGrey(const ImageView& image) {
     const ImageDesc& d = image.desc;
     if (d.format != PixelFormat::kMono8 && d.format != PixelFormat::kRGB8 &&
@@ -409,33 +407,128 @@ Result<cv::Mat> toGrey(const ImageView& image) {
     return grey;
 }
 
-Result<std::vector<MarkerDetection>> detectGrey(const cv::Mat& grey, std::string_view dictionary,
-                                                const DetectorOptions& options,
-                                                const calibration::CameraModel* camera) {
-    MIXRAY_RETURN_IF_ERROR(options.validate());
-    const EdgePlane plane{camera};
-    if (const ArucoName* a = findAruco(dictionary))
-        return detectAruco(grey, *a, options, plane);
-    if (const AprilFamily* a = findApril(dictionary))
-        return detectApril(grey, *a, options, plane);
-    return Status(ErrorCode::kInvalidArgument,
-                  "unknown marker dictionary '" + std::string(dictionary) +
-                      "' (OpenCV's DICT_* names or apriltag:<family>)");
+}  // namespace
+
+Status DetectorOptions::validate() const {
+    if (!(apriltag_quad_decimate >= 1.0f && apriltag_quad_decimate <= 8.0f))
+        return {ErrorCode::kInvalidArgument,
+                "detector.apriltag_quad_decimate must be in [1, 8], got " +
+                    std::to_string(apriltag_quad_decimate)};
+    if (threads < 1 || threads > 256)
+        return {ErrorCode::kInvalidArgument,
+                "detector.threads must be in [1, 256], got " + std::to_string(threads)};
+    return Status::ok();
 }
 
-}  // namespace detail
+bool isKnownDictionary(std::string_view name) {
+    return findAruco(name) != nullptr || findApril(name) != nullptr;
+}
+
+std::optional<int> openCvDictionaryId(std::string_view name) {
+    const ArucoName* a = findAruco(name);
+    if (!a)
+        return std::nullopt;
+    return static_cast<int>(a->id);
+}
+
+int openCvDictionarySize(std::string_view name) {
+    const ArucoName* a = findAruco(name);
+    if (!a)
+        return 0;
+    try {
+        return cv::aruco::getPredefinedDictionary(a->id)->bytesList.rows;
+    } catch (const cv::Exception&) {
+        return 0;
+    }
+}
 
 Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
                                                    std::string_view dictionary,
-                                                   const DetectorOptions& options) {
-    if (!isKnownDictionary(dictionary))
+                                                   const DetectorOptions& options,
+                                                   const CameraModel* camera) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    const ArucoName* aruco = findAruco(dictionary);
+    const AprilFamily* april = aruco ? nullptr : findApril(dictionary);
+    if (!aruco && !april)
         return Status(ErrorCode::kInvalidArgument,
                       "unknown marker dictionary '" + std::string(dictionary) +
                           "' (OpenCV's DICT_* names or apriltag:<family>)");
-    auto grey = detail::toGrey(image);
+    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
+        return Status(ErrorCode::kInvalidArgument,
+                      "image is " + std::to_string(image.desc.width) + "x" +
+                          std::to_string(image.desc.height) + ", the camera model " +
+                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    auto grey = toGrey(image);
     if (!grey)
         return grey.status();
-    return detail::detectGrey(*grey, dictionary, options, nullptr);
+    const EdgePlane plane{camera};
+    if (aruco)
+        return detectAruco(*grey, *aruco, options, plane);
+    return detectApril(*grey, *april, options, plane);
 }
 
-}  // namespace mixray::tracking
+Result<std::vector<Corner>> charucoCorners(const ImageView& image, const CharucoBoardSpec& spec,
+                                           const std::vector<MarkerDetection>& markers) {
+    const ArucoName* dict = findAruco(spec.dictionary);
+    if (!dict)
+        return Status(ErrorCode::kInvalidArgument,
+                      "ChArUco boards need an OpenCV dictionary, not '" + spec.dictionary + "'");
+    if (spec.squares_x < 2 || spec.squares_y < 2 || !(spec.square_m > spec.marker_m) ||
+        !(spec.marker_m > 0) || spec.first_id < 0)
+        return Status(ErrorCode::kInvalidArgument,
+                      "ChArUco board: at least 2x2 squares, 0 < marker_m < square_m, first_id >= "
+                      "0");
+    auto grey = toGrey(image);
+    if (!grey)
+        return grey.status();
+    cv::Ptr<cv::aruco::CharucoBoard> board;
+    try {
+        board = cv::aruco::CharucoBoard::create(
+            spec.squares_x, spec.squares_y, static_cast<float>(spec.square_m),
+            static_cast<float>(spec.marker_m), cv::aruco::getPredefinedDictionary(dict->id));
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInvalidArgument, std::string("ChArUco board: ") + e.what());
+    }
+    // Its markers are numbered from 0; a board printed with later ids shifts them all.
+    for (int& id : board->ids)
+        id += spec.first_id;
+    if (spec.first_id + static_cast<int>(board->ids.size()) > board->dictionary->bytesList.rows)
+        return Status(ErrorCode::kInvalidArgument,
+                      "ChArUco board: its marker ids do not all exist in " + spec.dictionary);
+    std::vector<std::vector<cv::Point2f>> corners;
+    std::vector<int> ids;
+    for (const MarkerDetection& d : markers) {
+        if (d.dictionary != spec.dictionary ||
+            std::find(board->ids.begin(), board->ids.end(), d.id) == board->ids.end())
+            continue;
+        std::vector<cv::Point2f> c;
+        for (const Vector2d& p : d.corners)
+            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
+                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
+        corners.push_back(std::move(c));
+        ids.push_back(d.id);
+    }
+    std::vector<Corner> out;
+    if (ids.size() < 2)
+        return out;
+    std::vector<cv::Point2f> charuco;
+    std::vector<int> charuco_ids;
+    try {
+        cv::aruco::interpolateCornersCharuco(corners, ids, *grey, board, charuco, charuco_ids);
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInternal,
+                      std::string("OpenCV ChArUco interpolation: ") + e.what());
+    }
+    const auto count = static_cast<int>(board->chessboardCorners.size());
+    for (size_t i = 0; i < charuco_ids.size(); ++i) {
+        if (charuco_ids[i] < 0 || charuco_ids[i] >= count)
+            continue;
+        Corner c;
+        c.id = charuco_ids[i];
+        c.pixel = Vector2d(charuco[i].x - kCharucoOffsetPx, charuco[i].y - kCharucoOffsetPx);
+        out.push_back(c);
+    }
+    return out;
+}
+
+}  // namespace mixray::calibration

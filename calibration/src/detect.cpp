@@ -1,0 +1,702 @@
+// Target detection and view rejection (detect.h): chessboards through OpenCV, ChArUco and
+// AprilGrid through marker_detection.h; image folders and recordings.
+#include "mixray/calibration/detect.h"
+
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include "mixray/graph/mkv.h"
+
+namespace mixray::calibration {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+std::string fmt(int decimals, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+    return buf;
+}
+
+ImageView viewOf(const cv::Mat& grey) {
+    ImageView v;
+    v.desc = ImageDesc{PixelFormat::kMono8, grey.cols, grey.rows, static_cast<int>(grey.step[0])};
+    v.data = grey.data;
+    v.size_bytes = grey.step[0] * static_cast<size_t>(grey.rows);
+    return v;
+}
+
+// 16-bit images (IR, mono) hold their signal in a small, camera-dependent part of the range;
+// a percentile stretch puts the board's black and white at the ends of 8 bits whatever it is.
+cv::Mat stretch16(const cv::Mat& src) {
+    std::vector<uint16_t> values;
+    values.reserve(src.total());
+    for (int y = 0; y < src.rows; ++y) {
+        const uint16_t* row = src.ptr<uint16_t>(y);
+        values.insert(values.end(), row, row + src.cols);
+    }
+    const auto at = [&](double q) {
+        auto k = static_cast<size_t>(q * static_cast<double>(values.size() - 1));
+        std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+        return static_cast<double>(values[k]);
+    };
+    const double lo = at(0.005), hi = at(0.995);
+    cv::Mat out;
+    const double scale = hi > lo ? 255.0 / (hi - lo) : 1.0;
+    src.convertTo(out, CV_8U, scale, -lo * scale);
+    return out;
+}
+
+Result<cv::Mat> greyOf(const ImageView& image) {
+    const ImageDesc& d = image.desc;
+    const PixelFormatInfo& info = pixelFormatInfo(d.format);
+    const bool supported = d.format == PixelFormat::kMono8 || d.format == PixelFormat::kRGB8 ||
+                           d.format == PixelFormat::kBGR8 || d.format == PixelFormat::kMono16 ||
+                           d.format == PixelFormat::kIR16;
+    if (!supported)
+        return Status(ErrorCode::kInvalidArgument,
+                      "targets are found in mono8, rgb8, bgr8, mono16 or ir16 images, not " +
+                          std::string(toString(d.format)));
+    const int bytes = static_cast<int>(info.bits_per_pixel / 8);
+    if (d.width <= 0 || d.height <= 0 || !image.data || d.stride_bytes < d.width * bytes ||
+        image.size_bytes < static_cast<size_t>(d.stride_bytes) * static_cast<size_t>(d.height - 1) +
+                               static_cast<size_t>(d.width * bytes))
+        return Status(ErrorCode::kInvalidArgument, "image buffer smaller than its " +
+                                                       std::to_string(d.width) + "x" +
+                                                       std::to_string(d.height) + " description");
+    auto* data = const_cast<uint8_t*>(image.data);
+    const auto step = static_cast<size_t>(d.stride_bytes);
+    cv::Mat grey;
+    switch (d.format) {
+        case PixelFormat::kMono8:
+            grey = cv::Mat(d.height, d.width, CV_8UC1, data, step).clone();
+            break;
+        case PixelFormat::kRGB8:
+            cv::cvtColor(cv::Mat(d.height, d.width, CV_8UC3, data, step), grey, cv::COLOR_RGB2GRAY);
+            break;
+        case PixelFormat::kBGR8:
+            cv::cvtColor(cv::Mat(d.height, d.width, CV_8UC3, data, step), grey, cv::COLOR_BGR2GRAY);
+            break;
+        default:
+            grey = stretch16(cv::Mat(d.height, d.width, CV_16UC1, data, step));
+            break;
+    }
+    return grey;
+}
+
+// The median distance from each corner to its nearest neighbour, in pixels.
+double cornerSpacing(const std::vector<Corner>& corners) {
+    std::vector<double> nearest;
+    for (size_t i = 0; i < corners.size(); ++i) {
+        double best = 1e30;
+        for (size_t j = 0; j < corners.size(); ++j)
+            if (j != i)
+                best = std::min(best, (corners[i].pixel - corners[j].pixel).norm());
+        nearest.push_back(best);
+    }
+    if (nearest.empty())
+        return 0;
+    std::nth_element(nearest.begin(), nearest.begin() + static_cast<long>(nearest.size() / 2),
+                     nearest.end());
+    return nearest[nearest.size() / 2];
+}
+
+// Edge blur (detect.h, DetectionOptions::max_edge_blur_px): around each corner, the local
+// contrast over the steepest Sobel gradient; the median over the corners.
+double edgeBlurPx(const cv::Mat& grey, const std::vector<Corner>& corners) {
+    if (corners.empty())
+        return 0;
+    const double spacing = cornerSpacing(corners);
+    const int r = std::clamp(static_cast<int>(std::lround(0.35 * spacing)), 3, 10);
+    cv::Mat gx, gy;
+    cv::Sobel(grey, gx, CV_32F, 1, 0, 3, 1.0 / 8);
+    cv::Sobel(grey, gy, CV_32F, 0, 1, 3, 1.0 / 8);
+    std::vector<double> widths;
+    for (const Corner& c : corners) {
+        const int cx = static_cast<int>(std::lround(c.pixel.x()));
+        const int cy = static_cast<int>(std::lround(c.pixel.y()));
+        if (cx - r < 1 || cy - r < 1 || cx + r >= grey.cols - 1 || cy + r >= grey.rows - 1)
+            continue;
+        double lo = 255, hi = 0, steepest = 0;
+        for (int y = cy - r; y <= cy + r; ++y)
+            for (int x = cx - r; x <= cx + r; ++x) {
+                const double v = grey.at<uint8_t>(y, x);
+                lo = std::min(lo, v);
+                hi = std::max(hi, v);
+                steepest = std::max(steepest, std::hypot(static_cast<double>(gx.at<float>(y, x)),
+                                                         static_cast<double>(gy.at<float>(y, x))));
+            }
+        if (hi - lo >= 10 && steepest > 0)
+            widths.push_back((hi - lo) / steepest);
+    }
+    if (widths.empty())
+        return 0;
+    std::nth_element(widths.begin(), widths.begin() + static_cast<long>(widths.size() / 2),
+                     widths.end());
+    return widths[widths.size() / 2];
+}
+
+// The angle between the board's normal and the ray to the observed corners' centre, from IPPE
+// on normalised image points; nullopt when no pose can be had.
+std::optional<double> tiltDeg(const CalibrationTarget& target, const std::vector<Corner>& corners,
+                              const CameraModel& camera) {
+    if (corners.size() < 4)
+        return std::nullopt;
+    const std::vector<Vector3d> points = target.points();
+    std::vector<cv::Point3d> obj;
+    std::vector<cv::Point2d> img;
+    Vector3d centre = Vector3d::Zero();
+    for (const Corner& c : corners) {
+        const auto d = camera.unproject(c.pixel);
+        if (!d || d->z() <= 1e-9 || c.id < 0 || static_cast<size_t>(c.id) >= points.size())
+            continue;
+        const Vector3d& p = points[static_cast<size_t>(c.id)];
+        obj.emplace_back(p.x(), p.y(), p.z());
+        img.emplace_back(d->x() / d->z(), d->y() / d->z());
+        centre += p;
+    }
+    if (obj.size() < 4)
+        return std::nullopt;
+    centre /= static_cast<double>(obj.size());
+    cv::Mat rvec, tvec;
+    try {
+        if (!cv::solvePnP(obj, img, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec, false,
+                          cv::SOLVEPNP_IPPE))
+            return std::nullopt;
+    } catch (const cv::Exception&) {
+        return std::nullopt;
+    }
+    cv::Mat R;
+    cv::Rodrigues(rvec, R);
+    const Vector3d n(R.at<double>(0, 2), R.at<double>(1, 2), R.at<double>(2, 2));
+    const Vector3d t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+    Eigen::Matrix3d Re;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            Re(i, j) = R.at<double>(i, j);
+    const Vector3d ray = Re * centre + t;
+    if (ray.norm() <= 0)
+        return std::nullopt;
+    const double c = std::min(1.0, std::abs(n.dot(ray.normalized())));
+    return std::acos(c) * 180 / M_PI;
+}
+
+// Saddle-point refinement of chessboard corners (X-junctions). Blurring an X-junction, and
+// the camera's tone curve, keep it symmetric under a half turn about the junction, so the
+// junction is a critical point of the blurred image: a quadratic fitted over a window centred
+// on the estimate has its saddle there, exactly for a straight-edged junction. Iterated until
+// the window is centred. Corners whose fit is no saddle or wanders off keep their position.
+void refineSaddles(const cv::Mat& grey, std::vector<Corner>& corners, int radius) {
+    cv::Mat f;
+    grey.convertTo(f, CV_32F);
+    cv::GaussianBlur(f, f, cv::Size(0, 0), 1.0);
+    const auto sample = [&](double x, double y) {
+        const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+        const double ax = x - x0, ay = y - y0;
+        const float* r0 = f.ptr<float>(y0);
+        const float* r1 = f.ptr<float>(y0 + 1);
+        return (1 - ay) * ((1 - ax) * r0[x0] + ax * r0[x0 + 1]) +
+               ay * ((1 - ax) * r1[x0] + ax * r1[x0 + 1]);
+    };
+    for (Corner& c : corners) {
+        Vector2d p = c.pixel;
+        bool ok = true;
+        for (int iter = 0; iter < 8 && ok; ++iter) {
+            if (p.x() - radius < 0 || p.y() - radius < 0 || p.x() + radius + 1 >= f.cols ||
+                p.y() + radius + 1 >= f.rows) {
+                ok = false;
+                break;
+            }
+            // Least squares of v = a x² + b xy + c y² + d x + e y + g, Gaussian-weighted.
+            Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+            Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+            const double s2 = 2.0 * (0.5 * radius + 0.5) * (0.5 * radius + 0.5);
+            for (int j = -radius; j <= radius; ++j)
+                for (int i = -radius; i <= radius; ++i) {
+                    const double w = std::exp(-(i * i + j * j) / s2);
+                    Eigen::Matrix<double, 6, 1> m;
+                    m << i * i, i * j, j * j, i, j, 1;
+                    A += w * m * m.transpose();
+                    rhs += w * m * sample(p.x() + i, p.y() + j);
+                }
+            const Eigen::Matrix<double, 6, 1> q = A.ldlt().solve(rhs);
+            Eigen::Matrix2d H;
+            H << 2 * q[0], q[1], q[1], 2 * q[2];
+            if (H.determinant() >= 0) {  // no saddle
+                ok = false;
+                break;
+            }
+            const Vector2d step = -H.inverse() * Vector2d(q[3], q[4]);
+            if (!step.allFinite() || step.norm() > radius) {
+                ok = false;
+                break;
+            }
+            p += step;
+            if (step.norm() < 1e-3)
+                break;
+        }
+        if (ok && (p - c.pixel).norm() <= radius)
+            c.pixel = p;
+    }
+}
+
+// The window of refineSaddles(): a radius of 12 % of the corner spacing, which stays clear of
+// ChArUco's markers (13 % of a square from the corners on common boards), 2 to 4 px.
+int saddleRadius(const std::vector<Corner>& corners) {
+    return std::clamp(static_cast<int>(0.12 * cornerSpacing(corners)), 2, 4);
+}
+
+// OpenCV's sector-based detector, or where it finds nothing (one of the 13 left*.jpg) the
+// classic one, then the saddle fit: on synthetic boards findChessboardCornersSB is off by up to
+// 0.47 px at 50° tilt, findChessboardCorners + cornerSubPix by up to 0.25 px at 20–35°, the saddle
+// fit by less than 0.11 px (tests/calibration/detect_test.cpp).
+std::vector<Corner> findChessboard(const cv::Mat& grey, const CalibrationTarget& target) {
+    std::vector<cv::Point2f> found;
+    std::vector<Corner> out;
+    const cv::Size size(target.cols, target.rows);
+    try {
+        if (!cv::findChessboardCornersSB(grey, size, found,
+                                         cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY) &&
+            !cv::findChessboardCorners(grey, size, found,
+                                       cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE))
+            return out;
+    } catch (const cv::Exception&) {
+        return out;
+    }
+    if (found.size() != static_cast<size_t>(target.cols * target.rows))
+        return out;
+    for (size_t i = 0; i < found.size(); ++i)
+        out.push_back({static_cast<int>(i), Vector2d(found[i].x, found[i].y), 1.0});
+    refineSaddles(grey, out, saddleRadius(out));
+    return out;
+}
+
+// Markers of `dictionary`; when `expected` is not reached and `upsample` is set, a second pass
+// on the image upsampled 2× (cubic) finds markers too small for the first, and the pass with
+// more markers is kept (corners mapped back about pixel centres). The corners are refined on
+// the original image afterwards.
+Result<std::vector<MarkerDetection>> findMarkers(const cv::Mat& grey, std::string_view dictionary,
+                                                 const DetectorOptions& options, size_t expected,
+                                                 bool upsample) {
+    auto found = detectMarkers(viewOf(grey), dictionary, options);
+    if (!found || !upsample || found->size() >= expected)
+        return found;
+    cv::Mat big;
+    cv::resize(grey, big, cv::Size(), 2, 2, cv::INTER_CUBIC);
+    auto more = detectMarkers(viewOf(big), dictionary, options);
+    if (!more || more->size() <= found->size())
+        return found;
+    const Vector2d half(0.5, 0.5);
+    for (MarkerDetection& m : *more)
+        for (Vector2d& c : m.corners)
+            c = (c + half) / 2 - half;
+    return more;
+}
+
+Result<std::vector<Corner>> findCharuco(const cv::Mat& grey, const CalibrationTarget& target,
+                                        const DetectionOptions& options, size_t& marker_count) {
+    auto found = findMarkers(grey, target.dictionary, options.markers,
+                             static_cast<size_t>(target.cols * target.rows / 2),
+                             options.upsample_small_markers);
+    if (!found)
+        return found.status();
+    marker_count = found->size();
+    const CharucoBoardSpec spec{target.cols,     target.rows,       target.square_m,
+                                target.marker_m, target.dictionary, 0};
+    auto corners = charucoCorners(viewOf(grey), spec, *found);
+    if (!corners)
+        return corners.status();
+    // interpolateCornersCharuco's cornerSubPix is off by up to 0.35 px on synthetic boards; the
+    // saddle fit by up to 0.11 px.
+    if (corners->size() >= 2)
+        refineSaddles(grey, *corners, saddleRadius(*corners));
+    return corners;
+}
+
+// Kalibr's AprilGrid point ids for each tag found (target.h).
+Result<std::vector<Corner>> findAprilGrid(const cv::Mat& grey, const CalibrationTarget& target,
+                                          const DetectionOptions& options, size_t& marker_count) {
+    // Kalibr prints the grid's tag36h11 tags with a two-cell border.
+    auto found =
+        findMarkers(grey, "apriltag:tag36h11b2", options.markers,
+                    static_cast<size_t>(target.cols * target.rows), options.upsample_small_markers);
+    if (!found)
+        return found.status();
+    marker_count = found->size();
+    const int tags = target.cols * target.rows;
+    std::map<int, int> seen;  // a tag id twice: a stray tag beside the grid, both left out
+    for (const MarkerDetection& m : *found)
+        ++seen[m.id];
+    std::vector<Corner> out;
+    const int row = 2 * target.cols;
+    for (const MarkerDetection& m : *found) {
+        if (m.id < 0 || m.id >= tags || seen[m.id] != 1)
+            continue;
+        const int base = (m.id / target.cols) * 2 * row + (m.id % target.cols) * 2;
+        // libapriltag's p[0..3] (lower-left, lower-right, upper-right, upper-left as printed)
+        // are MarkerDetection's corners[1], [0], [3], [2].
+        const std::array<std::pair<int, size_t>, 4> ids = {
+            {{base, 1}, {base + 1, 0}, {base + row + 1, 3}, {base + row, 2}}};
+        for (const auto& [id, k] : ids)
+            out.push_back({id, m.corners[k], 1.0});
+    }
+    std::sort(out.begin(), out.end(), [](const Corner& a, const Corner& b) { return a.id < b.id; });
+    // Kalibr's squares in the gaps make every tag corner an X-junction (its reason for them).
+    if (out.size() >= 2)
+        refineSaddles(grey, out, saddleRadius(out));
+    return out;
+}
+
+CameraModel roughCamera(int width, int height) {
+    CameraModel m;
+    m.width = width;
+    m.height = height;
+    m.fx = m.fy = std::max(width, height);
+    m.cx = 0.5 * (width - 1);
+    m.cy = 0.5 * (height - 1);
+    return m;
+}
+
+}  // namespace
+
+Status DetectionOptions::validate() const {
+    if (!(min_point_fraction >= 0 && min_point_fraction <= 1))
+        return {
+            ErrorCode::kInvalidArgument,
+            "detection.min_point_fraction must be in [0, 1], got " + fmt(3, min_point_fraction)};
+    if (!(max_edge_blur_px >= 0) || !std::isfinite(max_edge_blur_px))
+        return {ErrorCode::kInvalidArgument, "detection.max_edge_blur_px must be >= 0"};
+    if (!(max_tilt_deg >= 0 && max_tilt_deg <= 90))
+        return {ErrorCode::kInvalidArgument,
+                "detection.max_tilt_deg must be in [0, 90], got " + fmt(3, max_tilt_deg)};
+    if (max_skew_ns < 0)
+        return {ErrorCode::kInvalidArgument, "detection.max_skew_ns must be >= 0"};
+    if (camera)
+        MIXRAY_RETURN_IF_ERROR(camera->validate());
+    return markers.validate();
+}
+
+Result<TargetView> detectTarget(const ImageView& image, const CalibrationTarget& target,
+                                const DetectionOptions& options) {
+    MIXRAY_RETURN_IF_ERROR(target.validate());
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    if (options.camera &&
+        (options.camera->width != image.desc.width || options.camera->height != image.desc.height))
+        return Status(ErrorCode::kInvalidArgument,
+                      "detection.camera is " + std::to_string(options.camera->width) + "x" +
+                          std::to_string(options.camera->height) + ", the image " +
+                          std::to_string(image.desc.width) + "x" +
+                          std::to_string(image.desc.height));
+    auto grey = greyOf(image);
+    if (!grey)
+        return grey.status();
+    TargetView view;
+    size_t markers = 0;
+    switch (target.kind) {
+        case TargetKind::kChessboard:
+            view.corners = findChessboard(*grey, target);
+            break;
+        case TargetKind::kCharuco: {
+            auto found = findCharuco(*grey, target, options, markers);
+            if (!found)
+                return found.status();
+            view.corners = std::move(found).value();
+            break;
+        }
+        case TargetKind::kAprilGrid: {
+            auto found = findAprilGrid(*grey, target, options, markers);
+            if (!found)
+                return found.status();
+            view.corners = std::move(found).value();
+            break;
+        }
+    }
+    const int total = target.pointCount();
+    if (view.corners.empty()) {
+        view.rejection = ViewRejection::kNoTarget;
+        view.why = target.kind == TargetKind::kChessboard
+                       ? "no " + std::to_string(target.cols) + "x" + std::to_string(target.rows) +
+                             " chessboard found"
+                       : "no corners found (" + std::to_string(markers) + " markers of " +
+                             target.dictionary + " seen)";
+        return view;
+    }
+    const double fraction = static_cast<double>(view.corners.size()) / total;
+    if (fraction < options.min_point_fraction) {
+        view.rejection = ViewRejection::kPartialTarget;
+        view.why = std::to_string(view.corners.size()) + " of " + std::to_string(total) +
+                   " points (" + fmt(0, 100 * fraction) + " %) < " +
+                   fmt(0, 100 * options.min_point_fraction) + " %";
+        return view;
+    }
+    if (options.max_edge_blur_px > 0) {
+        const double blur = edgeBlurPx(*grey, view.corners);
+        if (blur > options.max_edge_blur_px) {
+            view.rejection = ViewRejection::kBlurred;
+            view.why =
+                "edge blur " + fmt(1, blur) + " px > " + fmt(1, options.max_edge_blur_px) + " px";
+            return view;
+        }
+    }
+    if (options.max_tilt_deg > 0) {
+        const CameraModel camera =
+            options.camera ? *options.camera : roughCamera(image.desc.width, image.desc.height);
+        const auto tilt = tiltDeg(target, view.corners, camera);
+        if (tilt && *tilt > options.max_tilt_deg) {
+            view.rejection = ViewRejection::kTooOblique;
+            view.why = "board tilted " + fmt(0, *tilt) + "° from the view, > " +
+                       fmt(0, options.max_tilt_deg) + "°";
+            return view;
+        }
+    }
+    return view;
+}
+
+Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
+                                   const CalibrationTarget& target, const std::string& pattern,
+                                   const DetectionOptions& options,
+                                   const ProgressCallback& progress) {
+    MIXRAY_RETURN_IF_ERROR(target.validate());
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    std::error_code ec;
+    if (!std::filesystem::is_directory(folder, ec))
+        return Status(ErrorCode::kNotFound, folder.string() + ": no such folder");
+    std::vector<std::filesystem::path> files;
+    for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
+        const std::string name = entry.path().filename().string();
+        if (entry.is_regular_file(ec) && fnmatch(pattern.c_str(), name.c_str(), 0) == 0)
+            files.push_back(entry.path());
+    }
+    if (ec)
+        return Status(ErrorCode::kNotFound, folder.string() + ": " + ec.message());
+    if (files.empty())
+        return Status(ErrorCode::kNotFound,
+                      folder.string() + ": no file matches '" + pattern + "'");
+    std::sort(files.begin(), files.end());
+    CameraViews out;
+    out.camera = folder.filename().empty() ? folder.parent_path().filename().string()
+                                           : folder.filename().string();
+    out.target = target;
+    for (size_t i = 0; i < files.size(); ++i) {
+        TargetView view;
+        view.source = files[i].string();
+        view.key = static_cast<int64_t>(i);
+        cv::Mat img;
+        try {
+            img = cv::imread(files[i].string(), cv::IMREAD_UNCHANGED);
+        } catch (const cv::Exception&) {
+            img.release();
+        }
+        if (!img.empty() && img.channels() == 4)
+            cv::cvtColor(img, img,
+                         img.depth() == CV_16U ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGRA2BGR);
+        if (!img.empty() && img.depth() == CV_16U && img.channels() == 3)
+            cv::cvtColor(img, img, cv::COLOR_BGR2GRAY);
+        PixelFormat format = PixelFormat::kUnknown;
+        if (!img.empty() && img.depth() == CV_8U)
+            format = img.channels() == 1 ? PixelFormat::kMono8 : PixelFormat::kBGR8;
+        else if (!img.empty() && img.depth() == CV_16U && img.channels() == 1)
+            format = PixelFormat::kMono16;
+        if (format == PixelFormat::kUnknown) {
+            view.rejection = ViewRejection::kUnreadable;
+            view.why = img.empty() ? "not an image OpenCV can read"
+                                   : "unsupported sample type (" + std::to_string(img.depth()) +
+                                         ", " + std::to_string(img.channels()) + " channels)";
+        } else if (out.width != 0 && (img.cols != out.width || img.rows != out.height)) {
+            view.rejection = ViewRejection::kWrongSize;
+            view.why = std::to_string(img.cols) + "x" + std::to_string(img.rows) +
+                       ", the camera's other images are " + std::to_string(out.width) + "x" +
+                       std::to_string(out.height);
+        } else {
+            out.width = img.cols;
+            out.height = img.rows;
+            ImageView v;
+            v.desc = ImageDesc{format, img.cols, img.rows, static_cast<int>(img.step[0])};
+            v.data = img.data;
+            v.size_bytes = img.step[0] * static_cast<size_t>(img.rows);
+            DetectionOptions o = options;
+            if (o.camera && (o.camera->width != img.cols || o.camera->height != img.rows))
+                o.camera.reset();
+            auto found = detectTarget(v, target, o);
+            if (!found)
+                return found.status().withContext(view.source);
+            found->source = view.source;
+            found->key = view.key;
+            view = std::move(found).value();
+        }
+        out.views.push_back(std::move(view));
+        if (progress)
+            progress(static_cast<double>(i + 1) / static_cast<double>(files.size()),
+                     files[i].filename().string());
+    }
+    return out;
+}
+
+Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& recording,
+                                                   const CalibrationTarget& target,
+                                                   const DetectionOptions& options,
+                                                   const ProgressCallback& progress) {
+    MIXRAY_RETURN_IF_ERROR(target.validate());
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    const auto usable = [](PixelFormat f) {
+        switch (f) {
+            case PixelFormat::kMono8:
+            case PixelFormat::kRGB8:
+            case PixelFormat::kBGR8:
+            case PixelFormat::kMono16:
+            case PixelFormat::kIR16:
+            case PixelFormat::kMJPEG:
+            case PixelFormat::kNV12:
+            case PixelFormat::kYUYV:
+                return true;
+            default:
+                return false;
+        }
+    };
+    const auto next = [](RecordingReader& reader) -> Result<FrameRef> {
+        // Every frame is released before the next is read, so a stream never runs out of
+        // buffers; kUnavailable twice in a row is the reader's fault, not a wait.
+        auto frame = reader.next();
+        if (!frame && frame.status().code() == ErrorCode::kUnavailable)
+            frame = reader.next();
+        return frame;
+    };
+    size_t total = 0;
+    {
+        // A first pass counts the image frames, so that progress is a fraction.
+        auto reader = openMkv(recording);
+        if (!reader)
+            return reader.status();
+        const auto& streams = (*reader)->streams();
+        while (true) {
+            auto frame = next(**reader);
+            if (!frame) {
+                if (frame.status().code() == ErrorCode::kEndOfStream)
+                    break;
+                return frame.status().withContext(recording.string());
+            }
+            const StreamId s = frame->meta().stream;
+            if (s < streams.size() && usable(streams[s].format.format))
+                ++total;
+        }
+    }
+    auto reader = openMkv(recording);
+    if (!reader)
+        return reader.status();
+    const std::vector<StreamInfo>& streams = (*reader)->streams();
+    std::vector<CameraViews> out;
+    std::map<StreamId, size_t> index;
+    for (StreamId s = 0; s < streams.size(); ++s) {
+        if (!usable(streams[s].format.format))
+            continue;
+        index[s] = out.size();
+        CameraViews cv;
+        cv.camera = streams[s].name;
+        cv.width = streams[s].format.width;
+        cv.height = streams[s].format.height;
+        cv.target = target;
+        out.push_back(std::move(cv));
+    }
+    if (out.empty())
+        return Status(ErrorCode::kNotFound, recording.string() + ": no image stream");
+    const std::string name = recording.filename().string();
+    int64_t key = -1, key_start_ns = 0;
+    std::set<StreamId> in_key;
+    size_t done = 0;
+    while (true) {
+        auto frame = next(**reader);
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kEndOfStream)
+                break;
+            return frame.status().withContext(recording.string());
+        }
+        const FrameMetadata meta = frame->meta();
+        const auto it = index.find(meta.stream);
+        if (it == index.end())
+            continue;
+        if (key < 0 || meta.host_stamp_ns - key_start_ns > options.max_skew_ns ||
+            in_key.count(meta.stream)) {
+            ++key;
+            key_start_ns = meta.host_stamp_ns;
+            in_key.clear();
+        }
+        in_key.insert(meta.stream);
+        CameraViews& cam = out[it->second];
+        TargetView view;
+        view.source = name + "#" + cam.camera + "@" + std::to_string(meta.sequence);
+        view.key = key;
+        const ImageView img = frame->image();
+        cv::Mat decoded;
+        ImageView use = img;
+        try {
+            if (img.desc.format == PixelFormat::kMJPEG) {
+                decoded = cv::imdecode(cv::Mat(1, static_cast<int>(img.size_bytes), CV_8U,
+                                               const_cast<uint8_t*>(img.data)),
+                                       cv::IMREAD_GRAYSCALE);
+                use = decoded.empty() ? ImageView{} : viewOf(decoded);
+            } else if (img.desc.format == PixelFormat::kNV12 ||
+                       img.desc.format == PixelFormat::kYUYV) {
+                // Luma only: the Y plane of NV12, every other byte of YUYV.
+                const bool nv12 = img.desc.format == PixelFormat::kNV12;
+                const size_t need = static_cast<size_t>(img.desc.stride_bytes) *
+                                    static_cast<size_t>(img.desc.height);
+                if (img.data && img.size_bytes >= need && img.desc.width > 0) {
+                    decoded = cv::Mat(img.desc.height, img.desc.width, CV_8U);
+                    for (int y = 0; y < img.desc.height; ++y) {
+                        const uint8_t* src = img.row<uint8_t>(y);
+                        uint8_t* dst = decoded.ptr<uint8_t>(y);
+                        for (int x = 0; x < img.desc.width; ++x)
+                            dst[x] = nv12 ? src[x] : src[2 * x];
+                    }
+                    use = viewOf(decoded);
+                } else {
+                    use = ImageView{};
+                }
+            }
+        } catch (const cv::Exception&) {
+            use = ImageView{};
+        }
+        if (meta.status == FrameStatus::kCorrupt || !use.data) {
+            view.rejection = ViewRejection::kUnreadable;
+            view.why = meta.status == FrameStatus::kCorrupt ? "frame marked corrupt"
+                                                            : "frame could not be decoded";
+        } else if (use.desc.width != cam.width || use.desc.height != cam.height) {
+            view.rejection = ViewRejection::kWrongSize;
+            view.why = std::to_string(use.desc.width) + "x" + std::to_string(use.desc.height) +
+                       ", the stream's " + std::to_string(cam.width) + "x" +
+                       std::to_string(cam.height);
+        } else {
+            DetectionOptions o = options;
+            if (o.camera && (o.camera->width != cam.width || o.camera->height != cam.height))
+                o.camera.reset();
+            auto found = detectTarget(use, target, o);
+            if (!found)
+                return found.status().withContext(view.source);
+            found->source = view.source;
+            found->key = view.key;
+            view = std::move(found).value();
+        }
+        cam.views.push_back(std::move(view));
+        ++done;
+        if (progress)
+            progress(total ? std::min(1.0, static_cast<double>(done) / total) : 1.0,
+                     cam.views.back().source);
+    }
+    return out;
+}
+
+}  // namespace mixray::calibration
