@@ -1,5 +1,6 @@
 // Lens models: names, validation, projection and unprojection (pinhole+OpenCV distortion,
-// Kannala–Brandt fish-eye), matching cv::projectPoints and cv::fisheye::projectPoints.
+// Kannala–Brandt fish-eye), matching cv::projectPoints and cv::fisheye::projectPoints; mrcal's
+// stereographic and splined stereographic models through mrcal_project/mrcal_unproject.
 #include "mixray/calibration/camera_model.h"
 
 #include <Eigen/Dense>
@@ -7,6 +8,8 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+
+#include "mrcal_lens.h"
 
 namespace mixray::calibration {
 
@@ -24,6 +27,8 @@ constexpr int kMaxIterations = 100;
 // Convergence threshold on the reprojection residual, in pixels: far below the 1e-6 px the
 // header promises, and well above double rounding noise for images up to ~10^4 px.
 constexpr double kResidualTolerancePx = 1e-9;
+// How close mrcal_unproject()'s ray must reproject onto its pixel: the header's promise.
+constexpr double kUnprojectCheckPx = 1e-6;
 
 double coefficient(const std::vector<double>& d, size_t i) {
     return i < d.size() ? d[i] : 0.0;
@@ -173,10 +178,105 @@ std::optional<double> solveFisheyeTheta(const FisheyeCoefficients& c, double the
     return std::nullopt;
 }
 
+// ---- mrcal's stereographic models ----
+
+// Where a splined model's control points define it, in stereographic u (mrcal's
+// _splined_stereographic_domain()): cubic splines one knot in from the outermost, quadratic
+// ones half a segment; beyond it mrcal extrapolates the outermost polynomial segment.
+struct SplineDomain {
+    double x0, x1, y0, y1;
+    bool contains(const Eigen::Vector2d& u) const {
+        return u.x() >= x0 && u.x() <= x1 && u.y() >= y0 && u.y() <= y1;
+    }
+};
+
+SplineDomain splineDomain(const mrcal_lensmodel_t& lens, const SplineConfig& c) {
+    std::vector<double> ux(static_cast<size_t>(c.nx)), uy(static_cast<size_t>(c.ny));
+    mrcal_knots_for_splined_models(ux.data(), uy.data(), &lens);
+    const size_t nx = ux.size(), ny = uy.size();
+    if (c.order == 3)
+        return {ux[1], ux[nx - 2], uy[1], uy[ny - 2]};
+    return {0.5 * (ux[0] + ux[1]), 0.5 * (ux[nx - 2] + ux[nx - 1]), 0.5 * (uy[0] + uy[1]),
+            0.5 * (uy[ny - 2] + uy[ny - 1])};
+}
+
+// The stereographic u of a direction; nullopt straight back (and for the zero vector).
+std::optional<Eigen::Vector2d> stereographicU(const Eigen::Vector3d& p) {
+    const double denominator = p.norm() + p.z();
+    if (!(denominator > 0))
+        return std::nullopt;
+    return Eigen::Vector2d(2 * p.x() / denominator, 2 * p.y() / denominator);
+}
+
+bool insideMrcalDomain(const CameraModel& m, const mrcal_lensmodel_t& lens,
+                       const Eigen::Vector3d& p) {
+    const std::optional<Eigen::Vector2d> u = stereographicU(p);
+    if (!u)
+        return false;
+    return m.lens != LensModel::kSplinedStereographic || splineDomain(lens, m.spline).contains(*u);
+}
+
+std::optional<Eigen::Vector2d> projectMrcal(const CameraModel& m, const Eigen::Vector3d& p) {
+    const std::optional<mrcal_lensmodel_t> lens = detail::mrcalLensModel(m);
+    if (!lens || !p.allFinite() || !insideMrcalDomain(m, *lens, p))
+        return std::nullopt;
+    const std::vector<double> intrinsics = detail::mrcalIntrinsics(m);
+    if (intrinsics.size() != static_cast<size_t>(mrcal_lensmodel_num_params(&*lens)))
+        return std::nullopt;
+    mrcal_point3_t point;
+    point.x = p.x();
+    point.y = p.y();
+    point.z = p.z();
+    mrcal_point2_t q;
+    if (!mrcal_project(&q, nullptr, nullptr, &point, 1, &*lens, intrinsics.data()))
+        return std::nullopt;
+    const Eigen::Vector2d pixel(q.x, q.y);
+    if (!pixel.allFinite())
+        return std::nullopt;
+    return pixel;
+}
+
+std::optional<Eigen::Vector3d> unprojectMrcal(const CameraModel& m, const Eigen::Vector2d& pixel) {
+    const std::optional<mrcal_lensmodel_t> lens = detail::mrcalLensModel(m);
+    if (!lens)
+        return std::nullopt;
+    const std::vector<double> intrinsics = detail::mrcalIntrinsics(m);
+    if (intrinsics.size() != static_cast<size_t>(mrcal_lensmodel_num_params(&*lens)))
+        return std::nullopt;
+    mrcal_point2_t q;
+    q.x = pixel.x();
+    q.y = pixel.y();
+    mrcal_point3_t v;
+    if (!mrcal_unproject(&v, &q, 1, &*lens, intrinsics.data()))
+        return std::nullopt;
+    Eigen::Vector3d ray(v.x, v.y, v.z);
+    if (!ray.allFinite() || !(ray.norm() > 0))
+        return std::nullopt;
+    ray.normalize();
+    if (!insideMrcalDomain(m, *lens, ray))
+        return std::nullopt;
+    // mrcal's solver stops at its own tolerance, and for pixels the spline cannot reach it
+    // returns its best effort: only rays that reproject onto the pixel are the pixel's ray.
+    const std::optional<Eigen::Vector2d> back = projectMrcal(m, ray);
+    if (!back || (*back - pixel).norm() > kUnprojectCheckPx)
+        return std::nullopt;
+    return ray;
+}
+
 }  // namespace
 
 std::string_view toString(LensModel model) {
-    return model == LensModel::kFisheye ? "fisheye" : "pinhole";
+    switch (model) {
+        case LensModel::kPinhole:
+            return "pinhole";
+        case LensModel::kFisheye:
+            return "fisheye";
+        case LensModel::kStereographic:
+            return "stereographic";
+        case LensModel::kSplinedStereographic:
+            return "splined_stereographic";
+    }
+    return "unknown";
 }
 
 std::optional<LensModel> lensModelFromString(std::string_view name) {
@@ -184,7 +284,37 @@ std::optional<LensModel> lensModelFromString(std::string_view name) {
         return LensModel::kPinhole;
     if (name == "fisheye")
         return LensModel::kFisheye;
+    if (name == "stereographic" || name == "LENSMODEL_STEREOGRAPHIC")
+        return LensModel::kStereographic;
+    if (name == "splined_stereographic" || name.starts_with("LENSMODEL_SPLINED_STEREOGRAPHIC_"))
+        return LensModel::kSplinedStereographic;
     return std::nullopt;
+}
+
+std::string toString(const SplineConfig& c) {
+    return "LENSMODEL_SPLINED_STEREOGRAPHIC_order=" + std::to_string(c.order) +
+           "_Nx=" + std::to_string(c.nx) + "_Ny=" + std::to_string(c.ny) +
+           "_fov_x_deg=" + std::to_string(c.fov_x_deg);
+}
+
+std::optional<SplineConfig> splineConfigFromString(std::string_view name) {
+    mrcal_lensmodel_t lens = detail::makeMrcalLensModel(MRCAL_LENSMODEL_INVALID);
+    const std::string terminated(name);
+    if (!mrcal_lensmodel_from_name(&lens, terminated.c_str()) ||
+        lens.type != MRCAL_LENSMODEL_SPLINED_STEREOGRAPHIC)
+        return std::nullopt;
+    const auto& config = lens.LENSMODEL_SPLINED_STEREOGRAPHIC__config;
+    const SplineConfig parsed{config.order, config.Nx, config.Ny, config.fov_x_deg};
+    // mrcal's scanf-based parser accepts trailing text; the name must be exactly the model's.
+    if (toString(parsed) != name)
+        return std::nullopt;
+    return parsed;
+}
+
+std::string CameraModel::lensName() const {
+    if (lens == LensModel::kSplinedStereographic)
+        return toString(spline);
+    return std::string(toString(lens));
 }
 
 CameraModel CameraModel::pinhole(int width, int height, double fx, double fy, double cx,
@@ -227,6 +357,27 @@ Status CameraModel::validate() const {
             return invalid("distortion: fisheye takes 4 coefficients (k1 k2 k3 k4), got " +
                            std::to_string(n));
         }
+    } else if (lens == LensModel::kStereographic) {
+        if (n != 0)
+            return invalid("distortion: stereographic takes none, got " + std::to_string(n));
+    } else if (lens == LensModel::kSplinedStereographic) {
+        const SplineConfig& c = spline;
+        if (c.order != 2 && c.order != 3)
+            return invalid("spline: order must be 2 or 3, got " + std::to_string(c.order));
+        // mrcal needs a segment of support beyond the valid region on each side.
+        if (c.nx < 4 || c.ny < 4 || c.nx > 1000 || c.ny > 1000) {
+            return invalid("spline: Nx and Ny must be in 4..1000, got " + std::to_string(c.nx) +
+                           "x" + std::to_string(c.ny));
+        }
+        if (c.fov_x_deg <= 0 || c.fov_x_deg >= 360)
+            return invalid("spline: fov_x_deg must be in 1..359, got " +
+                           std::to_string(c.fov_x_deg));
+        const size_t expected = 2 * static_cast<size_t>(c.nx) * static_cast<size_t>(c.ny);
+        if (n != expected) {
+            return invalid("distortion: " + toString(c) +
+                           " takes 2*Nx*Ny = " + std::to_string(expected) +
+                           " control-point values, got " + std::to_string(n));
+        }
     } else {
         return invalid("lens: unknown lens model");
     }
@@ -236,6 +387,8 @@ Status CameraModel::validate() const {
 }
 
 std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam) const {
+    if (lens == LensModel::kStereographic || lens == LensModel::kSplinedStereographic)
+        return projectMrcal(*this, p_cam);
     if (lens == LensModel::kFisheye) {
         const FisheyeCoefficients c = fisheyeCoefficients(distortion);
         const double rho = std::hypot(p_cam.x(), p_cam.y());
@@ -274,6 +427,8 @@ std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam
 std::optional<Eigen::Vector3d> CameraModel::unproject(const Eigen::Vector2d& pixel) const {
     if (!(fx > 0) || !(fy > 0) || !pixel.allFinite())
         return std::nullopt;
+    if (lens == LensModel::kStereographic || lens == LensModel::kSplinedStereographic)
+        return unprojectMrcal(*this, pixel);
     const Eigen::Vector2d target((pixel.x() - cx) / fx, (pixel.y() - cy) / fy);
     // Residual tolerance in normalised units, from the pixel tolerance and the larger focal
     // length (the one that magnifies errors most).

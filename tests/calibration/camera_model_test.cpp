@@ -1,15 +1,21 @@
-// CameraModel: projection against OpenCV, project/unproject round trips, validate() and scaled().
+// CameraModel: projection against OpenCV and mrcal, project/unproject round trips, validate(),
+// scaled() and the YAML form.
 #include "mixray/calibration/camera_model.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
+
+#include "mixray/calibration/camera_model_yaml.h"
+#include "mrcal_format.h"
+#include "test_data.h"
 
 namespace mixray::calibration {
 namespace {
@@ -341,6 +347,179 @@ TEST(CameraModelTest, ScaledKeepsRaysThroughScaledPixels) {
     EXPECT_DOUBLE_EQ(half.cy, 119.5);
     EXPECT_EQ(half.width, 320);
     EXPECT_EQ(half.height, 240);
+}
+
+// ---- mrcal's stereographic and splined stereographic lenses ----
+
+CameraModel stereographic() {
+    CameraModel m = CameraModel::pinhole(1024, 768, 400, 402, 511.5, 383.5);
+    m.lens = LensModel::kStereographic;
+    return m;
+}
+
+// A wide splined lens with a smooth, non-trivial correction field.
+CameraModel splined() {
+    CameraModel m = stereographic();
+    m.lens = LensModel::kSplinedStereographic;
+    m.spline = {3, 12, 10, 170};
+    for (int y = 0; y < m.spline.ny; ++y) {
+        for (int x = 0; x < m.spline.nx; ++x) {
+            m.distortion.push_back(0.01 * std::sin(0.7 * x + 0.3 * y));
+            m.distortion.push_back(-0.008 * std::cos(0.4 * x - 0.5 * y));
+        }
+    }
+    return m;
+}
+
+std::filesystem::path mrcalData(const char* name) {
+    return test::sharedDataDir() / "04_mrcal" / name;
+}
+
+TEST(CameraModelTest, MrcalLensNamesRoundTrip) {
+    EXPECT_EQ(toString(LensModel::kStereographic), "stereographic");
+    EXPECT_EQ(toString(LensModel::kSplinedStereographic), "splined_stereographic");
+    EXPECT_EQ(lensModelFromString("stereographic"), LensModel::kStereographic);
+    EXPECT_EQ(lensModelFromString("LENSMODEL_STEREOGRAPHIC"), LensModel::kStereographic);
+    const CameraModel m = splined();
+    EXPECT_EQ(m.lensName(), "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=10_fov_x_deg=170");
+    EXPECT_EQ(lensModelFromString(m.lensName()), LensModel::kSplinedStereographic);
+    EXPECT_EQ(splineConfigFromString(m.lensName()), m.spline);
+    EXPECT_EQ(stereographic().lensName(), "stereographic");
+    EXPECT_FALSE(
+        splineConfigFromString("LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12").has_value());
+    EXPECT_FALSE(splineConfigFromString(m.lensName() + "_extra").has_value());
+    EXPECT_FALSE(splineConfigFromString("LENSMODEL_OPENCV8").has_value());
+}
+
+TEST(CameraModelTest, MrcalLensesValidate) {
+    EXPECT_TRUE(stereographic().validate().isOk());
+    EXPECT_TRUE(splined().validate().isOk()) << splined().validate().toString();
+    CameraModel m = stereographic();
+    m.distortion = {0.1};
+    EXPECT_NE(m.validate().message().find("distortion"), std::string::npos);
+    m = splined();
+    m.distortion.pop_back();
+    EXPECT_NE(m.validate().message().find("240"), std::string::npos) << m.validate().message();
+    m = splined();
+    m.spline.order = 4;
+    EXPECT_NE(m.validate().message().find("order"), std::string::npos);
+    m = splined();
+    m.spline.fov_x_deg = 0;
+    EXPECT_NE(m.validate().message().find("fov_x_deg"), std::string::npos);
+    m = splined();
+    m.spline.nx = 2;
+    EXPECT_NE(m.validate().message().find("Nx"), std::string::npos);
+}
+
+TEST(CameraModelTest, StereographicRoundTripWholeImage) {
+    expectRoundTrip(stereographic(), /*require_all=*/true);
+    expectRoundTrip(splined(), /*require_all=*/true);
+}
+
+TEST(CameraModelTest, MrcalCam0RoundTripWholeImage) {
+    MIXRAY_REQUIRE_SHARED_DATA(mrcalData("cam0.splined.cameramodel"));
+    for (const char* name : {"cam0.splined.cameramodel", "cam0.opencv8.cameramodel"}) {
+        SCOPED_TRACE(name);
+        auto camera = detail::readMrcalCameramodel(mrcalData(name));
+        ASSERT_TRUE(camera.isOk()) << camera.status().toString();
+        expectRoundTrip(camera->model, /*require_all=*/true);
+    }
+}
+
+TEST(CameraModelTest, MrcalLensesAgreeWithMrcalsMeasuredProjections) {
+    MIXRAY_REQUIRE_SHARED_DATA(mrcalData("cam0.splined.cameramodel"));
+    // MANIFEST.md: mrcal 2.2's project([0.1, 0.2, 1]), printed to 5 decimals.
+    const struct {
+        const char* file;
+        Eigen::Vector2d expected;
+    } cases[] = {{"cam0.opencv8.cameramodel", {2141.67015, 1439.34362}},
+                 {"cam1.opencv8.cameramodel", {2140.94643, 1438.82242}},
+                 {"cam0.splined.cameramodel", {2148.73465, 1413.23704}}};
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.file);
+        auto camera = detail::readMrcalCameramodel(mrcalData(c.file));
+        ASSERT_TRUE(camera.isOk()) << camera.status().toString();
+        const auto q = camera->model.project({0.1, 0.2, 1.0});
+        ASSERT_TRUE(q.has_value());
+        EXPECT_NEAR(q->x(), c.expected.x(), 6e-6);
+        EXPECT_NEAR(q->y(), c.expected.y(), 6e-6);
+    }
+}
+
+TEST(CameraModelTest, StereographicSeesBehindTheCamera) {
+    const CameraModel m = stereographic();
+    // 120° off axis: u = 2 tan(60°) along x.
+    const auto behind = m.project({std::sin(120 * kDeg), 0, std::cos(120 * kDeg)});
+    ASSERT_TRUE(behind.has_value());
+    EXPECT_NEAR(behind->x(), 511.5 + 400 * 2 * std::tan(60 * kDeg), 1e-9);
+    EXPECT_FALSE(m.project({0, 0, -1}).has_value());
+    EXPECT_FALSE(m.project({0, 0, 0}).has_value());
+    // The splined lens ends where its control points do: 170° wide, so not 100° off axis.
+    const CameraModel s = splined();
+    EXPECT_TRUE(s.project({std::sin(80 * kDeg), 0, std::cos(80 * kDeg)}).has_value());
+    EXPECT_FALSE(s.project({std::sin(100 * kDeg), 0, std::cos(100 * kDeg)}).has_value());
+}
+
+TEST(CameraModelTest, ScaledIsExactForMrcalLenses) {
+    for (const CameraModel& full : {stereographic(), splined()}) {
+        SCOPED_TRACE(full.lensName());
+        for (double scale : {0.5, 2.0}) {
+            const CameraModel other = full.scaled(scale);
+            EXPECT_EQ(other.spline, full.spline);
+            for (const cv::Point3d& p : randomPoints(50, 1.5, 13)) {
+                const Eigen::Vector3d point(p.x, p.y, p.z);
+                const auto a = full.project(point);
+                const auto b = other.project(point);
+                ASSERT_TRUE(a && b);
+                EXPECT_NEAR(b->x(), (a->x() + 0.5) * scale - 0.5, 1e-9);
+                EXPECT_NEAR(b->y(), (a->y() + 0.5) * scale - 0.5, 1e-9);
+            }
+        }
+    }
+}
+
+TEST(CameraModelTest, YamlRoundTripKeepsEveryLens) {
+    std::vector<CameraModel> models = {pinholeModels()[4].model, fisheyeModels()[0].model,
+                                       stereographic(), splined()};
+    for (const CameraModel& m : models) {
+        SCOPED_TRACE(m.lensName());
+        const std::string text = cameraModelYaml(m);
+        yaml::Reader reader("model.yaml");
+        auto root = reader.load(text, 1 << 20, 16, "a camera model");
+        ASSERT_TRUE(root.isOk()) << root.status().toString();
+        auto back = readCameraModel(reader, *root);
+        ASSERT_TRUE(back.isOk()) << back.status().toString() << "\n" << text;
+        EXPECT_EQ(back->lens, m.lens);
+        EXPECT_EQ(back->spline, m.spline);
+        EXPECT_EQ(back->width, m.width);
+        EXPECT_EQ(back->height, m.height);
+        EXPECT_EQ(back->fx, m.fx);
+        EXPECT_EQ(back->fy, m.fy);
+        EXPECT_EQ(back->cx, m.cx);
+        EXPECT_EQ(back->cy, m.cy);
+        EXPECT_EQ(back->distortion, m.distortion);
+    }
+    // A splined lens without its configuration, or with the wrong number of values, is refused
+    // naming what was expected.
+    yaml::Reader reader("bad.yaml");
+    auto bare = reader.load(
+        "{lens: splined_stereographic, width: 10, height: 10, fx: 1, fy: 1, cx: 0, cy: 0}", 1 << 20,
+        16, "a camera model");
+    ASSERT_TRUE(bare.isOk());
+    auto refused = readCameraModel(reader, *bare);
+    ASSERT_FALSE(refused.isOk());
+    EXPECT_NE(refused.status().message().find("LENSMODEL_SPLINED_STEREOGRAPHIC_order"),
+              std::string::npos)
+        << refused.status().message();
+    auto short_list = reader.load(
+        "{lens: LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=4_Ny=4_fov_x_deg=90, width: 10, "
+        "height: 10, fx: 1, fy: 1, cx: 0, cy: 0, distortion: [0, 0]}",
+        1 << 20, 16, "a camera model");
+    ASSERT_TRUE(short_list.isOk());
+    auto refused_count = readCameraModel(reader, *short_list);
+    ASSERT_FALSE(refused_count.isOk());
+    EXPECT_NE(refused_count.status().message().find("32"), std::string::npos)
+        << refused_count.status().message();
 }
 
 }  // namespace

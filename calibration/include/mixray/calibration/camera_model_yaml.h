@@ -1,6 +1,7 @@
 // Reading and writing camera models in mixray's YAML files (scene files, tracking setups, truth
-// files): {lens: pinhole|fisheye, width, height, fx, fy, cx, cy, distortion: [...]}. Include it
-// from parsers' sources: it brings yaml-cpp's headers.
+// files): {lens: pinhole|fisheye|stereographic|LENSMODEL_SPLINED_STEREOGRAPHIC_order=..., width,
+// height, fx, fy, cx, cy, distortion: [...]}; a splined model's configuration is its lens name.
+// Include it from parsers' sources: it brings yaml-cpp's headers.
 #pragma once
 
 #include <string>

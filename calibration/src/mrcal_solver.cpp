@@ -1,0 +1,429 @@
+// calibrateCamera()'s mrcal back end: the seeded problem solved by mrcal_optimize, staged as
+// mrcal-calibrate-cameras stages it, and the state covariance from mrcal's own Jacobian.
+#include <suitesparse/cholmod.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mrcal_lens.h"
+#include "solve_internal.h"
+
+namespace mixray::calibration::detail {
+namespace {
+
+// calibrate.h promises kFailedPrecondition for solves that do not converge; ErrorCode has no
+// such code (yet), so the closest one it has stands in, named here once.
+constexpr ErrorCode kNotConverged = ErrorCode::kInternal;
+
+// The lens mrcal fits for a CalibrationOptions::model name; nullopt when mrcal lacks it.
+std::optional<mrcal_lensmodel_t> lensForModelName(std::string_view name) {
+    if (name == "opencv4" || name == "LENSMODEL_OPENCV4")
+        return makeMrcalLensModel(MRCAL_LENSMODEL_OPENCV4);
+    if (name == "opencv5" || name == "LENSMODEL_OPENCV5")
+        return makeMrcalLensModel(MRCAL_LENSMODEL_OPENCV5);
+    if (name == "opencv8" || name == "LENSMODEL_OPENCV8")
+        return makeMrcalLensModel(MRCAL_LENSMODEL_OPENCV8);
+    if (name == "stereographic" || name == "LENSMODEL_STEREOGRAPHIC")
+        return makeMrcalLensModel(MRCAL_LENSMODEL_STEREOGRAPHIC);
+    if (const std::optional<SplineConfig> config = splineConfigFromString(name)) {
+        // validate() checks the configuration; the rest of this stand-in only satisfies it.
+        CameraModel model = CameraModel::pinhole(1, 1, 1, 1, 0, 0);
+        model.lens = LensModel::kSplinedStereographic;
+        model.spline = *config;
+        model.distortion.assign(2 * static_cast<size_t>(config->nx) * config->ny, 0.0);
+        if (!model.validate().isOk())
+            return std::nullopt;
+        return mrcalLensModel(model);
+    }
+    return std::nullopt;
+}
+
+// mrcal's calibration object: a W × H grid of points `spacing` apart, point (i, j) (row i,
+// column j) at (j, i, 0)·spacing. mixray's targets put it at `origin` in their own frame.
+struct BoardGrid {
+    int width_n = 0, height_n = 0;
+    double spacing = 0;
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+};
+
+Result<BoardGrid> boardGrid(const CalibrationTarget& target) {
+    BoardGrid grid;
+    grid.spacing = target.square_m;
+    switch (target.kind) {
+        case TargetKind::kChessboard:
+            grid.width_n = target.cols;
+            grid.height_n = target.rows;
+            break;
+        case TargetKind::kCharuco:
+            // OpenCV's ChArUco corner ids run row-major over the inner chessboard corners, the
+            // first one square in from the board's corner.
+            grid.width_n = target.cols - 1;
+            grid.height_n = target.rows - 1;
+            grid.origin = Eigen::Vector3d(target.square_m, target.square_m, 0);
+            break;
+        case TargetKind::kAprilGrid:
+            return Status(ErrorCode::kInvalidArgument,
+                          "mrcal solver: an AprilGrid's corners are not one evenly spaced grid, "
+                          "which mrcal's calibration object must be; use the Ceres solver");
+    }
+    if (grid.width_n < 2 || grid.height_n < 2 || !(grid.spacing > 0)) {
+        return Status(ErrorCode::kInvalidArgument,
+                      "mrcal solver: the target of " + std::to_string(target.cols) + "x" +
+                          std::to_string(target.rows) + " has no grid of at least 2x2 corners");
+    }
+    return grid;
+}
+
+mrcal_pose_t poseFromIsometry(const Eigen::Isometry3d& T) {
+    const Eigen::AngleAxisd aa(T.rotation());
+    const Eigen::Vector3d r = aa.axis() * aa.angle();
+    mrcal_pose_t pose;
+    std::memset(&pose, 0, sizeof pose);
+    for (int k = 0; k < 3; ++k) {
+        pose.r.xyz[k] = r[k];
+        pose.t.xyz[k] = T.translation()[k];
+    }
+    return pose;
+}
+
+Eigen::Isometry3d isometryFromPose(const mrcal_pose_t& pose) {
+    const Eigen::Vector3d r(pose.r.x, pose.r.y, pose.r.z);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    const double angle = r.norm();
+    if (angle > 0)
+        T.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(pose.t.x, pose.t.y, pose.t.z);
+    return T;
+}
+
+mrcal_problem_selections_t selections(bool core, bool distortions, bool regularization) {
+    mrcal_problem_selections_t s;
+    std::memset(&s, 0, sizeof s);
+    s.do_optimize_intrinsics_core = core;
+    s.do_optimize_intrinsics_distortions = distortions;
+    s.do_optimize_extrinsics = false;  // one camera, at the reference
+    s.do_optimize_frames = true;
+    s.do_optimize_calobject_warp = false;  // mixray's boards are flat
+    s.do_apply_regularization = regularization;
+    // calibrateCamera()'s front end rejects outliers itself (CalibrationOptions::outlier_sigma)
+    // and passes them in as negative weights, which mrcal respects.
+    s.do_apply_outlier_rejection = false;
+    return s;
+}
+
+// One camera's board observations in mrcal's arrays.
+struct Problem {
+    BoardGrid grid;
+    int nframes = 0;
+    std::vector<mrcal_observation_board_t> observations;
+    std::vector<mrcal_point3_t> pool;  // nframes × H × W: x, y, weight (< 0: not in the solve)
+    std::vector<mrcal_pose_t> frames;  // T_camera_board per frame, mrcal's board frame
+    int imagersize[2] = {0, 0};
+    mrcal_problem_constants_t constants{-1.0, -1.0};
+
+    mrcal_stats_t optimize(const mrcal_lensmodel_t& lens, std::vector<double>& intrinsics,
+                           mrcal_problem_selections_t s) {
+        return mrcal_optimize(nullptr, 0, nullptr, 0, intrinsics.data(), nullptr, frames.data(),
+                              nullptr, nullptr, 1, 0, nframes, 0, 0, observations.data(), nullptr,
+                              nframes, 0, pool.data(), &lens, imagersize, s, &constants,
+                              grid.spacing, grid.width_n, grid.height_n, false, false);
+    }
+};
+
+bool converged(const mrcal_stats_t& stats) {
+    return std::isfinite(stats.rms_reproj_error__pixels) && stats.rms_reproj_error__pixels >= 0;
+}
+
+// The covariance of the solved state, in calibrate.h's layout, by mrcal's uncertainty model
+// (mrcal docs "Projection uncertainty"): Var(b) = σ² M J_obsᵀ J_obs M with M = (JᵀJ)⁻¹, J
+// including the regularisation rows (which carry no noise), evaluated in mrcal's packed,
+// unitless state b* = D⁻¹ b and unpacked with D. σ is the standard deviation of the solved
+// board residuals over the inliers (mrcal's "observed_pixel_uncertainty" inferred from them).
+Result<Eigen::MatrixXd> stateCovariance(Problem& problem, const mrcal_lensmodel_t& lens,
+                                        const std::vector<double>& intrinsics,
+                                        mrcal_problem_selections_t s, size_t nintrinsics_full) {
+    const int nframes = problem.nframes;
+    const int W = problem.grid.width_n, H = problem.grid.height_n;
+    const int nstate = mrcal_num_states(1, 0, nframes, 0, 0, nframes, s, &lens);
+    const int nmeasurements =
+        mrcal_num_measurements(nframes, 0, W, H, 1, 0, nframes, 0, 0, s, &lens);
+    const int nboard = mrcal_num_measurements_boards(nframes, W, H);
+    const int nnonzero = _mrcal_num_j_nonzero(nframes, 0, W, H, 1, 0, nframes, 0, 0,
+                                              problem.observations.data(), nullptr, s, &lens);
+
+    std::vector<double> b_packed(static_cast<size_t>(nstate));
+    std::vector<double> x(static_cast<size_t>(nmeasurements));
+    std::vector<int> Jp(static_cast<size_t>(nmeasurements) + 1), Ji(static_cast<size_t>(nnonzero));
+    std::vector<double> Jx(static_cast<size_t>(nnonzero));
+    cholmod_sparse Jt;
+    std::memset(&Jt, 0, sizeof Jt);
+    Jt.nrow = static_cast<size_t>(nstate);
+    Jt.ncol = static_cast<size_t>(nmeasurements);
+    Jt.nzmax = static_cast<size_t>(nnonzero);
+    Jt.p = Jp.data();
+    Jt.i = Ji.data();
+    Jt.x = Jx.data();
+    Jt.stype = 0;
+    Jt.itype = CHOLMOD_INT;
+    Jt.xtype = CHOLMOD_REAL;
+    Jt.dtype = CHOLMOD_DOUBLE;
+    Jt.sorted = 1;
+    Jt.packed = 1;
+    if (!mrcal_optimizer_callback(
+            b_packed.data(), nstate * static_cast<int>(sizeof(double)), x.data(),
+            nmeasurements * static_cast<int>(sizeof(double)), &Jt, intrinsics.data(), nullptr,
+            problem.frames.data(), nullptr, nullptr, 1, 0, nframes, 0, 0,
+            problem.observations.data(), nullptr, nframes, 0, problem.pool.data(), &lens,
+            problem.imagersize, s, &problem.constants, problem.grid.spacing, W, H, false)) {
+        return Status(kNotConverged,
+                      "mrcal solver: mrcal_optimizer_callback failed at the solution");
+    }
+
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(nmeasurements, nstate);
+    for (int m = 0; m < nmeasurements; ++m) {
+        for (int k = Jp[static_cast<size_t>(m)]; k < Jp[static_cast<size_t>(m) + 1]; ++k)
+            J(m, Ji[static_cast<size_t>(k)]) = Jx[static_cast<size_t>(k)];
+    }
+
+    // σ over the inlier board measurements: outliers have weight < 0 and x = 0.
+    double sum = 0, sum2 = 0;
+    size_t n = 0;
+    for (size_t p = 0; p < problem.pool.size(); ++p) {
+        if (problem.pool[p].z < 0)
+            continue;
+        for (size_t k = 0; k < 2; ++k) {
+            const double v = x[2 * p + k];
+            sum += v;
+            sum2 += v * v;
+            ++n;
+        }
+    }
+    if (n < 2) {
+        return Status(kNotConverged, "mrcal solver: too few inliers for a covariance");
+    }
+    const double mean = sum / static_cast<double>(n);
+    const double variance = std::max(0.0, sum2 / static_cast<double>(n) - mean * mean);
+
+    const Eigen::MatrixXd JtJ = J.transpose() * J;
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(JtJ);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
+        return Status(kNotConverged,
+                      "mrcal solver: the solution's JᵀJ is singular (the views do not determine "
+                      "the model)");
+    }
+    const Eigen::MatrixXd JoM =
+        J.topRows(nboard) * ldlt.solve(Eigen::MatrixXd::Identity(nstate, nstate));
+    Eigen::MatrixXd covariance_packed = JoM.transpose() * JoM * variance;
+
+    // Unpack: b = D b*, with D's diagonal the unpacking of a vector of ones.
+    Eigen::VectorXd D = Eigen::VectorXd::Ones(nstate);
+    mrcal_unpack_solver_state_vector(D.data(), 1, 0, nframes, 0, 0, s, &lens);
+    const Eigen::MatrixXd covariance_state = D.asDiagonal() * covariance_packed * D.asDiagonal();
+
+    // From mrcal's state to calibrate.h's layout: the optimised intrinsics land at their model
+    // index (the fixed core of a splined model stays 0), and each frame's pose in mrcal's board
+    // frame becomes T_camera_target's: R unchanged, t_target = t_board − R·origin.
+    const size_t nout = nintrinsics_full + 6 * static_cast<size_t>(nframes);
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nout), nstate);
+    const int istate_intrinsics =
+        mrcal_state_index_intrinsics(0, 1, 0, nframes, 0, 0, nframes, s, &lens);
+    const int nstate_intrinsics = mrcal_num_states_intrinsics(1, s, &lens);
+    const int first_intrinsic = s.do_optimize_intrinsics_core ? 0 : 4;
+    for (int k = 0; k < nstate_intrinsics; ++k)
+        A(first_intrinsic + k, istate_intrinsics + k) = 1;
+    const int istate_frames = mrcal_state_index_frames(0, 1, 0, nframes, 0, 0, nframes, s, &lens);
+    const Eigen::Vector3d origin = problem.grid.origin;
+    for (int f = 0; f < nframes; ++f) {
+        const Eigen::Index row = static_cast<Eigen::Index>(nintrinsics_full) + 6 * f;
+        const int col = istate_frames + 6 * f;
+        A.block(row, col, 6, 6).setIdentity();
+        double rotated[3];
+        double dR_dr[9];
+        mrcal_rotate_point_r(rotated, dR_dr, nullptr, problem.frames[static_cast<size_t>(f)].r.xyz,
+                             origin.data());
+        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J_r(dR_dr);
+        A.block(row + 3, col, 3, 3) = -J_r;
+    }
+    return Eigen::MatrixXd(A * covariance_state * A.transpose());
+}
+
+}  // namespace
+
+bool mrcalHasModel(std::string_view model) {
+    return lensForModelName(model).has_value();
+}
+
+Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
+                                         const CalibrationOptions& options) {
+    auto fail = [](ErrorCode code, std::string message) {
+        return Status(code, "mrcal solver: " + std::move(message));
+    };
+    if (!input.views)
+        return fail(ErrorCode::kInvalidArgument, "no views");
+    const CameraViews& views = *input.views;
+    const std::optional<mrcal_lensmodel_t> lens = lensForModelName(options.model);
+    if (!lens) {
+        return fail(ErrorCode::kInvalidArgument,
+                    "mrcal has no model \"" + options.model +
+                        "\" (it fits opencv4, opencv5, opencv8, stereographic and "
+                        "LENSMODEL_SPLINED_STEREOGRAPHIC_order=..._Nx=..._Ny=..._fov_x_deg=...)");
+    }
+    if (input.used.empty() || input.used.size() != input.inlier.size() ||
+        input.used.size() != input.T_camera_target.size()) {
+        return fail(ErrorCode::kInvalidArgument,
+                    "the used views, their inlier flags and their seeded poses differ in count");
+    }
+    auto grid = boardGrid(views.target);
+    if (!grid)
+        return grid.status();
+    auto progress = [&](double fraction, std::string_view stage) {
+        if (options.progress)
+            options.progress(fraction, stage);
+    };
+
+    Problem problem;
+    problem.grid = *grid;
+    problem.nframes = static_cast<int>(input.used.size());
+    problem.imagersize[0] = views.width;
+    problem.imagersize[1] = views.height;
+    const size_t npoints = static_cast<size_t>(grid->width_n) * grid->height_n;
+    mrcal_point3_t missing;
+    missing.x = missing.y = 0;
+    missing.z = -1;
+    problem.pool.assign(npoints * input.used.size(), missing);
+    const Eigen::Isometry3d T_target_board(Eigen::Translation3d(grid->origin));
+    for (size_t f = 0; f < input.used.size(); ++f) {
+        if (input.used[f] >= views.views.size())
+            return fail(ErrorCode::kInvalidArgument, "a used view index is out of range");
+        const TargetView& view = views.views[input.used[f]];
+        if (input.inlier[f].size() != view.corners.size()) {
+            return fail(ErrorCode::kInvalidArgument,
+                        "view " + view.source + ": inlier flags and corners differ in count");
+        }
+        mrcal_observation_board_t observation;
+        observation.icam.intrinsics = 0;
+        observation.icam.extrinsics = -1;
+        observation.iframe = static_cast<int>(f);
+        problem.observations.push_back(observation);
+        problem.frames.push_back(poseFromIsometry(input.T_camera_target[f] * T_target_board));
+        for (size_t c = 0; c < view.corners.size(); ++c) {
+            const Corner& corner = view.corners[c];
+            if (corner.id < 0 || static_cast<size_t>(corner.id) >= npoints) {
+                return fail(ErrorCode::kInvalidArgument,
+                            "view " + view.source + ": corner id " + std::to_string(corner.id) +
+                                " is not on the target's " + std::to_string(npoints) +
+                                "-point grid");
+            }
+            mrcal_point3_t& slot = problem.pool[f * npoints + static_cast<size_t>(corner.id)];
+            slot.x = corner.pixel.x();
+            slot.y = corner.pixel.y();
+            slot.z = input.inlier[f][c] && corner.weight > 0 ? corner.weight : -1.0;
+        }
+    }
+
+    // Stage 1, as mrcal-calibrate-cameras: the intrinsics core and the board poses with the
+    // distortion held (splined models: a plain stereographic lens, whose core they share).
+    const bool splined = lens->type == MRCAL_LENSMODEL_SPLINED_STEREOGRAPHIC;
+    const int nparams = mrcal_lensmodel_num_params(&*lens);
+    std::vector<double> intrinsics = {input.seed.fx, input.seed.fy, input.seed.cx, input.seed.cy};
+    const std::optional<mrcal_lensmodel_t> seed_lens = mrcalLensModel(input.seed);
+    const bool seed_matches = seed_lens &&
+                              mrcalLensModelName(*seed_lens) == mrcalLensModelName(*lens) &&
+                              static_cast<int>(input.seed.distortion.size()) + 4 == nparams;
+    progress(0.0, "mrcal: intrinsics core and board poses");
+    // A splined seed of the same configuration already holds a core and a spline made for each
+    // other: a stereographic pre-solve would move the core under the spline.
+    if (splined && !seed_matches) {
+        const mrcal_lensmodel_t stereographic = makeMrcalLensModel(MRCAL_LENSMODEL_STEREOGRAPHIC);
+        const mrcal_stats_t stats =
+            problem.optimize(stereographic, intrinsics, selections(true, false, false));
+        if (!converged(stats))
+            return fail(kNotConverged, "the stereographic pre-solve failed");
+    }
+    if (seed_matches) {
+        intrinsics.insert(intrinsics.end(), input.seed.distortion.begin(),
+                          input.seed.distortion.end());
+    } else {
+        intrinsics.resize(static_cast<size_t>(nparams), 0.0);
+    }
+    if (!splined && nparams > 4) {
+        const mrcal_stats_t stats =
+            problem.optimize(*lens, intrinsics, selections(true, false, false));
+        if (!converged(stats))
+            return fail(kNotConverged, "the intrinsics-core pre-solve failed");
+    }
+
+    // Stage 2: the full model, regularised as mrcal does by default (the splined model's core
+    // stays fixed: the spline can absorb it, so it is not observable).
+    progress(0.4, "mrcal: full model");
+    const mrcal_problem_selections_t full = selections(!splined, true, true);
+    const mrcal_stats_t stats = problem.optimize(*lens, intrinsics, full);
+    if (!converged(stats))
+        return fail(kNotConverged, "mrcal_optimize did not converge");
+
+    progress(0.8, "mrcal: covariance");
+    CameraCalibration result;
+    result.camera = views.camera;
+    result.solver = Solver::kMrcal;
+    const std::optional<CameraModel> model =
+        cameraModelFromMrcal(*lens, intrinsics.data(), views.width, views.height);
+    if (!model)
+        return fail(kNotConverged, "no mixray lens for " + mrcalLensModelName(*lens));
+    result.model = *model;
+    if (Status valid = result.model.validate(); !valid.isOk())
+        return fail(kNotConverged, "the solved model: " + valid.message());
+
+    auto covariance =
+        stateCovariance(problem, *lens, intrinsics, full, static_cast<size_t>(nparams));
+    if (!covariance)
+        return covariance.status();
+    result.covariance = std::move(*covariance);
+
+    double sum2_all = 0;
+    int inliers_all = 0;
+    for (size_t f = 0; f < input.used.size(); ++f) {
+        const TargetView& view = views.views[input.used[f]];
+        ViewFit fit;
+        fit.view = input.used[f];
+        fit.T_camera_target = isometryFromPose(problem.frames[f]) * T_target_board.inverse();
+        fit.corners = static_cast<int>(view.corners.size());
+        double sum2 = 0;
+        int inliers = 0;
+        for (size_t c = 0; c < view.corners.size(); ++c) {
+            const Corner& corner = view.corners[c];
+            PointResidual residual;
+            residual.view = input.used[f];
+            residual.id = corner.id;
+            residual.observed = corner.pixel;
+            residual.outlier = !input.inlier[f][c];
+            const Eigen::Vector3d p_target(
+                grid->origin.x() + grid->spacing * (corner.id % grid->width_n),
+                grid->origin.y() + grid->spacing * (corner.id / grid->width_n), 0);
+            const std::optional<Eigen::Vector2d> projected =
+                result.model.project(fit.T_camera_target * p_target);
+            residual.residual =
+                projected ? Eigen::Vector2d(*projected - corner.pixel) : Eigen::Vector2d(NAN, NAN);
+            if (residual.outlier) {
+                ++fit.outliers;
+            } else if (projected) {
+                sum2 += residual.residual.squaredNorm();
+                ++inliers;
+            }
+            result.residuals.push_back(residual);
+        }
+        fit.rms_px = inliers ? std::sqrt(sum2 / inliers) : 0.0;
+        result.outliers += fit.outliers;
+        sum2_all += sum2;
+        inliers_all += inliers;
+        result.views.push_back(fit);
+    }
+    result.rms_px = inliers_all ? std::sqrt(sum2_all / inliers_all) : 0.0;
+    progress(1.0, "mrcal: done");
+    return result;
+}
+
+}  // namespace mixray::calibration::detail
