@@ -56,8 +56,10 @@ std::optional<ModelSpec> parseModel(std::string_view name) {
         return ModelSpec{LensModel::kPinhole, 8, true};
     if (name == "fisheye")
         return ModelSpec{LensModel::kFisheye, 4, true};
-    if (name.starts_with("LENSMODEL_") && detail::mrcalHasModel(name))
-        return ModelSpec{LensModel::kPinhole, 0, false};
+    // mrcal's own models (stereographic, splined): seeded as a stereographic lens, whose core
+    // they share and which, unlike a pinhole, sees wide fields of view.
+    if (detail::mrcalHasModel(name))
+        return ModelSpec{LensModel::kStereographic, 0, false};
     return std::nullopt;
 }
 
@@ -257,8 +259,8 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
     const std::optional<ModelSpec> spec = parseModel(options.model);
     if (!spec) {
         return invalid(camera, "unknown lens model '" + options.model +
-                                   "' (opencv4, opencv5, opencv8, fisheye, or a mrcal "
-                                   "LENSMODEL_... name that mrcal has)");
+                                   "' (opencv4, opencv5, opencv8, fisheye, stereographic or "
+                                   "a mrcal LENSMODEL_... name that mrcal has)");
     }
     const bool mrcal_has = detail::mrcalHasModel(options.model);
     Solver solver = options.solver;

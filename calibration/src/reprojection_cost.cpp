@@ -200,12 +200,37 @@ Projection projectFisheye(const Eigen::Vector3d& p, const double* intrinsics) {
     return out;
 }
 
+// Any other lens, through CameraModel::project with its intrinsics fixed: the point Jacobian by
+// central differences (steps of 1e-7 of the distance keep both the truncation and the rounding
+// error near 1e-7 relative for the smooth lens models mrcal has).
+Projection projectOther(const CameraModel& model, const Eigen::Vector3d& p) {
+    Projection out;
+    const auto pixel = model.project(p);
+    if (!pixel)
+        return out;
+    const double h = 1e-7 * std::max(1.0, p.norm());
+    for (int i = 0; i < 3; ++i) {
+        Eigen::Vector3d plus = p, minus = p;
+        plus[i] += h;
+        minus[i] -= h;
+        const auto a = model.project(plus);
+        const auto b = model.project(minus);
+        if (!a || !b)
+            return out;
+        out.d_point.col(i) = (*a - *b) / (2 * h);
+    }
+    out.valid = true;
+    out.pixel = *pixel;
+    return out;
+}
+
 class ReprojectionCost final : public ceres::CostFunction {
 public:
     ReprojectionCost(const CameraModel& model, const Eigen::Vector3d& p_target,
                      const Eigen::Vector2d& observed, double weight, int chain_length,
                      bool intrinsics_free)
-        : lens_(model.lens),
+        : model_(model),
+          lens_(model.lens),
           intrinsics_(intrinsicsVector(model)),
           p_target_(p_target),
           observed_(observed),
@@ -213,7 +238,10 @@ public:
           chain_length_(chain_length),
           intrinsics_free_(intrinsics_free) {
         // The projections index the coefficients directly: callers validate models first.
-        assert(lens_ == LensModel::kFisheye ? intrinsics_.size() == 8 : intrinsics_.size() <= 12);
+        assert(lens_ != LensModel::kFisheye || intrinsics_.size() == 8);
+        assert(lens_ != LensModel::kPinhole || intrinsics_.size() <= 12);
+        // Other lenses are differentiated through CameraModel::project, points only.
+        assert(lens_ == LensModel::kPinhole || lens_ == LensModel::kFisheye || !intrinsics_free);
         set_num_residuals(2);
         for (int i = 0; i < chain_length; ++i)
             mutable_parameter_block_sizes()->push_back(6);
@@ -235,9 +263,10 @@ public:
         }
         const double* intrinsics = intrinsics_free_ ? parameters[n] : intrinsics_.data();
         const int distortion_count = static_cast<int>(intrinsics_.size()) - 4;
-        const Projection projection = lens_ == LensModel::kFisheye
-                                          ? projectFisheye(p, intrinsics)
-                                          : projectPinhole(p, intrinsics, distortion_count);
+        const Projection projection = lens_ == LensModel::kFisheye ? projectFisheye(p, intrinsics)
+                                      : lens_ == LensModel::kPinhole
+                                          ? projectPinhole(p, intrinsics, distortion_count)
+                                          : projectOther(model_, p);
         if (!projection.valid) {
             residuals[0] = residuals[1] = kInvalidResidualPx * sqrt_weight_;
             if (jacobians) {
@@ -272,6 +301,7 @@ public:
     }
 
 private:
+    CameraModel model_;
     LensModel lens_;
     Eigen::VectorXd intrinsics_;
     Eigen::Vector3d p_target_;

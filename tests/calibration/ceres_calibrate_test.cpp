@@ -146,6 +146,34 @@ TEST(CeresCalibrate, AutoSolvesTheFisheyeWithCeres) {
     expectIntrinsicsWithin(result->model, fisheyeTruth(), 0.002);
 }
 
+TEST(CeresCalibrate, AutoSolvesWhatMrcalHasWithMrcal) {
+    std::mt19937 rng(6);
+    const CameraViews pinhole = test::generateViews(
+        "cam", opencv5Truth(), test::chessboard(12, 9, 0.03), 20, kNoisePx, rng);
+    const Result<CameraCalibration> opencv =
+        calibrateCamera(pinhole, options("opencv5", Solver::kAuto));
+    ASSERT_TRUE(opencv) << opencv.status().toString();
+    EXPECT_EQ(opencv->solver, Solver::kMrcal);
+    expectIntrinsicsWithin(opencv->model, opencv5Truth(), 0.002);
+    // fx = fy is Ceres' alone: kAuto takes Ceres for it.
+    CalibrationOptions aspect = options("opencv5", Solver::kAuto);
+    aspect.fix_aspect_ratio = true;
+    const Result<CameraCalibration> tied = calibrateCamera(pinhole, aspect);
+    ASSERT_TRUE(tied) << tied.status().toString();
+    EXPECT_EQ(tied->solver, Solver::kCeres);
+
+    // A splined model of a wide lens, seeded through the stereographic lens.
+    const CameraViews wide = test::generateViews("env", fisheyeTruth(),
+                                                 test::chessboard(12, 9, 0.03), 20, kNoisePx, rng);
+    const Result<CameraCalibration> splined = calibrateCamera(
+        wide,
+        options("LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=9_fov_x_deg=200", Solver::kAuto));
+    ASSERT_TRUE(splined) << splined.status().toString();
+    EXPECT_EQ(splined->solver, Solver::kMrcal);
+    EXPECT_EQ(splined->model.lens, LensModel::kSplinedStereographic);
+    EXPECT_LT(splined->rms_px, 0.35);
+}
+
 TEST(CeresCalibrate, FixAspectRatioKeepsFxEqualToFy) {
     CameraModel truth = opencv5Truth();
     truth.fy = truth.fx;

@@ -200,6 +200,42 @@ TEST(CeresCost, ResidualAndJacobiansMatchProjectionAndCentralDifferences) {
     }
 }
 
+TEST(CeresCost, OtherLensesWithFixedIntrinsicsMatchCentralDifferences) {
+    CameraModel stereographic = CameraModel::pinhole(1024, 768, 300, 301, 511.5, 383.5);
+    stereographic.lens = LensModel::kStereographic;
+    ASSERT_TRUE(stereographic.validate()) << stereographic.validate().toString();
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> unit(-1, 1);
+    for (int length = 1; length <= 3; ++length) {
+        for (int trial = 0; trial < 6; ++trial) {
+            SCOPED_TRACE("chain " + std::to_string(length) + " trial " + std::to_string(trial));
+            const Eigen::Vector3d p_target(0.3 * unit(rng), 0.2 * unit(rng), 0);
+            const Eigen::Vector3d p_camera = visiblePoint(stereographic, rng);
+            const std::vector<Vector6d> chain = chainTo(p_target, p_camera, length, rng);
+            const Eigen::Vector2d observed = *stereographic.project(p_camera);
+            std::unique_ptr<ceres::CostFunction> cost(detail::newReprojectionCost(
+                stereographic, p_target, observed, 1.0, length, false));
+            std::vector<Eigen::VectorXd> blocks(chain.begin(), chain.end());
+            const Evaluated analytic = evaluate(*cost, blocks);
+            EXPECT_LT(analytic.residual.norm(), 1e-8);
+            for (size_t b = 0; b < blocks.size(); ++b) {
+                for (Eigen::Index c = 0; c < 6; ++c) {
+                    const double x = blocks[b][c];
+                    const double h = 1e-5;
+                    blocks[b][c] = x + h;
+                    const Eigen::Vector2d plus = residualOnly(*cost, blocks);
+                    blocks[b][c] = x - h;
+                    const Eigen::Vector2d minus = residualOnly(*cost, blocks);
+                    blocks[b][c] = x;
+                    const Eigen::Vector2d numeric = (plus - minus) / (2 * h);
+                    EXPECT_LT((analytic.jacobians[b].col(c) - numeric).norm(),
+                              1e-5 * std::max(1.0, numeric.norm()));
+                }
+            }
+        }
+    }
+}
+
 TEST(CeresCost, PassesCeresGradientChecker) {
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> unit(-1, 1);
