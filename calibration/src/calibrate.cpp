@@ -22,10 +22,12 @@ namespace mixray::calibration {
 
 namespace {
 
-// The outlier loop stops after this many re-solves even if the threshold still bites: each
-// round drops the tail of a shrinking distribution, and a handful of rounds reach its fixed
-// point on real data.
+// The outlier loop stops after this many re-solves even if the threshold still bites (a solve
+// that keeps moving as points leave it); it settles in one to three on real data.
 constexpr int kMaxOutlierRounds = 10;
+
+// σ of a Gaussian over its median absolute deviation (from 0: the residuals' mean is 0).
+constexpr double kMadToSigma = 1.4826;
 
 // Rays further than this from the optical axis are left out of the PnP that seeds a view's
 // pose: their pinhole normalised coordinates blow up (tan θ → ∞ at 90°).
@@ -427,12 +429,13 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
         if (options.outlier_sigma <= 0 || round == kMaxOutlierRounds)
             break;
         // σ per coordinate over the inliers, each residual scaled by its corner's weight as
-        // the solve saw it.
+        // the solve saw it. Estimated from the median absolute residual (σ = 1.4826 MAD for
+        // Gaussian noise), which the tail being dropped hardly moves: the loop then settles in
+        // a round or two instead of trimming a little more of the Gaussian's tail each round.
         std::map<std::pair<size_t, int>, Eigen::Vector2d> residual;
         for (const PointResidual& point : result->residuals)
             residual[{point.view, point.id}] = point.residual;
-        double sum2 = 0;
-        int count = 0;
+        std::vector<double> absolute;
         std::vector<std::vector<double>> scaled(input.used.size());
         for (size_t u = 0; u < input.used.size(); ++u) {
             const TargetView& view = views.views[input.used[u]];
@@ -440,17 +443,20 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
                 const auto found = residual.find({input.used[u], view.corners[c].id});
                 const Eigen::Vector2d r =
                     found != residual.end()
-                        ? found->second
+                        ? Eigen::Vector2d(found->second * std::sqrt(view.corners[c].weight))
                         : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
-                const double weight = view.corners[c].weight;
-                scaled[u].push_back(r.cwiseAbs().maxCoeff() * std::sqrt(weight));
+                scaled[u].push_back(r.cwiseAbs().maxCoeff());
                 if (input.inlier[u][c] && r.allFinite()) {
-                    sum2 += r.squaredNorm() * weight;
-                    count += 2;
+                    absolute.push_back(std::abs(r.x()));
+                    absolute.push_back(std::abs(r.y()));
                 }
             }
         }
-        const double threshold = options.outlier_sigma * std::sqrt(sum2 / std::max(count, 1));
+        if (absolute.empty())
+            break;
+        const auto middle = absolute.begin() + static_cast<std::ptrdiff_t>(absolute.size() / 2);
+        std::nth_element(absolute.begin(), middle, absolute.end());
+        const double threshold = options.outlier_sigma * kMadToSigma * *middle;
         bool dropped = false;
         for (size_t u = 0; u < input.used.size(); ++u) {
             for (size_t c = 0; c < scaled[u].size(); ++c) {
