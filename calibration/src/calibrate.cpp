@@ -408,10 +408,20 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
     // Solve, drop the corners beyond outlier_sigma standard deviations, repeat.
     Result<CameraCalibration> result = Status(ErrorCode::kInternal, "not solved");
     for (int round = 0; round <= kMaxOutlierRounds; ++round) {
-        report(options, 0.1 + 0.85 * round / (kMaxOutlierRounds + 1),
-               round == 0 ? "solving" : "solving without outliers");
-        result = solver == Solver::kMrcal ? detail::solveWithMrcal(input, options)
-                                          : detail::solveWithCeres(input, options);
+        // Round r takes the progress from 1 − 2^−r to 1 − 2^−(r+1) of the solving share, so
+        // the fractions keep rising however many rounds it takes; the back end reports
+        // within its round's share.
+        const double lo = 0.1 + 0.85 * (1 - std::ldexp(1.0, -round));
+        const double hi = 0.1 + 0.85 * (1 - std::ldexp(1.0, -round - 1));
+        report(options, lo, round == 0 ? "solving" : "solving without outliers");
+        CalibrationOptions solve_options = options;
+        if (options.progress) {
+            solve_options.progress = [&](double fraction, std::string_view stage) {
+                options.progress(lo + (hi - lo) * std::clamp(fraction, 0.0, 1.0), stage);
+            };
+        }
+        result = solver == Solver::kMrcal ? detail::solveWithMrcal(input, solve_options)
+                                          : detail::solveWithCeres(input, solve_options);
         if (!result && round == 0) {
             // A solve that fails on views that only look tilted through the undistorted seed:
             // the poses a plain solve ends on say whether they were degenerate.

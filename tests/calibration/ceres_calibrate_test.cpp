@@ -273,21 +273,25 @@ TEST(CeresCalibrate, ReportsProgressFromStartToEnd) {
     std::mt19937 rng(21);
     const CameraViews views = test::generateViews("cam", opencv5Truth(),
                                                   test::chessboard(9, 6, 0.025), 10, kNoisePx, rng);
-    std::vector<double> fractions;
-    std::vector<std::string> stages;
-    CalibrationOptions o = options("opencv5");
-    o.progress = [&](double fraction, std::string_view stage) {
-        fractions.push_back(fraction);
-        stages.emplace_back(stage);
-    };
-    ASSERT_TRUE(calibrateCamera(views, o));
-    ASSERT_GE(fractions.size(), 3u);
-    EXPECT_EQ(fractions.front(), 0.0);
-    EXPECT_EQ(fractions.back(), 1.0);
-    EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
-    EXPECT_NE(std::find(stages.begin(), stages.end(), "solving"), stages.end());
-    for (const std::string& stage : stages)
-        EXPECT_FALSE(stage.empty());
+    // Both back ends: the mrcal one reports stages of its own within the front end's.
+    for (Solver solver : {Solver::kCeres, Solver::kMrcal}) {
+        SCOPED_TRACE(std::string(toString(solver)));
+        std::vector<double> fractions;
+        std::vector<std::string> stages;
+        CalibrationOptions o = options("opencv5", solver);
+        o.progress = [&](double fraction, std::string_view stage) {
+            fractions.push_back(fraction);
+            stages.emplace_back(stage);
+        };
+        ASSERT_TRUE(calibrateCamera(views, o));
+        ASSERT_GE(fractions.size(), 3u);
+        EXPECT_EQ(fractions.front(), 0.0);
+        EXPECT_EQ(fractions.back(), 1.0);
+        EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
+        EXPECT_NE(std::find(stages.begin(), stages.end(), "solving"), stages.end());
+        for (const std::string& stage : stages)
+            EXPECT_FALSE(stage.empty());
+    }
 }
 
 TEST(CeresCalibrate, SolverNamesRoundTrip) {
