@@ -213,8 +213,8 @@ TEST(CeresCost, OtherLensesWithFixedIntrinsicsMatchCentralDifferences) {
             const Eigen::Vector3d p_camera = visiblePoint(stereographic, rng);
             const std::vector<Vector6d> chain = chainTo(p_target, p_camera, length, rng);
             const Eigen::Vector2d observed = *stereographic.project(p_camera);
-            std::unique_ptr<ceres::CostFunction> cost(detail::newReprojectionCost(
-                stereographic, p_target, observed, 1.0, length, false));
+            std::unique_ptr<ceres::CostFunction> cost(
+                detail::newReprojectionCost(stereographic, p_target, observed, 1.0, length, false));
             std::vector<Eigen::VectorXd> blocks(chain.begin(), chain.end());
             const Evaluated analytic = evaluate(*cost, blocks);
             EXPECT_LT(analytic.residual.norm(), 1e-8);
