@@ -23,6 +23,11 @@ if(MIXRAY_SANITIZE)
         add_compile_options(-Wno-maybe-uninitialized)
     endif()
     add_link_options(-fsanitize=address,undefined)
+    # Under ASan Eigen switches to its own aligned allocator (offset pointers), while Debian's
+    # static libceres keeps plain malloc: Eigen's inline allocation code instantiated in one
+    # and freed in the other is a bad free. glibc's (and ASan's) malloc is already 16-byte
+    # aligned on x86-64, so Eigen may use it as the libraries do.
+    add_compile_definitions(EIGEN_MALLOC_ALREADY_ALIGNED=1)
 endif()
 
 # Fuzzing (clang only): everything is instrumented for libFuzzer's coverage and built with ASan +

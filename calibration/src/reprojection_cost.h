@@ -16,9 +16,11 @@ namespace mixray::calibration::detail {
 // 2 values. Each rt block is 6 doubles, [rotation vector, translation] of T_a_b (p_a = R p_b
 // + t). Parameter blocks: the n rt blocks in order, then, when `intrinsics_free`, the model's
 // parameters (fx fy cx cy, then distortion: pinhole OpenCV 4/5/8 or Kannala–Brandt fish-eye);
-// otherwise the model's own values are used and fixed. Points the model cannot project give a
-// large constant residual with zero Jacobians (the solver steps back). Owned by the caller
-// (ceres::Problem takes ownership).
+// otherwise the model's own values are used and fixed. Other lenses (mrcal's stereographic and
+// splined models) only with fixed intrinsics, differentiated through CameraModel::project by
+// central differences. Points the model cannot project give a large constant residual with
+// zero Jacobians (the solver steps back). Owned by the caller (ceres::Problem takes
+// ownership).
 ceres::CostFunction* newReprojectionCost(const CameraModel& model, const Eigen::Vector3d& p_target,
                                          const Eigen::Vector2d& observed, double weight,
                                          int chain_length, bool intrinsics_free);

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -41,7 +42,7 @@ struct CalibrationOptions {
     // Points whose residual exceeds this many standard deviations of all residuals are dropped
     // and the solve repeated (mrcal's scheme), until none are.
     double outlier_sigma = 3.0;
-    int min_views = 4;          // fewer usable views: kInvalidArgument
+    int min_views = 4;  // fewer usable views: kInvalidArgument
     int min_corners_per_view = 8;
     // All usable views within this angle of each other (board normals): kInvalidArgument, the
     // focal length is not observable from fronto-parallel views alone.
@@ -105,16 +106,22 @@ Result<UncertaintyMap> projectionUncertainty(const CameraCalibration& calibratio
 
 // A rig of rigidly mounted cameras seeing a moving target.
 struct RigOptions {
-    CalibrationOptions camera;      // for each camera's own intrinsic solve
+    CalibrationOptions camera;  // for each camera's own intrinsic solve
+    // Per camera name, a lens model other than camera.model (a fish-eye among pinholes).
+    std::map<std::string, std::string> models;
     bool refine_intrinsics = false;  // in the joint solve too (else fixed after their own)
     std::string reference;           // the camera whose frame is the rig's; empty: the first
 };
 
 struct RigCalibration {
     std::string reference;
-    std::vector<CameraCalibration> cameras;      // every camera's own solve, input order
+    // Every camera's own solve, input order (with refine_intrinsics, its model is the joint
+    // solve's).
+    std::vector<CameraCalibration> cameras;
     std::vector<Eigen::Isometry3d> T_ref_camera;  // per camera, reference → identity
-    // Per camera, covariance of T_ref_camera as [rotation vector, translation] (6×6).
+    // Per camera, covariance of T_ref_camera as [rotation vector, translation] (6×6; zero for
+    // the reference). Without refine_intrinsics it is conditional on the intrinsics: their own
+    // uncertainty is not in it.
     std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
     double rms_px = 0;  // joint solve, all cameras
 };
