@@ -91,8 +91,29 @@ struct Rendered {
     int idAt(int x, int y) const { return id[static_cast<size_t>(y) * width + x]; }
 };
 
+// The camera's pixel rays (NaN where unproject fails), kept for the last camera asked.
+inline const std::vector<Eigen::Vector3d>& pixelRays(const CameraModel& camera) {
+    static thread_local CameraModel cached;
+    static thread_local std::vector<Eigen::Vector3d> rays;
+    const bool same = cached.lens == camera.lens && cached.width == camera.width &&
+                      cached.height == camera.height && cached.fx == camera.fx &&
+                      cached.fy == camera.fy && cached.cx == camera.cx && cached.cy == camera.cy &&
+                      cached.distortion == camera.distortion;
+    if (!same || rays.empty()) {
+        cached = camera;
+        rays.assign(static_cast<size_t>(camera.width) * camera.height,
+                    Eigen::Vector3d::Constant(std::nan("")));
+        for (int y = 0; y < camera.height; ++y)
+            for (int x = 0; x < camera.width; ++x)
+                if (const auto dir = camera.unproject({double(x), double(y)}))
+                    rays[static_cast<size_t>(y) * camera.width + x] = *dir;
+    }
+    return rays;
+}
+
 inline Rendered render(const Scene& scene, const CameraModel& camera,
                        const Eigen::Isometry3d& T_ref_cam) {
+    const std::vector<Eigen::Vector3d>& rays = pixelRays(camera);
     Rendered out;
     out.width = camera.width;
     out.height = camera.height;
@@ -100,14 +121,14 @@ inline Rendered render(const Scene& scene, const CameraModel& camera,
     out.id.assign(out.z.size(), -1);
     for (int y = 0; y < camera.height; ++y) {
         for (int x = 0; x < camera.width; ++x) {
-            const auto dir = camera.unproject({double(x), double(y)});
-            if (!dir)
+            const size_t i = static_cast<size_t>(y) * camera.width + x;
+            const Eigen::Vector3d& dir = rays[i];
+            if (!std::isfinite(dir.x()))
                 continue;
-            const auto h = scene.hit(T_ref_cam.translation(), T_ref_cam.linear() * *dir);
+            const auto h = scene.hit(T_ref_cam.translation(), T_ref_cam.linear() * dir);
             if (!h)
                 continue;
-            const size_t i = static_cast<size_t>(y) * camera.width + x;
-            out.z[i] = h->first * dir->z();
+            out.z[i] = h->first * dir.z();
             out.id[i] = h->second;
         }
     }
@@ -128,6 +149,8 @@ inline Image depthImage(const Rendered& rendered, const DepthCorrection* correct
                 for (int k = 0; k < 50; ++k) {
                     const double f = correctedDepth(*correction, raw, x, y, rendered.width);
                     raw += (z_true - f) / correction->scale;
+                    if (std::abs(z_true - f) < 1e-9)
+                        break;
                 }
             }
             row[x] = z_true > 0 ? static_cast<uint16_t>(std::lround(raw * 1e3)) : 0;

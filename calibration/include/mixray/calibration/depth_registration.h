@@ -127,10 +127,12 @@ struct DepthCorrectionOptions {
     // D is solved on a grid of nodes this many depth pixels apart (bilinear between them), so
     // each node pools a few hundred readings and pixels between boards get a smooth value.
     int grid_step_px = 16;
-    // Weight of D's second differences between grid nodes (m⁻² of D per m of depth residual):
-    // the membrane that smooths D and carries it into pixels no board covered.
+    // Weight of the squared differences of neighbouring grid nodes (a membrane), relative to
+    // the average number of readings per node: smooths D and carries it into pixels no board
+    // covered. Larger: smoother D, smaller: D follows the noise.
     double smoothness = 3.0;
-    // Weight pulling D towards 0 where no data pins it (small: keeps the system regular).
+    // Weight pulling D towards 0, relative as above (small: keeps the system regular where no
+    // data pins D).
     double ridge = 0.01;
     // Depth readings this close to the board's outline (metres, in the board plane) are left
     // out: mixed pixels at the edge.
@@ -154,11 +156,13 @@ struct DepthCorrectionFit {
 // Fits the correction that maps the depth readings inside each board's outline onto the board
 // plane seen by the IR camera (z along the pixel's ray): scale and offset by linear least
 // squares, then optionally D on a grid (regularised least squares with the smoothness
-// membrane) for each α1 of a golden-section search, the α1 with the least residual winning.
+// membrane, jointly with scale and offset) for each α1 of a golden-section search, the α1 with
+// the least residual winning. The outline is the bounding rectangle of `board_points` (the
+// target's points, CalibrationTarget::points(), board frame, z = 0) less the margin.
 // kInvalidArgument naming the cause: no views, depth images of another size than `ir`, fewer
-// than 100 usable readings, all readings at one depth (scale not observable).
+// than 100 usable readings, readings spanning < 5 cm of depth (scale not observable).
 Result<DepthCorrectionFit> fitDepthCorrection(const CameraModel& ir,
-                                              const CalibrationTarget& target,
+                                              const std::vector<Eigen::Vector3d>& board_points,
                                               const std::vector<DepthPlaneView>& views,
                                               const DepthCorrectionOptions& options = {});
 
