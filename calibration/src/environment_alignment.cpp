@@ -9,6 +9,7 @@
 #include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 
 #include "environment_alignment_internal.h"
@@ -160,27 +161,49 @@ Result<AlignmentSeed> seedEnvironmentAlignment(const CameraModel& main, const Ca
     const auto corners = markerCorners(options.marker_size_m);
     const std::vector<Eigen::Vector3d> marker_points(corners.begin(), corners.end());
 
+    std::map<int64_t, const MarkerView*> marker_by_key;
+    for (const MarkerView& m : marker)
+        marker_by_key[m.key] = &m;
+    std::map<int64_t, Eigen::Isometry3d> known;
+    for (const KnownMainPose& p : options.main_poses) {
+        if (!p.T_world_main.matrix().allFinite())
+            return Status(
+                ErrorCode::kInvalidArgument,
+                "main_poses: the pose at key " + std::to_string(p.key) + " is not finite");
+        known[p.key] = p.T_world_main;
+    }
+
     AlignmentSeed seed;
     std::vector<Eigen::Vector2d> pixels;
-    for (const MarkerView& m : marker) {
-        const auto mv = main_views.find(m.key);
-        const auto ev = env_views.find(m.key);
-        if (mv == main_views.end() || ev == env_views.end())
+    for (const auto& [key, main_view] : main_views) {
+        const auto ev = env_views.find(key);
+        if (ev == env_views.end())
             continue;
-        const auto T_main_marker =
-            poseFromCorners(main, marker_points,
-                            std::vector<Eigen::Vector2d>(m.corners.begin(), m.corners.end()), true);
-        std::vector<Eigen::Vector3d> pts = pointsOf(*mv->second, board_points, pixels);
+        const auto mk = marker_by_key.find(key);
+        const auto kn = known.find(key);
+        std::optional<Eigen::Isometry3d> T_main_marker;
+        const MarkerView* m = nullptr;
+        if (mk != marker_by_key.end()) {
+            m = mk->second;
+            T_main_marker = poseFromCorners(
+                main, marker_points,
+                std::vector<Eigen::Vector2d>(m->corners.begin(), m->corners.end()), true);
+        }
+        if (!T_main_marker && kn != known.end()) {
+            m = nullptr;
+            T_main_marker = kn->second.inverse();
+        }
+        std::vector<Eigen::Vector3d> pts = pointsOf(*main_view, board_points, pixels);
         const auto T_main_board = poseFromCorners(main, pts, pixels, false);
         pts = pointsOf(*ev->second, board_points, pixels);
         const auto T_env_board = poseFromCorners(env, pts, pixels, false);
         if (!T_main_marker || !T_main_board || !T_env_board)
             continue;
         AlignmentKey k;
-        k.key = m.key;
-        k.main_view = mv->second;
+        k.key = key;
+        k.main_view = main_view;
         k.env_view = ev->second;
-        k.marker = &m;
+        k.marker = m;
         k.T_main_world = *T_main_marker;
         k.T_world_board = T_main_marker->inverse() * *T_main_board;
         k.T_env_world = *T_env_board * k.T_world_board.inverse();
@@ -190,7 +213,8 @@ Result<AlignmentSeed> seedEnvironmentAlignment(const CameraModel& main, const Ca
         return Status(ErrorCode::kInvalidArgument,
                       "environment alignment: " + std::to_string(seed.keys.size()) +
                           " keys where the environment camera and the main camera see the board "
-                          "and the main camera sees the marker; at least " +
+                          "and the main camera sees the marker (or its pose is known); at "
+                          "least " +
                           std::to_string(options.min_views) + " needed");
     }
     std::vector<Eigen::Isometry3d> poses;
@@ -222,11 +246,13 @@ Result<EnvironmentAlignment> alignEnvironmentCamera(
     }
 
     ceres::Problem problem;
+    int out_known = 0;
     const auto corners = markerCorners(options.marker_size_m);
     enum Group { kEnv, kMain, kMarker };
     struct Block {
         ceres::ResidualBlockId id;
         Group group;
+        bool active = true;
     };
     std::vector<Block> blocks;
     for (size_t i = 0; i < n; ++i) {
@@ -249,12 +275,17 @@ Result<EnvironmentAlignment> alignEnvironmentCamera(
                      nullptr, rt_main_world[i].data(), rt_world_board[i].data()),
                  kMain});
         }
+        if (!k.marker) {
+            problem.SetParameterBlockConstant(rt_main_world[i].data());
+            ++out_known;
+            continue;
+        }
         for (int j = 0; j < 4; ++j)
             blocks.push_back(
                 {problem.AddResidualBlock(
                      newReprojectionCost(main, corners[j], k.marker->corners[j], 1, 1, false),
                      nullptr, rt_main_world[i].data()),
-                 kMarker});
+                 kMarker, true});
     }
     ceres::Solver::Options solver_options;
     solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -263,24 +294,56 @@ Result<EnvironmentAlignment> alignEnvironmentCamera(
     solver_options.gradient_tolerance = 1e-12;
     solver_options.parameter_tolerance = 1e-12;
     solver_options.num_threads = 1;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver_options, &problem, &summary);
-    if (!summary.IsSolutionUsable() || summary.termination_type == ceres::NO_CONVERGENCE)
-        return Status(ErrorCode::kInternal, "environment alignment: the solve did not converge: " +
-                                                summary.BriefReport());
+    const auto squaredResidual = [&](const Block& b) {
+        double cost = 0;
+        problem.EvaluateResidualBlock(b.id, false, &cost, nullptr, nullptr);
+        return 2 * cost;  // cost = ½ |r|²
+    };
+    int outliers = 0;
+    for (int round = 0; round < 10; ++round) {
+        ceres::Solver::Summary summary;
+        ceres::Solve(solver_options, &problem, &summary);
+        if (!summary.IsSolutionUsable() || summary.termination_type == ceres::NO_CONVERGENCE)
+            return Status(
+                ErrorCode::kInternal,
+                "environment alignment: the solve did not converge: " + summary.BriefReport());
+        double sum = 0;
+        int count = 0;
+        for (const Block& b : blocks) {
+            if (b.active) {
+                sum += squaredResidual(b);
+                ++count;
+            }
+        }
+        const double limit2 = options.outlier_sigma * options.outlier_sigma * sum / count;
+        int dropped = 0;
+        for (Block& b : blocks) {
+            // The marker's corners fix the world: never dropped.
+            if (b.active && b.group != kMarker && squaredResidual(b) > limit2) {
+                problem.RemoveResidualBlock(b.id);
+                b.active = false;
+                ++dropped;
+            }
+        }
+        outliers += dropped;
+        if (dropped == 0)
+            break;
+    }
 
     EnvironmentAlignment out;
     const Eigen::Isometry3d T_env_world = fromRt(rt_env_world.data());
     out.T_world_env = T_env_world.inverse();
     out.seed_spread_deg = seed.spread_deg;
+    out.keys_with_known_pose = out_known;
     for (const auto& k : seed.keys)
         out.keys.push_back(k.key);
     double sums[3] = {0, 0, 0};
     int counts[3] = {0, 0, 0};
+    out.outliers = outliers;
     for (const Block& b : blocks) {
-        double cost = 0;
-        problem.EvaluateResidualBlock(b.id, false, &cost, nullptr, nullptr);
-        sums[b.group] += 2 * cost;  // cost = ½ |r|²
+        if (!b.active)
+            continue;
+        sums[b.group] += squaredResidual(b);
         ++counts[b.group];
     }
     const auto rms = [](double s, int c) { return c ? std::sqrt(s / c) : 0.0; };
@@ -291,7 +354,7 @@ Result<EnvironmentAlignment> alignEnvironmentCamera(
     out.rms_px = rms(sums[0] + sums[1] + sums[2], points);
 
     // σ² (JᵀJ)⁻¹ for T_env_world, then through the inverse's Jacobian to T_world_env.
-    const int dof = 2 * points - 6 * static_cast<int>(1 + 2 * n);
+    const int dof = 2 * points - 6 * static_cast<int>(1 + 2 * n - out_known);
     const double sigma2 = dof > 0 ? (sums[0] + sums[1] + sums[2]) / dof : 0;
     ceres::Covariance::Options cov_options;
     ceres::Covariance covariance(cov_options);

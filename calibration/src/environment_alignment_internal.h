@@ -13,7 +13,7 @@ struct AlignmentKey {
     int64_t key = 0;
     const TargetView* main_view = nullptr;
     const TargetView* env_view = nullptr;
-    const MarkerView* marker = nullptr;
+    const MarkerView* marker = nullptr;  // null: the pose is known (options.main_poses)
     Eigen::Isometry3d T_main_world = Eigen::Isometry3d::Identity();  // = T_main_marker
     Eigen::Isometry3d T_world_board = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d T_env_world = Eigen::Isometry3d::Identity();  // this key's own

@@ -198,6 +198,43 @@ TEST(EnvironmentAlignment, NoisyCornersWithinTheirCovariance) {
     EXPECT_GT(a->covariance.diagonal().minCoeff(), 0);
 }
 
+// Keys without a marker view, the main camera's poses given instead (as a tracker would).
+TEST(EnvironmentAlignment, KnownMainPosesStandInForTheMarker) {
+    Generated g = generate(5, 0, 5);
+    EnvironmentAlignmentOptions options;
+    for (size_t i = 0; i < g.marker.size(); ++i) {
+        // The main camera's pose from the exact marker corners.
+        const std::vector<Eigen::Vector3d> marker_points = {
+            {-0.05, 0.05, 0}, {0.05, 0.05, 0}, {0.05, -0.05, 0}, {-0.05, -0.05, 0}};
+        const auto T_main_world = detail::poseFromCorners(
+            mainCamera(), marker_points,
+            std::vector<Eigen::Vector2d>(g.marker[i].corners.begin(), g.marker[i].corners.end()),
+            true);
+        ASSERT_TRUE(T_main_world);
+        options.main_poses.push_back({g.marker[i].key, T_main_world->inverse()});
+    }
+    g.marker.erase(g.marker.begin() + 2, g.marker.end());  // keys 102.. keep no marker view
+    auto a = detail::alignEnvironmentCamera(mainCamera(), envCamera(), charucoPoints(),
+                                            g.main_board, g.env_board, g.marker, options);
+    ASSERT_TRUE(a) << a.status().toString();
+    EXPECT_EQ(a->keys.size(), 5u);
+    EXPECT_EQ(a->keys_with_known_pose, 3);
+    EXPECT_LT(angleDeg(a->T_world_env, g.T_world_env), 1e-5);
+}
+
+// A few mislabelled corners are dropped, not averaged in.
+TEST(EnvironmentAlignment, DropsOutlyingCorners) {
+    Generated g = generate(8, 0.1, 6);
+    g.env_board.views[1].corners[3].pixel += Eigen::Vector2d(6, -4);
+    g.main_board.views[4].corners[0].pixel += Eigen::Vector2d(-5, 5);
+    auto a = detail::alignEnvironmentCamera(mainCamera(), envCamera(), charucoPoints(),
+                                            g.main_board, g.env_board, g.marker, {});
+    ASSERT_TRUE(a) << a.status().toString();
+    EXPECT_GE(a->outliers, 2);
+    EXPECT_LT(a->rms_px, 0.2);
+    EXPECT_LT(angleDeg(a->T_world_env, g.T_world_env), 0.2);
+}
+
 TEST(EnvironmentAlignment, ClearErrors) {
     const Generated g = generate(3, 0, 4);
     EnvironmentAlignmentOptions options;
