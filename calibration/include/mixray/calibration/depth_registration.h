@@ -186,12 +186,25 @@ struct KinectCalibration {
 };
 
 // IR intrinsics and colour intrinsics (their own solves), T_color_ir (calibrateRig of the two,
-// the colour camera the reference), then the depth correction from the IR views' board poses
-// and the depth images with their keys. Errors from the solves, with the stage named;
-// kInvalidArgument when no depth image matches a used IR view.
+// the colour camera the reference), then kinectCalibrationFromRig(). Errors from the solves,
+// with the stage named.
 Result<KinectCalibration> calibrateKinect(const CameraViews& color, const CameraViews& ir,
                                           const std::vector<KeyedDepth>& depth,
                                           const KinectCalibrationOptions& options = {});
+
+// The depth half of calibrateKinect() for a rig already solved (cameras named `color_camera`
+// and ir.camera among rig.cameras, poses in rig.reference = the colour camera's frame): the
+// IR views' board poses (rig's IR CameraCalibration::views) with the depth images of the same
+// keys fit the correction, and the registration is assembled. `board_points`: the target's
+// points (CalibrationTarget::points()). kInvalidArgument naming the cause: a camera missing
+// from the rig, a rig whose reference is not the colour camera, no depth image at the key of
+// a used IR view.
+Result<KinectCalibration> kinectCalibrationFromRig(const RigCalibration& rig,
+                                                   std::string_view color_camera,
+                                                   const CameraViews& ir,
+                                                   const std::vector<KeyedDepth>& depth,
+                                                   const std::vector<Eigen::Vector3d>& board_points,
+                                                   const DepthCorrectionOptions& options = {});
 
 // ---- factory calibrations ----
 
