@@ -7,6 +7,27 @@
 
 namespace mixray::calibration {
 
+namespace detail {
+
+Result<KinectCalibration> calibrateKinectWith(
+    const CameraViews& color, const CameraViews& ir, const std::vector<KeyedDepth>& depth,
+    const KinectCalibrationOptions& options,
+    Result<RigCalibration> (*solve_rig)(const std::vector<CameraViews>&, const RigOptions&),
+    Status (*validate_target)(const CalibrationTarget&),
+    std::vector<Eigen::Vector3d> (*target_points)(const CalibrationTarget&)) {
+    MIXRAY_RETURN_IF_ERROR(validate_target(ir.target).withContext("Kinect calibration: target"));
+    RigOptions rig_options = options.rig;
+    rig_options.reference = color.camera;
+    auto rig = solve_rig({color, ir}, rig_options);
+    if (!rig)
+        return rig.status().withContext("Kinect calibration: the rig of " + color.camera + " and " +
+                                        ir.camera);
+    return kinectCalibrationFromRig(*rig, color.camera, ir, depth, target_points(ir.target),
+                                    options.depth);
+}
+
+}  // namespace detail
+
 Result<KinectCalibration> kinectCalibrationFromRig(const RigCalibration& rig,
                                                    std::string_view color_camera,
                                                    const CameraViews& ir,

@@ -1,5 +1,7 @@
-// calibrateKinect(): the rig of the IR and colour cameras (calibrateRig), then the depth half
-// (kinect_calibration.cpp). Apart, so that the depth half links without the solvers.
+// calibrateKinect(): the rig solve and the target's geometry handed to the rest of the
+// calibration (kinect_calibration.cpp). Alone in its file and with no code of its own (no
+// strings built, nothing instantiated), so that linking the depth half never pulls in the
+// solvers.
 #include "mixray/calibration/depth_registration.h"
 
 namespace mixray::calibration {
@@ -7,15 +9,10 @@ namespace mixray::calibration {
 Result<KinectCalibration> calibrateKinect(const CameraViews& color, const CameraViews& ir,
                                           const std::vector<KeyedDepth>& depth,
                                           const KinectCalibrationOptions& options) {
-    MIXRAY_RETURN_IF_ERROR(ir.target.validate().withContext("Kinect calibration: target"));
-    RigOptions rig_options = options.rig;
-    rig_options.reference = color.camera;
-    auto rig = calibrateRig({color, ir}, rig_options);
-    if (!rig)
-        return rig.status().withContext("Kinect calibration: the rig of " + color.camera + " and " +
-                                        ir.camera);
-    return kinectCalibrationFromRig(*rig, color.camera, ir, depth, ir.target.points(),
-                                    options.depth);
+    return detail::calibrateKinectWith(
+        color, ir, depth, options, &calibrateRig,
+        [](const CalibrationTarget& target) { return target.validate(); },
+        [](const CalibrationTarget& target) { return target.points(); });
 }
 
 }  // namespace mixray::calibration

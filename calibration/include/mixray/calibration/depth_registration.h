@@ -192,6 +192,16 @@ Result<KinectCalibration> calibrateKinect(const CameraViews& color, const Camera
                                           const std::vector<KeyedDepth>& depth,
                                           const KinectCalibrationOptions& options = {});
 
+namespace detail {
+// calibrateKinect() with the rig solver and the target's validate() and points() passed in.
+Result<KinectCalibration> calibrateKinectWith(
+    const CameraViews& color, const CameraViews& ir, const std::vector<KeyedDepth>& depth,
+    const KinectCalibrationOptions& options,
+    Result<RigCalibration> (*solve_rig)(const std::vector<CameraViews>&, const RigOptions&),
+    Status (*validate_target)(const CalibrationTarget&),
+    std::vector<Eigen::Vector3d> (*target_points)(const CalibrationTarget&));
+}  // namespace detail
+
 // The depth half of calibrateKinect() for a rig already solved (cameras named `color_camera`
 // and ir.camera among rig.cameras, poses in rig.reference = the colour camera's frame): the
 // IR views' board poses (rig's IR CameraCalibration::views) with the depth images of the same
