@@ -265,6 +265,8 @@ public:
 private:
     Status checkInputs(const RenderInputs& inputs) const;
     Status prepareFrame(const RenderInputs& inputs, Frame& f);
+    // The depth image in the camera: inputs.depth_mm itself, or registered into it.
+    Result<ImageView> registeredDepth(const RenderInputs& inputs);
     void updateDepthMesh(Frame& f);
     void updateRayCache(const calibration::CameraModel& camera);
     void prepareFootprint(Frame& f) const;
@@ -281,6 +283,10 @@ private:
     RayCache rays_;
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
     DepthMesher mesher_;
+    // Registration of depth images from another camera: kept while the registration is the
+    // same, so its scratch and the registered image are reused frame to frame.
+    std::optional<calibration::Registrar> registrar_;
+    Image registered_depth_;
     PixelBuffers buffers_;
     std::vector<uint8_t> tile_mask_;
     // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
@@ -843,11 +849,24 @@ Status EmbreeRenderer::checkInputs(const RenderInputs& in) const {
                 3 * static_cast<size_t>(c.width))
         return bad("camera image buffer is too small for its size");
     const ImageDesc& dd = in.depth_mm.desc;
+    const calibration::DepthRegistration* reg = in.depth_registration;
+    if (reg) {
+        MIXRAY_RETURN_IF_ERROR(reg->validate().withContext("render inputs: depth registration"));
+        if (!sameModel(reg->color, in.camera))
+            return bad("the depth registration's colour camera is not the camera model");
+    }
     if (in.depth_mm.data != nullptr || dd.width != 0 || dd.height != 0) {
         if (dd.format != PixelFormat::kDepth16)
             return bad("depth image must be depth16, got " + std::string(toString(dd.format)));
-        if (dd.width != c.width || dd.height != c.height)
+        if (reg && !reg->isIdentity()) {
+            if (dd.width != reg->depth.width || dd.height != reg->depth.height)
+                return bad("depth image is " + std::to_string(dd.width) + "x" +
+                           std::to_string(dd.height) + ", the registration's depth camera " +
+                           std::to_string(reg->depth.width) + "x" +
+                           std::to_string(reg->depth.height));
+        } else if (dd.width != c.width || dd.height != c.height) {
             return bad("depth image size differs from the camera image");
+        }
         if (in.depth_mm.data == nullptr || dd.stride_bytes < 2 * dd.width ||
             in.depth_mm.size_bytes <
                 static_cast<size_t>(dd.stride_bytes) * static_cast<size_t>(dd.height - 1) +
@@ -1026,6 +1045,35 @@ void EmbreeRenderer::primaryHits(const Frame& f, int x0, int y0, int x1, int y1,
         }
 }
 
+bool sameRegistration(const calibration::DepthRegistration& a,
+                      const calibration::DepthRegistration& b) {
+    return sameModel(a.depth, b.depth) && sameModel(a.color, b.color) &&
+           a.T_color_depth.matrix() == b.T_color_depth.matrix() &&
+           a.correction.scale == b.correction.scale &&
+           a.correction.offset_m == b.correction.offset_m &&
+           a.correction.alpha0 == b.correction.alpha0 &&
+           a.correction.alpha1 == b.correction.alpha1 &&
+           a.correction.distortion == b.correction.distortion;
+}
+
+Result<ImageView> EmbreeRenderer::registeredDepth(const RenderInputs& in) {
+    const calibration::DepthRegistration* reg = in.depth_registration;
+    if (!reg || reg->isIdentity())
+        return in.depth_mm;
+    if (!registrar_ || !sameRegistration(registrar_->registration(), *reg)) {
+        auto created = calibration::Registrar::create(*reg);
+        if (!created)
+            return created.status().withContext("render inputs: depth registration");
+        registrar_.emplace(std::move(created).value());
+    }
+    const ImageDesc desc =
+        ImageDesc::packed(PixelFormat::kDepth16, in.camera.width, in.camera.height);
+    if (!(registered_depth_.desc() == desc))
+        registered_depth_ = Image(desc);
+    MIXRAY_RETURN_IF_ERROR(registrar_->registerDepth(in.depth_mm, registered_depth_.mutableView()));
+    return registered_depth_.view();
+}
+
 Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
     f.inputs = &in;
     f.R_world_cam = in.T_world_cam.linear().cast<float>();
@@ -1044,8 +1092,12 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
             return std::nullopt;
         return it->second;
     };
-    if (in.depth_mm.data != nullptr)
-        f.depth = DepthView{in.depth_mm, in.camera};
+    if (in.depth_mm.data != nullptr) {
+        auto depth = registeredDepth(in);
+        if (!depth)
+            return depth.status();
+        f.depth = DepthView{*depth, in.camera};
+    }
     updateDepthMesh(f);
     for (ObjectData& object : objects_) {
         if (object.depth_surface)

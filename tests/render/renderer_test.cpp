@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "mixray/render/assets.h"
 #include "renderer_test_util.h"
@@ -540,6 +541,67 @@ TEST(Renderer, DepthHidesVirtualObjectsBehindTheMeasuredSurface) {
     for (int y = 0; y < kH; ++y)
         for (int x = 0; x < kW / 2; ++x)
             ASSERT_EQ(pixelBytes(out.composite, x, y)[0], 30) << x << "," << y;
+}
+
+// The same wall measured by a depth camera of its own (twice the resolution, 25 mm to the
+// side, turned by 1°): with the registration the renderer registers it into the camera and
+// hides the sphere exactly where the wall is; without it the image is refused.
+TEST(Renderer, DepthFromAnotherCameraIsRegisteredBeforeItOccludes) {
+    SceneDescription scene;
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject ball = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0, 0, 0});
+    ball.shape.radius = 0.3f;
+    scene.objects.push_back(ball);
+    RenderOptions options;
+    options.keep_layers = true;
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    Frame frame = makeFrame(lookDown({0, 0, 2}), greyImage(30));
+
+    calibration::DepthRegistration registration;
+    registration.color = frame.inputs.camera;
+    registration.depth =
+        CameraModel::pinhole(2 * kW, 2 * kH, 400, 400, (2 * kW - 1) / 2.0, (2 * kH - 1) / 2.0);
+    registration.T_color_depth.linear() =
+        Eigen::AngleAxisd(1 * std::numbers::pi / 180, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    registration.T_color_depth.translation() = Eigen::Vector3d(-0.025, 0, 0);
+    // The wall: z = 1.5 m in the colour camera, where x < 0 (the left half of its image).
+    Image depth(ImageDesc::packed(PixelFormat::kDepth16, 2 * kW, 2 * kH));
+    for (int y = 0; y < 2 * kH; ++y)
+        for (int x = 0; x < 2 * kW; ++x) {
+            const Eigen::Vector3d ray_depth = *registration.depth.unproject({double(x), double(y)});
+            const Eigen::Vector3d o = registration.T_color_depth.translation();
+            const Eigen::Vector3d r = registration.T_color_depth.linear() * ray_depth;
+            const double t = (1.5 - o.z()) / r.z();
+            const Eigen::Vector3d p_color = o + t * r;
+            reinterpret_cast<uint16_t*>(depth.bytes().data())[y * 2 * kW + x] =
+                p_color.x() < 0 ? static_cast<uint16_t>(std::lround(t * ray_depth.z() * 1e3)) : 0;
+        }
+    frame.inputs.depth_mm = depth.view();
+    RenderLayers out;
+    EXPECT_EQ(renderer->render(frame.inputs, out).code(), ErrorCode::kInvalidArgument);
+    frame.inputs.depth_registration = &registration;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    // The wall's edge is the image's centre column (x = 79.5): hidden left of it, drawn right.
+    for (int y = kH / 2 - 10; y <= kH / 2 + 10; ++y) {
+        EXPECT_EQ(out.mask.at(kW / 2 - 2, y)[0], 0.f) << y;
+        EXPECT_EQ(out.mask.at(kW / 2 + 1, y)[0], 1.f) << y;
+    }
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW / 2 - 1; ++x)
+            ASSERT_EQ(pixelBytes(out.composite, x, y)[0], 30) << x << "," << y;
+
+    // Twice: the registrar is reused, the result the same.
+    const std::vector<float> mask = out.mask.pixels;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    EXPECT_EQ(out.mask.pixels, mask);
+
+    calibration::DepthRegistration other_camera = registration;
+    other_camera.color.fx += 1;
+    frame.inputs.depth_registration = &other_camera;
+    const Status wrong = renderer->render(frame.inputs, out);
+    EXPECT_EQ(wrong.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(wrong.message().find("colour camera"), std::string::npos) << wrong.message();
 }
 
 // A ghost floor that the noisy depth map also measures: where the two agree (±2 % noise, less

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
+#include "mixray/calibration/depth_registration.h"
 #include "mixray/graph/image.h"
 #include "mixray/graph/result.h"
 #include "mixray/render/scene.h"
@@ -94,8 +95,15 @@ struct BareTraceTimes {
 // One frame to composite into.
 struct RenderInputs {
     ImageView camera_image;  // I_c: rgb8, sRGB-encoded, camera.width x camera.height
-    ImageView depth_mm;      // optional depth16 registered to the camera image; empty: none
+    // Optional depth16: registered to the camera image, or, with depth_registration, the depth
+    // camera's own image; empty: none.
+    ImageView depth_mm;
     calibration::CameraModel camera;
+    // When set and not an identity (DepthRegistration::isIdentity()), depth_mm is the depth
+    // camera's image (depth_registration->depth's size) and is registered into the camera
+    // (calibration::Registrar: its correction, occlusion by a z-buffer) before it occludes;
+    // depth_registration->color must be `camera`. Not owned.
+    const calibration::DepthRegistration* depth_registration = nullptr;
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     // Poses of the anchors objects are bound to, this frame ("marker:3" -> T_world_marker).
     // "world" is implicit. Objects whose anchor is missing are not drawn this frame.
