@@ -34,6 +34,7 @@ using Commands = std::vector<Command>;
 
 // One per subcommand, each in its own <name>_command.cpp.
 void registerBenchCommand(CLI::App& app, Commands& commands);
+void registerCalibrateCommand(CLI::App& app, Commands& commands);
 void registerConvertCommand(CLI::App& app, Commands& commands);
 void registerDemoCommand(CLI::App& app, Commands& commands);
 void registerDevicesCommand(CLI::App& app, Commands& commands);

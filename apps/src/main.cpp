@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     registerPlayCommand(app, commands);
     registerConvertCommand(app, commands);
     registerRenderCommand(app, commands);
+    registerCalibrateCommand(app, commands);
     registerTrackCommand(app, commands);
     registerSimulateCommand(app, commands);
     registerDemoCommand(app, commands);

@@ -361,6 +361,29 @@ Result<std::vector<Corner>> findAprilGrid(const cv::Mat& grey, const Calibration
     return out;
 }
 
+// Numbers the capture instants of a recording's frames in reading order: a frame starts a new
+// key when its host stamp is more than the skew after the key's first frame, or its stream
+// already has a frame in the key.
+class KeyClock {
+public:
+    explicit KeyClock(int64_t max_skew_ns) : max_skew_ns_(max_skew_ns) {}
+    int64_t keyOf(const FrameMetadata& meta) {
+        if (key_ < 0 || meta.host_stamp_ns - start_ns_ > max_skew_ns_ ||
+            in_key_.count(meta.stream)) {
+            ++key_;
+            start_ns_ = meta.host_stamp_ns;
+            in_key_.clear();
+        }
+        in_key_.insert(meta.stream);
+        return key_;
+    }
+
+private:
+    int64_t max_skew_ns_;
+    int64_t key_ = -1, start_ns_ = 0;
+    std::set<StreamId> in_key_;
+};
+
 CameraModel roughCamera(int width, int height) {
     CameraModel m;
     m.width = width;
@@ -387,6 +410,9 @@ Status DetectionOptions::validate() const {
         return {ErrorCode::kInvalidArgument, "detection.max_skew_ns must be >= 0"};
     if (camera)
         MIXRAY_RETURN_IF_ERROR(camera->validate());
+    if (!marker_dictionary.empty() && !isKnownDictionary(marker_dictionary))
+        return {ErrorCode::kInvalidArgument,
+                "detection.marker_dictionary: unknown dictionary " + marker_dictionary};
     return markers.validate();
 }
 
@@ -405,6 +431,13 @@ Result<TargetView> detectTarget(const ImageView& image, const CalibrationTarget&
     if (!grey)
         return grey.status();
     TargetView view;
+    if (!options.marker_dictionary.empty()) {
+        auto seen = findMarkers(*grey, options.marker_dictionary, options.markers, 0, false);
+        if (!seen)
+            return seen.status();
+        for (const MarkerDetection& m : *seen)
+            view.markers.push_back({m.id, m.corners});
+    }
     size_t markers = 0;
     switch (target.kind) {
         case TargetKind::kChessboard:
@@ -546,10 +579,10 @@ Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
     return out;
 }
 
-Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& recording,
-                                                   const CalibrationTarget& target,
-                                                   const DetectionOptions& options,
-                                                   const ProgressCallback& progress) {
+Result<RecordingDetection> detectInRecording(const std::filesystem::path& recording,
+                                             const CalibrationTarget& target,
+                                             const DetectionOptions& options,
+                                             const ProgressCallback& progress) {
     MIXRAY_RETURN_IF_ERROR(target.validate());
     MIXRAY_RETURN_IF_ERROR(options.validate());
     const auto usable = [](PixelFormat f) {
@@ -598,9 +631,21 @@ Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& 
     if (!reader)
         return reader.status();
     const std::vector<StreamInfo>& streams = (*reader)->streams();
-    std::vector<CameraViews> out;
+    RecordingDetection detection;
+    std::vector<CameraViews>& out = detection.cameras;
     std::map<StreamId, size_t> index;
+    std::map<StreamId, size_t> depth_index;
     for (StreamId s = 0; s < streams.size(); ++s) {
+        if (streams[s].format.format == PixelFormat::kDepth16) {
+            depth_index[s] = detection.depth.size();
+            RecordedDepth depth;
+            depth.stream = streams[s].name;
+            if (auto tag = streams[s].tags.find("aligned_with"); tag != streams[s].tags.end())
+                depth.aligned_with = tag->second;
+            if (auto tag = streams[s].tags.find("registered_to"); tag != streams[s].tags.end())
+                depth.registered_to = tag->second;
+            detection.depth.push_back(std::move(depth));
+        }
         if (!usable(streams[s].format.format))
             continue;
         index[s] = out.size();
@@ -614,8 +659,7 @@ Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& 
     if (out.empty())
         return Status(ErrorCode::kNotFound, recording.string() + ": no image stream");
     const std::string name = recording.filename().string();
-    int64_t key = -1, key_start_ns = 0;
-    std::set<StreamId> in_key;
+    KeyClock keys(options.max_skew_ns);
     size_t done = 0;
     while (true) {
         auto frame = next(**reader);
@@ -626,15 +670,12 @@ Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& 
         }
         const FrameMetadata meta = frame->meta();
         const auto it = index.find(meta.stream);
-        if (it == index.end())
+        if (it == index.end()) {
+            if (depth_index.count(meta.stream))
+                keys.keyOf(meta);
             continue;
-        if (key < 0 || meta.host_stamp_ns - key_start_ns > options.max_skew_ns ||
-            in_key.count(meta.stream)) {
-            ++key;
-            key_start_ns = meta.host_stamp_ns;
-            in_key.clear();
         }
-        in_key.insert(meta.stream);
+        const int64_t key = keys.keyOf(meta);
         CameraViews& cam = out[it->second];
         TargetView view;
         view.source = name + "#" + cam.camera + "@" + std::to_string(meta.sequence);
@@ -696,7 +737,42 @@ Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& 
             progress(total ? std::min(1.0, static_cast<double>(done) / total) : 1.0,
                      cam.views.back().source);
     }
-    return out;
+    if (detection.depth.empty())
+        return detection;
+
+    // The depth frames at keys some camera saw the target at, in a pass of their own: until
+    // every camera's frame of a key has been seen it is not known whether the key is wanted.
+    std::set<int64_t> wanted;
+    for (const CameraViews& c : out)
+        for (const TargetView& v : c.views)
+            if (v.rejection == ViewRejection::kNone)
+                wanted.insert(v.key);
+    auto depth_reader = openMkv(recording);
+    if (!depth_reader)
+        return depth_reader.status();
+    KeyClock depth_keys(options.max_skew_ns);
+    while (true) {
+        auto frame = next(**depth_reader);
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kEndOfStream)
+                break;
+            return frame.status().withContext(recording.string());
+        }
+        const FrameMetadata meta = frame->meta();
+        if (!index.count(meta.stream) && !depth_index.count(meta.stream))
+            continue;
+        const int64_t key = depth_keys.keyOf(meta);
+        const auto it = depth_index.find(meta.stream);
+        if (it == depth_index.end() || !wanted.count(key) || meta.status == FrameStatus::kCorrupt)
+            continue;
+        const ImageView image = frame->image();
+        Image copy(ImageDesc::packed(PixelFormat::kDepth16, image.desc.width, image.desc.height));
+        const MutableImageView dst = copy.mutableView();
+        for (int y = 0; y < image.desc.height; ++y)
+            std::copy_n(image.row<uint16_t>(y), image.desc.width, dst.row<uint16_t>(y));
+        detection.depth[it->second].frames.push_back({key, std::move(copy)});
+    }
+    return detection;
 }
 
 }  // namespace mixray::calibration

@@ -18,6 +18,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <string>
 
 #include "target_render.h"
@@ -408,17 +409,19 @@ TEST(Detect, SimulatedCalibrationSessionViewsShareKeysAcrossCameras) {
     ASSERT_TRUE(target);
     int calls = 0;
     double last = 0;
-    const auto cams = detectInRecording(dir / "sim_calibration.mkv", *target, {},
-                                        [&](double f, std::string_view) {
-                                            ++calls;
-                                            EXPECT_GE(f, last);
-                                            last = f;
-                                        });
-    ASSERT_TRUE(cams) << cams.status().toString();
+    DetectionOptions options;
+    options.marker_dictionary = "DICT_6X6_250";  // the world marker, id 23
+    const auto detection = detectInRecording(dir / "sim_calibration.mkv", *target, options,
+                                             [&](double f, std::string_view) {
+                                                 ++calls;
+                                                 EXPECT_GE(f, last);
+                                                 last = f;
+                                             });
+    ASSERT_TRUE(detection) << detection.status().toString();
     EXPECT_EQ(last, 1.0);
     EXPECT_EQ(calls, 3 * 20);
     std::map<std::string, const CameraViews*> by;
-    for (const CameraViews& c : *cams)
+    for (const CameraViews& c : detection->cameras)
         by[c.camera] = &c;
     ASSERT_EQ(by.size(), 3u);  // kinect/depth and truth/pose are no images of the board
     const std::array<const char*, 3> names = {"kinect/color", "kinect/ir", "env/color"};
@@ -448,6 +451,31 @@ TEST(Detect, SimulatedCalibrationSessionViewsShareKeysAcrossCameras) {
             EXPECT_GE(with, 9) << names[k];
         }
     }
+
+    // The raw depth stream, aligned with the IR camera, at every key some camera saw the board.
+    ASSERT_EQ(detection->depth.size(), 1u);
+    const RecordedDepth& depth = detection->depth.front();
+    EXPECT_EQ(depth.stream, "kinect/depth");
+    EXPECT_EQ(depth.aligned_with, "kinect/ir");
+    std::set<int64_t> usable;
+    for (const CameraViews& c : detection->cameras)
+        for (const TargetView* v : c.usable())
+            usable.insert(v->key);
+    ASSERT_EQ(depth.frames.size(), usable.size());
+    for (const KeyedDepthImage& d : depth.frames) {
+        EXPECT_TRUE(usable.count(d.key)) << d.key;
+        EXPECT_EQ(d.depth_mm.desc().format, PixelFormat::kDepth16);
+        EXPECT_EQ(d.depth_mm.desc().width, 640);
+    }
+
+    // The world marker on the table, where the colour camera sees it whole.
+    const CameraViews& color = *by["kinect/color"];
+    int with_marker = 0;
+    for (const TargetView& v : color.views)
+        for (const SeenMarker& m : v.markers)
+            with_marker += m.id == 23;
+    EXPECT_GE(with_marker, 5);
+    std::printf("world marker in %d of %zu colour views\n", with_marker, color.views.size());
 }
 
 }  // namespace

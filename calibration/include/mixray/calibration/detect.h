@@ -37,6 +37,9 @@ struct DetectionOptions {
     // image's larger side, centred, no distortion). Above it the view is kTooOblique (0:
     // never): foreshortened squares put corners within a few pixels of each other.
     double max_tilt_deg = 75.0;
+    // Square markers to report besides the target (TargetView::markers): an OpenCV or
+    // libapriltag dictionary name (isKnownDictionary()); empty: none.
+    std::string marker_dictionary;
     // A lens model for the tilt check (not for detection); its size must be the image's.
     std::optional<CameraModel> camera;
     // ArUco/AprilTag marker detection for ChArUco boards and AprilGrids.
@@ -73,16 +76,37 @@ Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
                                    const DetectionOptions& options = {},
                                    const ProgressCallback& progress = {});
 
+// A depth image taken at the instant of a key.
+struct KeyedDepthImage {
+    int64_t key = 0;
+    Image depth_mm;  // depth16
+};
+
+// A depth stream of a recording, with its frames at the keys where some camera saw the target
+// (a depth calibration needs no others, and a long session's depth would not fit in memory).
+struct RecordedDepth {
+    std::string stream;         // "kinect/depth"
+    std::string aligned_with;   // the stream's aligned_with tag (its IR camera); empty: none
+    std::string registered_to;  // its registered_to tag; empty: none
+    std::vector<KeyedDepthImage> frames;
+};
+
+struct RecordingDetection {
+    std::vector<CameraViews> cameras;
+    std::vector<RecordedDepth> depth;
+};
+
 // Every image stream of a mixray recording (mono8, rgb8, bgr8, mono16, ir16, and colour as
-// mjpeg, nv12 or yuyv through its luma; depth and binary streams are skipped), one CameraViews
-// per stream named as the stream ("kinect/color"). Keys number the capture instants: frames of
-// different streams whose host stamps lie within options.max_skew_ns share a key. Sources are
+// mjpeg, nv12 or yuyv through its luma; binary streams are skipped), one CameraViews per stream
+// named as the stream ("kinect/color"), and every depth16 stream's frames at the keys with a
+// usable view. Keys number the capture instants: frames of different streams (depth included)
+// whose host stamps lie within options.max_skew_ns share a key. Sources are
 // "RECORDING#STREAM@SEQUENCE". Frames that cannot be decoded are kUnreadable views. `progress`
 // is called after each image frame. The reader's error for a missing or corrupt file;
 // kNotFound when the recording has no image stream.
-Result<std::vector<CameraViews>> detectInRecording(const std::filesystem::path& recording,
-                                                   const CalibrationTarget& target,
-                                                   const DetectionOptions& options = {},
-                                                   const ProgressCallback& progress = {});
+Result<RecordingDetection> detectInRecording(const std::filesystem::path& recording,
+                                             const CalibrationTarget& target,
+                                             const DetectionOptions& options = {},
+                                             const ProgressCallback& progress = {});
 
 }  // namespace mixray::calibration

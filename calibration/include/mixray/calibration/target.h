@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -87,6 +88,14 @@ enum class ViewRejection : uint8_t {
 
 std::string_view toString(ViewRejection rejection);
 
+// A square marker seen in a view besides the target (DetectionOptions::marker_dictionary, e.g.
+// the world marker the environment camera is aligned to): its id and corners in ArUco's order,
+// docs/conventions.md pixels.
+struct SeenMarker {
+    int id = 0;
+    std::array<Eigen::Vector2d, 4> corners;
+};
+
 // One image of the target by one camera.
 struct TargetView {
     // Where it came from: an image path, or "RECORDING#STREAM@FRAME".
@@ -98,6 +107,9 @@ struct TargetView {
     std::vector<Corner> corners;
     ViewRejection rejection = ViewRejection::kNone;
     std::string why;  // the rejection's details, for reports ("sharpness 3.1 < 8")
+    // Markers of DetectionOptions::marker_dictionary in the image (also when the target was
+    // not found), the target's own markers included when it uses that dictionary.
+    std::vector<SeenMarker> markers;
 };
 
 // Everything one camera saw of one target.
