@@ -23,9 +23,7 @@
 #include <sstream>
 
 #include "mixray/calibration/calibrate.h"
-// Before calibrateCamera()'s front end (calibrate.cpp) is merged, the bench seeds the problem
-// itself and calls the mrcal back end directly.
-#include "solve_internal.h"
+#include "mixray/calibration/corners_cache.h"
 
 namespace mixray::cli {
 namespace {
@@ -60,10 +58,6 @@ calibration::CalibrationTarget board() {
     return target;
 }
 
-Eigen::Vector3d boardPoint(const calibration::CalibrationTarget& target, int id) {
-    return {(id % target.cols) * target.square_m, (id / target.cols) * target.square_m, 0};
-}
-
 // `count` views from poses spread over the image, tilted up to 35°, every corner inside.
 calibration::CameraViews generateViews(const CameraModel& truth, int count, double noise_px,
                                        unsigned seed) {
@@ -73,6 +67,7 @@ calibration::CameraViews generateViews(const CameraModel& truth, int count, doub
     views.height = truth.height;
     views.target = board();
     const calibration::CalibrationTarget& target = views.target;
+    const std::vector<Eigen::Vector3d> points = target.points();
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     std::normal_distribution<double> noise(0.0, noise_px);
@@ -95,11 +90,13 @@ calibration::CameraViews generateViews(const CameraModel& truth, int count, doub
                          .toRotationMatrix();
         T.translation() = *ray / ray->z() * distance - T.linear() * centre;
         calibration::TargetView view;
-        view.source = "view" + std::to_string(views.views.size());
+        char name[32];
+        std::snprintf(name, sizeof name, "view%03zu.png", views.views.size());
+        view.source = name;  // the CLI's image glob matches the corners cache's file names
         view.key = static_cast<int64_t>(views.views.size());
         bool inside = true;
         for (int id = 0; id < target.cols * target.rows && inside; ++id) {
-            const auto q = truth.project(T * boardPoint(target, id));
+            const auto q = truth.project(T * points[static_cast<size_t>(id)]);
             inside = q && q->x() > margin && q->y() > margin && q->x() < truth.width - margin &&
                      q->y() < truth.height - margin;
             if (inside)
@@ -118,11 +115,12 @@ struct CornerLists {
 
 CornerLists cornerLists(const calibration::CameraViews& views) {
     CornerLists lists;
+    const std::vector<Eigen::Vector3d> points = views.target.points();
     for (const auto& view : views.views) {
         lists.object.emplace_back();
         lists.image.emplace_back();
         for (const auto& c : view.corners) {
-            const Eigen::Vector3d p = boardPoint(views.target, c.id);
+            const Eigen::Vector3d& p = points[static_cast<size_t>(c.id)];
             lists.object.back().emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
                                              0.f);
             lists.image.back().emplace_back(static_cast<float>(c.pixel.x()),
@@ -130,29 +128,6 @@ CornerLists cornerLists(const calibration::CameraViews& views) {
         }
     }
     return lists;
-}
-
-// The front end's job, done the simple way: a pinhole guess, each pose by solvePnP through it.
-calibration::detail::SolveInput seed(const calibration::CameraViews& views, double focal_px) {
-    calibration::detail::SolveInput input;
-    input.views = &views;
-    input.seed = CameraModel::pinhole(views.width, views.height, focal_px, focal_px,
-                                      (views.width - 1) / 2.0, (views.height - 1) / 2.0);
-    const cv::Matx33d K(focal_px, 0, input.seed.cx, 0, focal_px, input.seed.cy, 0, 0, 1);
-    const CornerLists lists = cornerLists(views);
-    for (size_t v = 0; v < views.views.size(); ++v) {
-        cv::Vec3d rvec, tvec;
-        cv::solvePnP(lists.object[v], lists.image[v], K, cv::noArray(), rvec, tvec);
-        const Eigen::Vector3d r(rvec[0], rvec[1], rvec[2]);
-        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        if (r.norm() > 0)
-            T.linear() = Eigen::AngleAxisd(r.norm(), r.normalized()).toRotationMatrix();
-        T.translation() = Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
-        input.used.push_back(v);
-        input.inlier.emplace_back(views.views[v].corners.size(), true);
-        input.T_camera_target.push_back(T);
-    }
-    return input;
 }
 
 double bestSeconds(int repeats, const std::function<bool()>& body, bool* ok) {
@@ -184,10 +159,33 @@ double maxDifferencePx(const CameraModel& a, const CameraModel& b) {
 
 struct Row {
     int views = 0;
-    double mixray_s = 0, opencv_s = 0, cli_s = 0;  // cli_s < 0: not run
-    double mixray_rms = 0, opencv_rms = 0, cli_rms = 0;
-    double mixray_error_px = 0, opencv_error_px = 0;  // against the true lens, whole image
+    double mixray_s = 0, ceres_s = 0, opencv_s = 0, cli_s = 0;  // cli_s < 0: not run
+    double mixray_rms = 0, ceres_rms = 0, opencv_rms = 0, cli_rms = 0;
+    // Against the true lens, whole image.
+    double mixray_error_px = 0, ceres_error_px = 0, opencv_error_px = 0;
 };
+
+// mixray's calibrateCamera() through one back end, seeding and covariance included.
+Result<calibration::CameraCalibration> timeMixray(const calibration::CameraViews& views,
+                                                  const BenchCalibrateOptions& options,
+                                                  calibration::Solver solver, double* seconds) {
+    calibration::CalibrationOptions solve_options;
+    solve_options.model = options.model;
+    solve_options.solver = solver;
+    // The other two keep every corner; so does mixray here, for the same problem.
+    solve_options.outlier_sigma = 1e9;
+    Result<calibration::CameraCalibration> result =
+        Status(ErrorCode::kInternal, "calibrateCamera not run");
+    bool ok = false;
+    *seconds = bestSeconds(
+        options.repeats,
+        [&] {
+            result = calibration::calibrateCamera(views, solve_options);
+            return result.isOk();
+        },
+        &ok);
+    return result;
+}
 
 Result<Row> benchViews(int count, const BenchCalibrateOptions& options, bool cli_available,
                        const fs::path& dir) {
@@ -198,22 +196,17 @@ Result<Row> benchViews(int count, const BenchCalibrateOptions& options, bool cli
     row.views = count;
     constexpr double kFocalGuess = 600;
 
-    calibration::CalibrationOptions solve_options;
-    solve_options.model = options.model;
-    Result<calibration::CameraCalibration> mixray =
-        Status(ErrorCode::kInternal, "mrcal back end not run");
-    bool ok = false;
-    row.mixray_s = bestSeconds(
-        options.repeats,
-        [&] {
-            mixray = calibration::detail::solveWithMrcal(seed(views, kFocalGuess), solve_options);
-            return mixray.isOk();
-        },
-        &ok);
-    if (!ok)
-        return mixray.status();
+    auto mixray = timeMixray(views, options, calibration::Solver::kMrcal, &row.mixray_s);
+    if (!mixray)
+        return mixray.status().withContext("mixray (mrcal)");
     row.mixray_rms = mixray->rms_px;
     row.mixray_error_px = maxDifferencePx(truth, mixray->model);
+    auto ceres = timeMixray(views, options, calibration::Solver::kCeres, &row.ceres_s);
+    if (!ceres)
+        return ceres.status().withContext("mixray (Ceres)");
+    row.ceres_rms = ceres->rms_px;
+    row.ceres_error_px = maxDifferencePx(truth, ceres->model);
+    bool ok = false;
 
     const CornerLists lists = cornerLists(views);
     const int flags = options.model == "opencv8"   ? cv::CALIB_RATIONAL_MODEL
@@ -241,18 +234,7 @@ Result<Row> benchViews(int count, const BenchCalibrateOptions& options, bool cli
     row.cli_s = -1;
     if (cli_available) {
         const fs::path vnl = dir / ("corners" + std::to_string(count) + ".vnl");
-        {
-            std::ofstream out(vnl);
-            out << "# filename x y level\n";
-            char line[128];
-            for (size_t v = 0; v < views.views.size(); ++v) {
-                for (const auto& c : views.views[v].corners) {
-                    std::snprintf(line, sizeof line, "view%03zu.png %.12g %.12g 0\n", v,
-                                  c.pixel.x(), c.pixel.y());
-                    out << line;
-                }
-            }
-        }
+        MIXRAY_RETURN_IF_ERROR(calibration::writeCornersCache(vnl, {views}));
         std::string lensmodel = "LENSMODEL_OPENCV" + options.model.substr(6);
         std::ostringstream command;
         command << "/usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache '"
@@ -339,6 +321,9 @@ int runBenchCalibrate(const BenchCalibrateOptions& options) {
                         {"model", options.model},
                         {"noise_px", options.noise_px},
                         {"mixray_mrcal_s", r.mixray_s},
+                        {"mixray_ceres_s", r.ceres_s},
+                        {"mixray_ceres_rms_px", r.ceres_rms},
+                        {"mixray_ceres_max_error_px", r.ceres_error_px},
                         {"opencv_s", r.opencv_s},
                         {"mixray_rms_px", r.mixray_rms},
                         {"opencv_rms_px", r.opencv_rms},
@@ -357,20 +342,24 @@ int runBenchCalibrate(const BenchCalibrateOptions& options) {
         "Calibrating %s from N generated views of a 10x7 chessboard (1280x704, %.2f px noise), "
         "best of %d runs:\n",
         options.model.c_str(), options.noise_px, options.repeats);
-    std::printf("  %5s %16s %18s %20s %12s %12s\n", "views", "mixray (mrcal)", "OpenCV (ratio)",
-                "mrcal CLI (ratio)", "RMS m/O/C", "max err m/O");
+    std::printf("  %5s %16s %18s %18s %20s %18s %18s\n", "views", "mixray (mrcal)",
+                "mixray (Ceres)", "OpenCV (ratio)", "mrcal CLI (ratio)", "RMS m/c/O/C",
+                "max err m/c/O");
     for (const Row& r : rows) {
         char cli[40] = "n/a";
         if (r.cli_s >= 0)
             std::snprintf(cli, sizeof cli, "%9.3f s (%5.1fx)", r.cli_s, r.cli_s / r.mixray_s);
-        std::printf("  %5d %14.3f s %9.3f s (%5.2fx) %20s %4.3f/%4.3f/%4.3f %5.3f/%5.3f px\n",
-                    r.views, r.mixray_s, r.opencv_s, r.opencv_s / r.mixray_s, cli, r.mixray_rms,
-                    r.opencv_rms, r.cli_rms, r.mixray_error_px, r.opencv_error_px);
+        std::printf(
+            "  %5d %14.3f s %7.3f s (%5.2fx) %7.3f s (%5.2fx) %20s %4.3f/%4.3f/%4.3f/%4.3f "
+            "%5.3f/%5.3f/%5.3f px\n",
+            r.views, r.mixray_s, r.ceres_s, r.ceres_s / r.mixray_s, r.opencv_s,
+            r.opencv_s / r.mixray_s, cli, r.mixray_rms, r.ceres_rms, r.opencv_rms, r.cli_rms,
+            r.mixray_error_px, r.ceres_error_px, r.opencv_error_px);
     }
     std::printf(
-        "  ratio: the other's time / mixray's. mixray includes seeding (solvePnP per view) and the "
-        "covariance; the CLI is a subprocess (Python start-up included). RMS per point; max err: "
-        "worst projection difference to the true lens over the image.\n");
+        "  ratio: the other's time / mixray (mrcal)'s. mixray is calibrateCamera(): seeding, "
+        "solve and covariance; the CLI is a subprocess (Python start-up included). RMS per "
+        "point; max err: worst projection difference to the true lens over the image.\n");
     return kExitOk;
 }
 
@@ -379,8 +368,9 @@ int runBenchCalibrate(const BenchCalibrateOptions& options) {
 void registerBenchCalibrate(CLI::App& bench, Commands& commands) {
     auto* calibrate = bench.add_subcommand(
         "calibrate",
-        "Time to calibrate one camera from N chessboard views: mixray (mrcal back end), "
-        "OpenCV's calibrateCamera and mrcal-calibrate-cameras on the same corners");
+        "Time to calibrate one camera from N chessboard views: mixray's calibrateCamera (mrcal "
+        "and Ceres back ends), OpenCV's calibrateCamera and mrcal-calibrate-cameras on the same "
+        "corners");
     auto options = std::make_shared<BenchCalibrateOptions>();
     calibrate->add_option("--views", options->views, "View counts, N[,N...]")
         ->capture_default_str();

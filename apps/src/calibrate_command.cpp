@@ -621,11 +621,11 @@ int runCalibrate(const CalibrateCommandOptions& o) {
     Outcome outcome = solve(o, *inputs, *models, given, *solver, marker, status);
     if (outcome.models.empty()) {
         status.finish();
+        std::fprintf(stderr, "mixray calibrate: no camera calibrated (corners kept in %s):\n",
+                     (dir / "corners.vnl").string().c_str());
         for (const std::string& f : outcome.failures)
             std::fprintf(stderr, "  %s\n", f.c_str());
-        return fail("calibrate",
-                    {ErrorCode::kInvalidArgument, "no camera calibrated (corners kept in " +
-                                                      (dir / "corners.vnl").string() + ")"});
+        return kExitBadInput;
     }
     if (Status s = writeCalibrationFile(dir / "calibration.yaml", outcome.file); !s) {
         status.finish();

@@ -280,7 +280,8 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
     if (solver == Solver::kMrcal && options.fix_aspect_ratio)
         return invalid(camera, "fix_aspect_ratio is supported by the Ceres solver only");
 
-    if (views.width <= 0 || views.height <= 0) {
+    // Without a single readable image the size is unknown: the view count below says why.
+    if ((views.width <= 0 || views.height <= 0) && !views.usable().empty()) {
         return invalid(camera, "image size " + std::to_string(views.width) + "x" +
                                    std::to_string(views.height) + " must be positive");
     }

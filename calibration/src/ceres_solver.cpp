@@ -17,10 +17,6 @@ namespace mixray::calibration::detail {
 
 namespace {
 
-// calibrate.h promises kFailedPrecondition for solves that fail; ErrorCode has no such code, so
-// the closest one stands in (as in mrcal_solver.cpp), named here once.
-constexpr ErrorCode kNotConverged = ErrorCode::kInternal;
-
 // The solve itself: the problem over the inliers, solved in place.
 struct Solved {
     CameraModel seed;

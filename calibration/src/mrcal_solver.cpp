@@ -15,10 +15,6 @@
 namespace mixray::calibration::detail {
 namespace {
 
-// calibrate.h promises kFailedPrecondition for solves that do not converge; ErrorCode has no
-// such code (yet), so the closest one it has stands in, named here once.
-constexpr ErrorCode kNotConverged = ErrorCode::kInternal;
-
 // The lens mrcal fits for a CalibrationOptions::model name; nullopt when mrcal lacks it.
 std::optional<mrcal_lensmodel_t> lensForModelName(std::string_view name) {
     if (name == "opencv4" || name == "LENSMODEL_OPENCV4")

@@ -17,13 +17,11 @@
 #include "ceres_util.h"
 #include "mixray/calibration/calibrate.h"
 #include "reprojection_cost.h"
+#include "solve_internal.h"
 
 namespace mixray::calibration {
 
 namespace {
-
-// As in ceres_solver.cpp: ErrorCode has no kFailedPrecondition.
-constexpr ErrorCode kNotConverged = ErrorCode::kInternal;
 
 Status invalid(const std::string& message) {
     return Status(ErrorCode::kInvalidArgument, "rig: " + message);
@@ -298,7 +296,7 @@ Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
     ceres::Solver::Summary summary;
     ceres::Solve(detail::solverOptions(), &problem, &summary);
     if (!summary.IsSolutionUsable() || summary.termination_type != ceres::CONVERGENCE) {
-        return Status(kNotConverged,
+        return Status(detail::kNotConverged,
                       "rig: the joint solve did not converge: " + summary.BriefReport());
     }
 
@@ -334,9 +332,9 @@ Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
                 const auto projected =
                     own.model.project(T_camera_target * points[static_cast<size_t>(corner.id)]);
                 if (!projected)
-                    return Status(kNotConverged, "rig: camera '" + own.camera +
-                                                     "' cannot project a corner after the "
-                                                     "joint solve");
+                    return Status(detail::kNotConverged, "rig: camera '" + own.camera +
+                                                             "' cannot project a corner after the "
+                                                             "joint solve");
                 sum2 += (*projected - corner.pixel).squaredNorm();
                 ++count;
             }
@@ -359,7 +357,7 @@ Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
         const double sigma2 = 2 * summary.final_cost / dof;
         const std::optional<Eigen::MatrixXd> covariance = detail::covarianceOf(problem, blocks);
         if (!covariance) {
-            return Status(kNotConverged,
+            return Status(detail::kNotConverged,
                           "rig: the joint solve's covariance is singular (the views do not "
                           "constrain every camera pose)");
         }

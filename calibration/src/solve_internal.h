@@ -9,20 +9,25 @@
 
 namespace mixray::calibration::detail {
 
+// What a solve that does not converge returns (calibrate.h).
+constexpr ErrorCode kNotConverged = ErrorCode::kInternal;
+
 // One camera's problem, checked and seeded.
 struct SolveInput {
     const CameraViews* views = nullptr;
-    std::vector<size_t> used;                   // indices of the views to solve with
-    std::vector<std::vector<bool>> inlier;      // per used view, per corner: still in the solve
-    CameraModel seed;                           // the model to fit, its parameters seeded
+    std::vector<size_t> used;               // indices of the views to solve with
+    std::vector<std::vector<bool>> inlier;  // per used view, per corner: still in the solve
+    CameraModel seed;                       // the model to fit, its parameters seeded
     std::vector<Eigen::Isometry3d> T_camera_target;  // per used view, seeded
 };
 
 // Each back end minimises the weighted reprojection error over the inliers and fills every
 // field of CameraCalibration (residuals for all corners of the used views, the covariance in
-// calibrate.h's layout). kFailedPrecondition when it does not converge.
-Result<CameraCalibration> solveWithCeres(const SolveInput& input, const CalibrationOptions& options);
-Result<CameraCalibration> solveWithMrcal(const SolveInput& input, const CalibrationOptions& options);
+// calibrate.h's layout). kNotConverged when it does not converge.
+Result<CameraCalibration> solveWithCeres(const SolveInput& input,
+                                         const CalibrationOptions& options);
+Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
+                                         const CalibrationOptions& options);
 
 // Whether mrcal has the model named by CalibrationOptions::model.
 bool mrcalHasModel(std::string_view model);

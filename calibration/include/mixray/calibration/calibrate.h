@@ -84,8 +84,8 @@ struct CameraCalibration {
 };
 
 // kInvalidArgument naming the cause: too few usable views, mismatched sizes, degenerate views
-// (all fronto-parallel), an unknown model or one the solver lacks; kFailedPrecondition when the
-// solve does not converge.
+// (all fronto-parallel), an unknown model or one the solver lacks; kInternal when the solve
+// does not converge.
 Result<CameraCalibration> calibrateCamera(const CameraViews& views,
                                           const CalibrationOptions& options = {});
 
