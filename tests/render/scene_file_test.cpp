@@ -318,7 +318,7 @@ TEST(SceneFileTest, MalformedLightsAndCamera) {
     expectError(
         "camera:\n  model:\n    lens: orthographic\n    width: 1\n    height: 1\n"
         "    fx: 1\n    fy: 1\n    cx: 0\n    cy: 0\n",
-        3, "camera.model.lens", "pinhole or fisheye");
+        3, "camera.model.lens", "pinhole, fisheye, stereographic or a configured");
     expectError(
         "camera:\n  model:\n    width: 0\n    height: 1\n    fx: 1\n    fy: 1\n"
         "    cx: 0\n    cy: 0\n",
