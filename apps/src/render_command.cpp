@@ -9,6 +9,7 @@
 
 #include "cli.h"
 #include "console.h"
+#include "mixray/calibration/calibration_file.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/render/output.h"
 #include "mixray/render/renderer.h"
@@ -38,6 +39,7 @@ struct RenderCommandOptions {
     int threads = 0;
     uint64_t max_frames = 0;  // 0: all
     std::string pose_stream;  // empty: the only pose stream, when the scene has no camera pose
+    std::string calibration;  // a calibration file: the colour camera and depth registrations
 };
 
 Result<render::SoftShadowMethod> shadowMethod(const std::string& name) {
@@ -63,12 +65,16 @@ Result<render::DepthSecondaryRays> depthRays(const std::string& name) {
 }
 
 // The recording's stream to composite into (the first rgb8/bgr8 colour stream) and the depth
-// stream that occludes (the first depth16 stream of the same size), if any.
+// stream that occludes, if any: one the calibration registers into the colour camera, else the
+// first depth16 stream of the colour stream's size that is not raw (tagged aligned_with an IR
+// camera: its pixels are not the colour camera's).
 struct Streams {
     StreamId color = kInvalidStream;
     StreamId depth = kInvalidStream;
+    std::optional<calibration::DepthRegistration> registration;  // for a raw depth stream
 };
-Result<Streams> pickStreams(const RecordingReader& reader) {
+Result<Streams> pickStreams(const RecordingReader& reader,
+                            const calibration::CalibrationFile* calibration) {
     Streams s;
     const auto& streams = reader.streams();
     for (StreamId i = 0; i < streams.size(); ++i) {
@@ -83,10 +89,34 @@ Result<Streams> pickStreams(const RecordingReader& reader) {
                 "the recording has no rgb8/bgr8 colour stream to composite into"};
     }
     const ImageDesc& c = streams[s.color].format;
+    for (StreamId i = 0; i < streams.size() && calibration; ++i) {
+        if (streams[i].format.format != PixelFormat::kDepth16)
+            continue;
+        auto registration = calibration->depthRegistration(streams[i].name);
+        if (!registration)
+            continue;
+        const auto entry = std::find_if(
+            calibration->depth.begin(), calibration->depth.end(),
+            [&](const calibration::CalibratedDepth& d) { return d.stream == streams[i].name; });
+        if (entry->color_camera != streams[s.color].name)
+            continue;
+        if (registration->depth.width != streams[i].format.width ||
+            registration->depth.height != streams[i].format.height)
+            return Status(ErrorCode::kInvalidArgument,
+                          "the calibration's " + entry->depth_camera + " is " +
+                              std::to_string(registration->depth.width) + "x" +
+                              std::to_string(registration->depth.height) + " but " +
+                              streams[i].name + " is " + std::to_string(streams[i].format.width) +
+                              "x" + std::to_string(streams[i].format.height));
+        s.depth = i;
+        s.registration = std::move(registration).value();
+        return s;
+    }
     for (StreamId i = 0; i < streams.size(); ++i) {
         if (streams[i].kind == StreamKind::kDepth &&
             streams[i].format.format == PixelFormat::kDepth16 &&
-            streams[i].format.width == c.width && streams[i].format.height == c.height) {
+            streams[i].format.width == c.width && streams[i].format.height == c.height &&
+            !streams[i].tags.count("aligned_with")) {
             s.depth = i;
             break;
         }
@@ -150,10 +180,17 @@ int runRender(const RenderCommandOptions& options) {
     auto scene = render::loadScene(options.scene);
     if (!scene)
         return fail("render", scene.status());
-    if (!scene->camera || !scene->camera->model) {
+    std::optional<calibration::CalibrationFile> calibration;
+    if (!options.calibration.empty()) {
+        auto read = calibration::readCalibrationFile(options.calibration);
+        if (!read)
+            return fail("render", read.status());
+        calibration = std::move(read).value();
+    }
+    if (!scene->camera) {
         return fail("render", {ErrorCode::kInvalidArgument,
-                               options.scene + ": the scene needs a camera with a model "
-                                               "(recordings carry no calibration yet)"});
+                               options.scene + ": the scene needs a camera (its model, or "
+                                               "--calibration for it)"});
     }
     // Without a fixed pose (or when asked), the camera follows the recording's pose stream.
     std::optional<PoseTrack> poses;
@@ -168,11 +205,29 @@ int runRender(const RenderCommandOptions& options) {
     auto reader = replay::openRecording(options.session);
     if (!reader)
         return fail("render", reader.status());
-    auto streams = pickStreams(**reader);
+    auto streams = pickStreams(**reader, calibration ? &*calibration : nullptr);
     if (!streams)
         return fail("render", streams.status().withContext(options.session));
     const StreamInfo color_info = (*reader)->streams()[streams->color];
+    // The calibration's model of the colour stream's camera wins over the scene's.
+    if (calibration) {
+        if (const calibration::CalibratedCamera* c = calibration->find(color_info.name))
+            scene->camera->model = c->model;
+    }
+    if (!scene->camera->model) {
+        return fail("render",
+                    {ErrorCode::kInvalidArgument, options.scene +
+                                                      ": the scene's camera has no model and no "
+                                                      "--calibration names " +
+                                                      color_info.name});
+    }
     const calibration::CameraModel& camera = *scene->camera->model;
+    if (streams->registration) {
+        streams->registration->color = camera;
+        std::fprintf(stderr, "mixray render: %s registered into %s through %s\n",
+                     (*reader)->streams()[streams->depth].name.c_str(), color_info.name.c_str(),
+                     options.calibration.c_str());
+    }
     if (camera.width != color_info.format.width || camera.height != color_info.format.height) {
         return fail("render", {ErrorCode::kInvalidArgument,
                                "the scene's camera is " + std::to_string(camera.width) + "x" +
@@ -239,8 +294,11 @@ int runRender(const RenderCommandOptions& options) {
     const auto composite = [&](const FrameRef& colour) -> bool {
         render::RenderInputs inputs;
         inputs.camera_image = colour.image();
-        if (auto depth = depths->closestTo(colour.meta().host_stamp_ns))
+        if (auto depth = depths->closestTo(colour.meta().host_stamp_ns)) {
             inputs.depth_mm = *depth;
+            if (streams->registration)
+                inputs.depth_registration = &*streams->registration;
+        }
         inputs.camera = camera;
         inputs.T_world_cam = scene->camera->T_world_cam;
         if (poses) {
@@ -343,6 +401,9 @@ void registerRenderCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--scene", o->scene, "Scene file (YAML, docs/scene-format.md)")->required();
     sub->add_option("-o,--output", o->output, "Video to write (.mp4: H.264; .mkv: FFV1 lossless)")
         ->required();
+    sub->add_option("--calibration", o->calibration,
+                    "A calibration file (mixray calibrate's calibration.yaml): the colour "
+                    "camera's model, and raw depth registered into it");
     sub->add_option("--png-dir", o->png_dir, "Also write every --png-every-th composite as PNG");
     sub->add_option("--png-every", o->png_every, "Frames between PNGs")
         ->check(CLI::Range(1, 1000000))
