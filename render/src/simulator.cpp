@@ -300,23 +300,25 @@ struct BoardViewChecks {
         const Vector3d eye = f.T_world_color.translation();
         if (front.dot(eye - centre) <= 0 || front.dot(eye_env - centre) <= 0)
             return false;
+        // Pixel sizes are given at 640x480 (the fish-eye's at 480x480) and scale with the image.
+        const double scale = t->color.width / 640.0, env_scale = t->env.width / 480.0;
         // The fish-eye: close, the whole board, at most 45° off its normal.
         if ((centre - eye_env).norm() > 0.28 || incidenceDeg(front, eye_env, centre) > 45 ||
-            !inside(t->env, t->T_world_env, corners, 4))
+            !inside(t->env, t->T_world_env, corners, 4 * env_scale))
             return false;
         // The Kinect: the whole board in colour and IR, at most 55° off its normal.
         if (incidenceDeg(front, eye, centre) > 55 ||
-            !inside(t->color, f.T_world_color, corners, 10) ||
-            !inside(t->ir, f.T_world_color * t->T_color_ir, corners, 10))
+            !inside(t->color, f.T_world_color, corners, 10 * scale) ||
+            !inside(t->ir, f.T_world_color * t->T_color_ir, corners, 10 * scale))
             return false;
         // The world marker: whole, 45 px a side or more, at most 60° off its normal, and not
         // behind the board (with its backing's margin) as the Kinect sees it.
         const std::vector<Vector3d> marker = t->markerCornersWorld();
         std::vector<Eigen::Vector2d> px;
-        if (!inside(t->color, f.T_world_color, marker, 10, &px))
+        if (!inside(t->color, f.T_world_color, marker, 10 * scale, &px))
             return false;
         for (size_t k = 0; k < 4; ++k)
-            if ((px[k] - px[(k + 1) % 4]).norm() < 45)
+            if ((px[k] - px[(k + 1) % 4]).norm() < 45 * scale)
                 return false;
         const Vector3d marker_normal = t->T_world_marker.linear().col(2);
         if (incidenceDeg(marker_normal, eye, t->T_world_marker.translation()) > 60)
