@@ -3,6 +3,7 @@
 // extrinsics, the depth registration and the fish-eye environment camera's alignment to the world
 // marker; the report files and the corners cache round trip.
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
@@ -17,8 +18,8 @@
 #include "cli_runner.h"
 #include "mixray/calibration/calibration_file.h"
 #include "mixray/calibration/depth_registration.h"
-#include "mixray/calibration/detect.h"
 #include "mixray/calibration/target.h"
+#include "mixray/graph/mkv.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -103,13 +104,18 @@ std::string intrinsicsErrors(const CameraModel& m, const CameraModel& truth, dou
 class CalibrateSession : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
-        out_ = new fs::path(test::tempDir() / "cal");
+        // ctest runs each test in its own process, possibly at once: one folder per process.
+        out_ = new fs::path(fs::path(MIXRAY_BINARY_DIR) / "test-tmp" /
+                            ("CalibrateSession-" + std::to_string(getpid())));
+        fs::remove_all(*out_);
         run_ = new CliRun(mixray("calibrate " + q(kSession) + " --target " + kTarget +
                                  " --model env/color=fisheye --marker DICT_6X6_250:23:0.1 -o " +
                                  q(*out_)));
         std::printf("%s", run_->output.c_str());
     }
     static void TearDownTestSuite() {
+        std::error_code ec;
+        fs::remove_all(*out_, ec);
         delete run_;
         delete out_;
         run_ = nullptr;
@@ -169,22 +175,30 @@ TEST_F(CalibrateSession, DepthRegistersWithinAPixel) {
     ASSERT_TRUE(registration) << registration.status().toString();
     const auto target = calibration::parseTarget(kTarget);
     ASSERT_TRUE(target);
-    auto detection = calibration::detectInRecording(kSession, *target);
-    ASSERT_TRUE(detection) << detection.status().toString();
-    ASSERT_EQ(detection->depth.size(), 1u);
+    auto reader = openMkv(kSession);
+    ASSERT_TRUE(reader) << reader.status().toString();
+    const auto& streams = (*reader)->streams();
     double worst_px = 0, sum_px = 0;
     std::vector<double> depth_errors_mm;
-    int points = 0;
-    for (const calibration::KeyedDepthImage& d : detection->depth.front().frames) {
-        const auto k = static_cast<size_t>(d.key);
+    int points = 0, frames = 0;
+    while (true) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            EXPECT_EQ(frame.status().code(), ErrorCode::kEndOfStream) << frame.status().toString();
+            break;
+        }
+        if (streams[frame->meta().stream].name != "kinect/depth")
+            continue;
+        ++frames;
+        const auto k = static_cast<size_t>(frame->meta().sequence);
         ASSERT_LT(k, truth.T_world_board.size());
         const Isometry3d T_world_ir = truth.T_world_color[k] * truth.T_color_ir;
         const Isometry3d T_ir_board = T_world_ir.inverse() * truth.T_world_board[k];
         const Vector3d n = T_ir_board.linear().col(2);
         const double plane = n.dot(T_ir_board.translation());
-        auto registered = calibration::registerDepth(*registration, d.depth_mm.view());
+        auto registered = calibration::registerDepth(*registration, frame->image());
         ASSERT_TRUE(registered) << registered.status().toString();
-        const ImageView depth = d.depth_mm.view();
+        const ImageView depth = frame->image();
         const ImageView colour_depth = registered->view();
         for (const Vector3d& corner : target->points()) {
             const auto px = truth.ir.project(T_ir_board * corner);
@@ -217,12 +231,13 @@ TEST_F(CalibrateSession, DepthRegistersWithinAPixel) {
             const int v = static_cast<int>(std::lround(expected.y()));
             if (u >= 0 && v >= 0 && u < colour_depth.desc.width && v < colour_depth.desc.height) {
                 const uint16_t mm = colour_depth.row<uint16_t>(v)[u];
-                EXPECT_NE(mm, 0) << "key " << d.key << " pixel " << u << "," << v;
+                EXPECT_NE(mm, 0) << "frame " << k << " pixel " << u << "," << v;
                 if (mm != 0)
                     depth_errors_mm.push_back(std::abs(mm - in_color.z() * 1000));
             }
         }
     }
+    EXPECT_EQ(frames, 20);
     ASSERT_GT(points, 200);
     ASSERT_GT(depth_errors_mm.size(), 200u);
     std::sort(depth_errors_mm.begin(), depth_errors_mm.end());
