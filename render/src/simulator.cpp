@@ -259,6 +259,88 @@ Vector3d tilted(const Vector3d& v, double angle, double azimuth) {
     return (Eigen::AngleAxisd(angle, axis) * v).normalized();
 }
 
+// Whether a view held over the environment camera serves its purpose (buildScenario).
+struct BoardViewChecks {
+    const SimTruth* t;
+    Vector3d eye_env;
+
+    // The angle (degrees) between a plane's normal and the ray from `eye` to `point` on it.
+    static double incidenceDeg(const Vector3d& normal, const Vector3d& eye, const Vector3d& point) {
+        return std::acos(std::min(1.0, std::abs(normal.dot((point - eye).normalized())))) / kDeg;
+    }
+
+    // Every point inside the image, `margin` pixels clear of its edges; their pixels in `px`.
+    static bool inside(const calibration::CameraModel& m, const Isometry3d& T_world_cam,
+                       const std::vector<Vector3d>& world, double margin,
+                       std::vector<Eigen::Vector2d>* px = nullptr) {
+        for (const Vector3d& p : world) {
+            const Vector3d q = T_world_cam.inverse() * p;
+            if (m.lens == calibration::LensModel::kPinhole && q.z() <= 0)
+                return false;
+            const auto pixel = m.project(q);
+            if (!pixel || pixel->x() < margin || pixel->y() < margin ||
+                pixel->x() > m.width - 1 - margin || pixel->y() > m.height - 1 - margin)
+                return false;
+            if (px)
+                px->push_back(*pixel);
+        }
+        return true;
+    }
+
+    bool overEnvironmentCamera(const SimFrameTruth& f) const {
+        const SimBoard& b = *t->board;
+        const Isometry3d& T_world_board = *f.T_world_board;
+        std::vector<Vector3d> corners;
+        for (const Vector3d& c : t->boardCorners())
+            corners.push_back(T_world_board * c);
+        // The printed side faces -z of OpenCV's board frame.
+        const Vector3d front = -T_world_board.linear().col(2);
+        const Vector3d centre = T_world_board * Vector3d(0.5 * b.squares_x * b.square_m,
+                                                         0.5 * b.squares_y * b.square_m, 0);
+        const Vector3d eye = f.T_world_color.translation();
+        if (front.dot(eye - centre) <= 0 || front.dot(eye_env - centre) <= 0)
+            return false;
+        // Pixel sizes are given at 640x480 (the fish-eye's at 480x480) and scale with the image.
+        const double scale = t->color.width / 640.0, env_scale = t->env.width / 480.0;
+        // The fish-eye: close, the whole board, at most 45° off its normal.
+        if ((centre - eye_env).norm() > 0.28 || incidenceDeg(front, eye_env, centre) > 45 ||
+            !inside(t->env, t->T_world_env, corners, 4 * env_scale))
+            return false;
+        // The Kinect: the whole board in colour and IR, at most 55° off its normal.
+        if (incidenceDeg(front, eye, centre) > 55 ||
+            !inside(t->color, f.T_world_color, corners, 10 * scale) ||
+            !inside(t->ir, f.T_world_color * t->T_color_ir, corners, 10 * scale))
+            return false;
+        // The world marker: whole, 45 px a side or more, at most 60° off its normal, and not
+        // behind the board (with its backing's margin) as the Kinect sees it.
+        const std::vector<Vector3d> marker = t->markerCornersWorld();
+        std::vector<Eigen::Vector2d> px;
+        if (!inside(t->color, f.T_world_color, marker, 10 * scale, &px))
+            return false;
+        for (size_t k = 0; k < 4; ++k)
+            if ((px[k] - px[(k + 1) % 4]).norm() < 45 * scale)
+                return false;
+        const Vector3d marker_normal = t->T_world_marker.linear().col(2);
+        if (incidenceDeg(marker_normal, eye, t->T_world_marker.translation()) > 60)
+            return false;
+        const Isometry3d T_board_world = T_world_board.inverse();
+        const Vector3d eye_board = T_board_world * eye;
+        for (const Vector3d& m : marker) {
+            const Vector3d m_board = T_board_world * m;
+            const double s = eye_board.z() / (eye_board.z() - m_board.z());
+            if (s <= 0 || s >= 1)
+                continue;  // the board's plane is not between them
+            const Vector3d hit = eye_board + s * (m_board - eye_board);
+            const double margin = 0.03;
+            if (hit.x() > -margin && hit.y() > -margin &&
+                hit.x() < b.squares_x * b.square_m + margin &&
+                hit.y() < b.squares_y * b.square_m + margin)
+                return false;
+        }
+        return true;
+    }
+};
+
 }  // namespace
 
 std::string_view toString(SimScenario scenario) {
@@ -467,43 +549,75 @@ Result<SimSetup> buildScenario(const SimulatorOptions& options, const fs::path& 
         MIXRAY_RETURN_IF_ERROR(writeBoardTexture(scene.materials["board"].albedo_texture, b));
         scene.materials["backing"] = diffuse("backing", Rgb(0.85f, 0.85f, 0.85f));
         std::mt19937_64 rng(options.seed * 0x9e3779b97f4a7c15ULL + 7);
+        const BoardViewChecks checks{&t, eye_env};
+        const Vector3d towards_marker =
+            (t.T_world_marker.translation() - eye_env).cwiseProduct(Vector3d(1, 1, 0)).normalized();
         for (int i = 0; i < frames; ++i) {
             SimFrameTruth f;
-            Vector3d centre, eye, target, facing;
             if (i % 3 == 2) {
-                // Held over the environment camera, printed side facing both it and the
-                // Kinect, which stands on the marker's side (frames[].marker_seen says when it
-                // also sees the marker).
-                centre = eye_env + Vector3d(uniform(rng, -0.04, 0.04), uniform(rng, -0.04, 0.04),
-                                            uniform(rng, 0.22, 0.30));
-                const Vector3d towards_marker = (t.T_world_marker.translation() - eye_env)
-                                                    .cwiseProduct(Vector3d(1, 1, 0))
-                                                    .normalized();
-                const double turn = uniform(rng, -25 * kDeg, 25 * kDeg);
-                const double elevation = uniform(rng, 20 * kDeg, 35 * kDeg);
-                const Vector3d h = Eigen::AngleAxisd(turn, Vector3d::UnitZ()) * towards_marker;
-                eye = centre + uniform(rng, 0.55, 0.7) * (std::cos(elevation) * h +
-                                                          std::sin(elevation) * Vector3d::UnitZ());
-                target = centre;
-                facing =
-                    ((eye - centre).normalized() + (eye_env - centre).normalized()).normalized();
-                facing = tilted(facing, uniform(rng, 0, 8 * kDeg), uniform(rng, 0, 2 * kPi));
+                // Held over the environment camera by a person standing at the table, tilted
+                // towards the Kinect, which stands beyond the marker (on a tripod or in hand)
+                // and looks down between the board and the marker, so that it sees both. Drawn
+                // until the fish-eye sees the whole board close and not too oblique, and the
+                // Kinect sees the whole board and the whole marker, large and not grazing.
+                bool found = false;
+                for (int attempt = 0; attempt < 2000 && !found; ++attempt) {
+                    const Vector3d centre =
+                        eye_env + uniform(rng, 0.0, 0.08) * towards_marker +
+                        Vector3d(uniform(rng, -0.03, 0.03), uniform(rng, -0.03, 0.03),
+                                 uniform(rng, 0.17, 0.23));
+                    const Vector3d out =
+                        Eigen::AngleAxisd(uniform(rng, -35 * kDeg, 35 * kDeg), Vector3d::UnitZ()) *
+                        towards_marker;
+                    const Vector3d eye = t.T_world_marker.translation() +
+                                         uniform(rng, 0.3, 0.6) * out +
+                                         uniform(rng, 0.35, 0.6) * Vector3d::UnitZ();
+                    const Vector3d target =
+                        centre + uniform(rng, 0.3, 0.6) * (t.T_world_marker.translation() - centre);
+                    Vector3d facing =
+                        ((eye - centre).normalized() + (eye_env - centre).normalized())
+                            .normalized();
+                    facing = tilted(facing, uniform(rng, 0, 8 * kDeg), uniform(rng, 0, 2 * kPi));
+                    f.T_world_board =
+                        boardFacing(b, centre, facing, uniform(rng, -30 * kDeg, 30 * kDeg));
+                    f.T_world_color = lookAt(eye, target, uniform(rng, -8 * kDeg, 8 * kDeg));
+                    found = checks.overEnvironmentCamera(f);
+                }
+                if (!found)
+                    return Status(ErrorCode::kInternal,
+                                  "simulator: no board pose over the environment camera for view " +
+                                      std::to_string(i));
             } else {
-                centre = Vector3d(uniform(rng, -0.15, 0.15), uniform(rng, -0.1, 0.1),
-                                  uniform(rng, 0.05, 0.2));
+                // The Kinect's own views: the board anywhere in the image (also partly outside,
+                // for the distortion at the edges), near and far, tilted up to 45°.
+                const Vector3d centre = Vector3d(uniform(rng, -0.15, 0.15), uniform(rng, -0.1, 0.1),
+                                                 uniform(rng, 0.05, 0.2));
                 const double distance = uniform(rng, 0.5, 0.85);
                 const double azimuth = uniform(rng, 0, 2 * kPi);
                 const double elevation = uniform(rng, 25 * kDeg, 70 * kDeg);
-                eye = centre + distance * Vector3d(std::cos(elevation) * std::cos(azimuth),
-                                                   std::cos(elevation) * std::sin(azimuth),
-                                                   std::sin(elevation));
-                target = centre + Vector3d(uniform(rng, -0.03, 0.03), uniform(rng, -0.03, 0.03),
-                                           uniform(rng, -0.03, 0.03));
-                facing = tilted((eye - centre).normalized(), uniform(rng, 5 * kDeg, 35 * kDeg),
-                                uniform(rng, 0, 2 * kPi));
+                const Vector3d eye =
+                    centre + distance * Vector3d(std::cos(elevation) * std::cos(azimuth),
+                                                 std::cos(elevation) * std::sin(azimuth),
+                                                 std::sin(elevation));
+                const Vector3d facing =
+                    tilted((eye - centre).normalized(), uniform(rng, 10 * kDeg, 45 * kDeg),
+                           uniform(rng, 0, 2 * kPi));
+                f.T_world_board =
+                    boardFacing(b, centre, facing, uniform(rng, -30 * kDeg, 30 * kDeg));
+                // The board's centre at a chosen pixel: the camera turned from looking at it.
+                const double reach = 0.38 - 0.25 * (0.85 - distance) / 0.35;
+                const Vector3d ray =
+                    t.color
+                        .unproject(Eigen::Vector2d(
+                            t.color.cx + uniform(rng, -reach, reach) * t.color.width,
+                            t.color.cy + uniform(rng, -reach, reach) * t.color.height))
+                        .value_or(Vector3d::UnitZ());
+                const Isometry3d looking = lookAt(eye, centre, uniform(rng, -5 * kDeg, 5 * kDeg));
+                f.T_world_color =
+                    pose(looking.linear() *
+                             Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), ray).inverse(),
+                         eye);
             }
-            f.T_world_board = boardFacing(b, centre, facing, uniform(rng, -30 * kDeg, 30 * kDeg));
-            f.T_world_color = lookAt(eye, target, uniform(rng, -5 * kDeg, 5 * kDeg));
             t.frames.push_back(f);
         }
     }

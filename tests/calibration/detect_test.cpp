@@ -430,25 +430,30 @@ TEST(Detect, SimulatedCalibrationSessionViewsShareKeysAcrossCameras) {
         const CameraViews& c = *by[names[k]];
         ASSERT_EQ(c.views.size(), 20u) << names[k];
         std::string counts;
-        int agree = 0;
+        size_t found_total = 0, in_view_total = 0;
         for (size_t i = 0; i < c.views.size(); ++i) {
             // One key per capture instant, the same in every stream.
             EXPECT_EQ(c.views[i].key, static_cast<int64_t>(i)) << names[k];
             const double truth = seen[i][k];
             const size_t found = c.views[i].corners.size();
-            counts += " " + std::to_string(found) + "/" + std::to_string(std::lround(24 * truth));
+            const auto in_view = static_cast<size_t>(std::lround(24 * truth));
+            counts += " " + std::to_string(found) + "/" + std::to_string(in_view);
             // Never more corners than the truth has in the image; none where it has none.
-            EXPECT_LE(found, static_cast<size_t>(std::lround(24 * truth))) << names[k] << " " << i;
-            agree += found == static_cast<size_t>(std::lround(24 * truth));
+            EXPECT_LE(found, in_view) << names[k] << " " << i;
+            found_total += found;
+            in_view_total += in_view;
+            // Every third view holds the board over the fish-eye, close: most of it found there.
+            if (k == 2 && i % 3 == 2) {
+                EXPECT_GE(found, 16u) << names[k] << " " << i;
+            }
         }
         std::printf("%s corners found/in view per frame:%s\n", names[k], counts.c_str());
-        if (k < 2) {  // the Kinect's cameras: most views complete
-            EXPECT_GE(agree, k == 0 ? 14 : 17) << names[k];
-        } else {  // the fish-eye: corners in most views held over it
-            int with = 0;
-            for (const TargetView& v : c.views)
-                with += !v.corners.empty();
-            EXPECT_GE(with, 9) << names[k];
+        if (k < 2) {
+            // The Kinect's cameras: the board is placed across the whole image, partly beyond
+            // its edges, where markers cut by the edge take their corners with them (found
+            // 414 of 478 colour corners, 420 of 469 IR).
+            EXPECT_GE(static_cast<double>(found_total), 0.85 * static_cast<double>(in_view_total))
+                << names[k];
         }
     }
 
@@ -474,7 +479,8 @@ TEST(Detect, SimulatedCalibrationSessionViewsShareKeysAcrossCameras) {
     for (const TargetView& v : color.views)
         for (const SeenMarker& m : v.markers)
             with_marker += m.id == 23;
-    EXPECT_GE(with_marker, 5);
+    // The six views over the fish-eye are drawn so that the colour camera sees the marker.
+    EXPECT_GE(with_marker, 6);
     std::printf("world marker in %d of %zu colour views\n", with_marker, color.views.size());
 }
 
