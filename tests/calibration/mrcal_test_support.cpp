@@ -13,6 +13,8 @@
 #include <random>
 #include <sstream>
 
+#include "ceres_synthetic.h"
+
 namespace mixray::calibration::test {
 namespace {
 
@@ -33,6 +35,17 @@ std::string readFile(const std::filesystem::path& path) {
 }
 
 }  // namespace
+
+CalibrationTarget mrcalChessboard() {
+    return chessboard(10, 7, 0.04);
+}
+
+CameraModel opencv8Truth() {
+    CameraModel m = CameraModel::pinhole(1280, 704, 563.578, 563.600, 628.876, 347.846);
+    m.distortion = {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652,
+                    0.01968883397,  0.01482863541, -0.0562239888,    0.0500223357};
+    return m;
+}
 
 SyntheticViews syntheticViews(const CameraModel& truth, const CalibrationTarget& target, int count,
                               double noise_px, unsigned seed) {
