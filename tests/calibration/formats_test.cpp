@@ -5,9 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <fstream>
 #include <opencv2/core.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -51,16 +49,8 @@ CalibrationFile oneCamera(const std::string& name, const CameraModel& model) {
     return f;
 }
 
-void writeText(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
-
-std::string readText(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+using mixray::test::readText;
+using mixray::test::writeText;
 
 void expectSameModel(const CameraModel& a, const CameraModel& b) {
     EXPECT_EQ(a.lens, b.lens);

@@ -14,9 +14,12 @@
 #include <sstream>
 
 #include "ceres_synthetic.h"
+#include "test_data.h"
 
 namespace mixray::calibration::test {
 namespace {
+
+using mixray::test::readText;
 
 std::vector<Eigen::Vector3d> gridPoints(const CalibrationTarget& target) {
     std::vector<Eigen::Vector3d> points;
@@ -25,13 +28,6 @@ std::vector<Eigen::Vector3d> gridPoints(const CalibrationTarget& target) {
             points.emplace_back(c * target.square_m, r * target.square_m, 0);
     }
     return points;
-}
-
-std::string readFile(const std::filesystem::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
 }
 
 }  // namespace
@@ -182,9 +178,9 @@ std::optional<CliResult> runMrcalCalibrateCameras(const std::filesystem::path& v
             << views.width << " " << views.height << " --outdir '" << outdir.string() << "' "
             << extra << " 'view*.png' > cli.out 2> cli.err";
     const int status = std::system(command.str().c_str());
-    const std::string err = readFile(outdir / "cli.err");
+    const std::string err = readText(outdir / "cli.err");
     if (log)
-        *log = command.str() + "\n" + readFile(outdir / "cli.out") + err;
+        *log = command.str() + "\n" + readText(outdir / "cli.out") + err;
     if (status != 0)
         return std::nullopt;
     CliResult result;
@@ -207,7 +203,7 @@ std::optional<std::string> runPython(const std::string& program, const std::file
         "cd '" + dir.string() + "' && /usr/bin/python3 program.py > program.out 2> program.err";
     if (std::system(command.c_str()) != 0)
         return std::nullopt;
-    return readFile(dir / "program.out");
+    return readText(dir / "program.out");
 }
 
 double maxProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px) {
