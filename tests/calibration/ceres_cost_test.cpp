@@ -13,40 +13,23 @@
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
+#include "published_lenses.h"
 #include "reprojection_cost.h"
 
 namespace mixray::calibration {
 namespace {
 
-struct NamedModel {
-    std::string name;
-    CameraModel model;
-};
-
-CameraModel withDistortion(CameraModel model, std::vector<double> distortion) {
-    model.distortion = std::move(distortion);
-    return model;
-}
+using test::NamedModel;
+using test::publishedModel;
 
 std::vector<NamedModel> models() {
-    CameraModel fisheye = CameraModel::pinhole(1032, 778, 280.3, 281.1, 515.2, 390.6);
-    fisheye.lens = LensModel::kFisheye;
-    fisheye.distortion = {0.031, -0.012, 0.0021, -0.0004};
     return {
         {"opencv0", CameraModel::pinhole(640, 480, 525, 527, 319.5, 239.5)},
-        {"opencv4",
-         withDistortion(CameraModel::pinhole(640, 480, 628.158, 628.156, 324.099, 260.908),
-                        {0.0995485, -0.206384, 0.00754589, 0.00336531})},
-        {"opencv5",
-         withDistortion(
-             CameraModel::pinhole(640, 480, 535.91573396, 535.91573396, 342.28315473, 235.57082910),
-             {-0.26637261, -0.03858890, 0.00178319, -0.00028122, 0.23839153})},
-        {"opencv8",
-         withDistortion(
-             CameraModel::pinhole(4000, 2200, 1761.181055, 1761.250444, 1965.706996, 1087.518797),
-             {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652, 0.01968883397,
-              0.01482863541, -0.0562239888, 0.0500223357})},
-        {"fisheye", fisheye},
+        {"opencv4", publishedModel("aruco_tutorial")},
+        {"opencv5", publishedModel("opencv_left")},
+        {"opencv8", publishedModel("mrcal_cam0_opencv8")},
+        {"fisheye",
+         test::fisheye(1032, 778, 280.3, 281.1, 515.2, 390.6, {0.031, -0.012, 0.0021, -0.0004})},
     };
 }
 
