@@ -127,6 +127,19 @@ Eigen::Vector2d residualOnly(const ceres::CostFunction& cost,
     return r;
 }
 
+// d(residual)/d(blocks[b][c]) by central differences of step h; the block is left unchanged.
+Eigen::Vector2d centralDifference(const ceres::CostFunction& cost,
+                                  std::vector<Eigen::VectorXd>& blocks, size_t b, Eigen::Index c,
+                                  double h) {
+    const double x = blocks[b][c];
+    blocks[b][c] = x + h;
+    const Eigen::Vector2d plus = residualOnly(cost, blocks);
+    blocks[b][c] = x - h;
+    const Eigen::Vector2d minus = residualOnly(cost, blocks);
+    blocks[b][c] = x;
+    return (plus - minus) / (2 * h);
+}
+
 TEST(CeresCost, ResidualAndJacobiansMatchProjectionAndCentralDifferences) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> unit(-1, 1);
@@ -162,14 +175,9 @@ TEST(CeresCost, ResidualAndJacobiansMatchProjectionAndCentralDifferences) {
 
                     for (size_t b = 0; b < blocks.size(); ++b) {
                         for (Eigen::Index c = 0; c < blocks[b].size(); ++c) {
-                            const double x = blocks[b][c];
-                            const double h = 1e-6 * std::max(1.0, std::abs(x));
-                            blocks[b][c] = x + h;
-                            const Eigen::Vector2d plus = residualOnly(*cost, blocks);
-                            blocks[b][c] = x - h;
-                            const Eigen::Vector2d minus = residualOnly(*cost, blocks);
-                            blocks[b][c] = x;
-                            const Eigen::Vector2d numeric = (plus - minus) / (2 * h);
+                            const double h = 1e-6 * std::max(1.0, std::abs(blocks[b][c]));
+                            const Eigen::Vector2d numeric =
+                                centralDifference(*cost, blocks, b, c, h);
                             const Eigen::Vector2d column = analytic.jacobians[b].col(c);
                             EXPECT_LT((column - numeric).norm(),
                                       1e-6 * std::max(1.0, numeric.norm()))
@@ -203,14 +211,7 @@ TEST(CeresCost, OtherLensesWithFixedIntrinsicsMatchCentralDifferences) {
             EXPECT_LT(analytic.residual.norm(), 1e-8);
             for (size_t b = 0; b < blocks.size(); ++b) {
                 for (Eigen::Index c = 0; c < 6; ++c) {
-                    const double x = blocks[b][c];
-                    const double h = 1e-5;
-                    blocks[b][c] = x + h;
-                    const Eigen::Vector2d plus = residualOnly(*cost, blocks);
-                    blocks[b][c] = x - h;
-                    const Eigen::Vector2d minus = residualOnly(*cost, blocks);
-                    blocks[b][c] = x;
-                    const Eigen::Vector2d numeric = (plus - minus) / (2 * h);
+                    const Eigen::Vector2d numeric = centralDifference(*cost, blocks, b, c, 1e-5);
                     EXPECT_LT((analytic.jacobians[b].col(c) - numeric).norm(),
                               1e-5 * std::max(1.0, numeric.norm()));
                 }
