@@ -153,29 +153,6 @@ double niceBelow(double v) {
     return decade;
 }
 
-std::string rejectionName(calibration::ViewRejection r) {
-    using calibration::ViewRejection;
-    switch (r) {
-        case ViewRejection::kNone:
-            return "used";
-        case ViewRejection::kUnreadable:
-            return "unreadable";
-        case ViewRejection::kWrongSize:
-            return "wrong size";
-        case ViewRejection::kNoTarget:
-            return "no target";
-        case ViewRejection::kPartialTarget:
-            return "partial target";
-        case ViewRejection::kBlurred:
-            return "blurred";
-        case ViewRejection::kTooOblique:
-            return "too oblique";
-        case ViewRejection::kOutliers:
-            return "too many outliers";
-    }
-    return "unknown";
-}
-
 std::string markdownCell(std::string s) {
     std::string out;
     for (char c : s) {
@@ -496,7 +473,7 @@ std::string viewTable(const CameraCalibration& c, const calibration::CameraViews
                 o << "\nNot used:\n\n| view | source | key | why |\n|---:|---|---:|---|\n";
                 header = true;
             }
-            std::string why = rejectionName(v.rejection);
+            std::string why(calibration::toString(v.rejection));
             if (!v.why.empty())
                 why += ": " + v.why;
             o << "| " << i << " | " << markdownCell(v.source) << " | " << v.key << " | "

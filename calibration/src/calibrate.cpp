@@ -491,4 +491,55 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
     return result;
 }
 
+namespace detail {
+
+std::optional<std::pair<size_t, size_t>> fillResiduals(
+    const SolveInput& input, const std::vector<Eigen::Isometry3d>& T_camera_target,
+    const std::vector<Eigen::Vector3d>& points, CameraCalibration& out) {
+    const CameraViews& views = *input.views;
+    std::optional<std::pair<size_t, size_t>> unprojected;
+    double sum2 = 0;
+    int inliers = 0;
+    for (size_t u = 0; u < input.used.size(); ++u) {
+        const TargetView& view = views.views[input.used[u]];
+        ViewFit fit;
+        fit.view = input.used[u];
+        fit.T_camera_target = T_camera_target[u];
+        fit.corners = static_cast<int>(view.corners.size());
+        double view_sum2 = 0;
+        int view_inliers = 0;
+        for (size_t c = 0; c < view.corners.size(); ++c) {
+            const Corner& corner = view.corners[c];
+            PointResidual point;
+            point.view = input.used[u];
+            point.id = corner.id;
+            point.observed = corner.pixel;
+            point.outlier = !input.inlier[u][c];
+            const auto projected =
+                out.model.project(fit.T_camera_target * points[static_cast<size_t>(corner.id)]);
+            point.residual =
+                projected ? Eigen::Vector2d(*projected - corner.pixel)
+                          : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+            if (point.outlier) {
+                ++fit.outliers;
+            } else if (projected) {
+                view_sum2 += point.residual.squaredNorm();
+                ++view_inliers;
+            } else if (!unprojected) {
+                unprojected = std::pair{u, c};
+            }
+            out.residuals.push_back(point);
+        }
+        fit.rms_px = view_inliers > 0 ? std::sqrt(view_sum2 / view_inliers) : 0;
+        sum2 += view_sum2;
+        inliers += view_inliers;
+        out.outliers += fit.outliers;
+        out.views.push_back(fit);
+    }
+    out.rms_px = inliers > 0 ? std::sqrt(sum2 / inliers) : 0;
+    return unprojected;
+}
+
+}  // namespace detail
+
 }  // namespace mixray::calibration

@@ -39,7 +39,6 @@ constexpr std::string_view kMapEncoding = "base64-float32le";
 // Poses in a calibration file relate cameras of one rig or a rig to its marker; a kilometre
 // is beyond any of them and catches unit mistakes (millimetres) early.
 constexpr double kMaxTranslationM = 1000;
-constexpr int kMaxNesting = 16;
 
 Status invalid(std::string what) {
     return Status(ErrorCode::kInvalidArgument, std::move(what));
@@ -49,18 +48,11 @@ std::string num(double v) {
     return yaml::shortest(v);
 }
 
-std::string list(const std::vector<double>& values) {
-    std::string out = "[";
-    for (size_t i = 0; i < values.size(); ++i)
-        out += (i ? ", " : "") + num(values[i]);
-    return out + "]";
-}
-
 std::string poseYaml(const Eigen::Isometry3d& T) {
     const Eigen::Quaterniond q(T.linear());
     const Eigen::Vector3d t = T.translation();
-    return "{translation: " + list({t.x(), t.y(), t.z()}) +
-           ", quaternion: " + list({q.w(), q.x(), q.y(), q.z()}) + "}";
+    return "{translation: " + detail::yamlList({t.x(), t.y(), t.z()}) +
+           ", quaternion: " + detail::yamlList({q.w(), q.x(), q.y(), q.z()}) + "}";
 }
 
 bool allFinite(const std::vector<double>& values) {
@@ -143,8 +135,8 @@ public:
     explicit Parser(std::string file) : r_(std::move(file)) {}
 
     Result<CalibrationFile> parse(std::string_view text) {
-        auto root =
-            r_.load(text, detail::kMaxCalibrationFileBytes, kMaxNesting, "a calibration file");
+        auto root = r_.load(text, detail::kMaxCalibrationFileBytes, detail::kMaxCalibrationNesting,
+                            "a calibration file");
         if (!root)
             return root.status();
         auto fields = r_.readMap(*root, kTopKeys,
@@ -210,21 +202,6 @@ private:
         return *text;
     }
 
-    Result<std::vector<double>> numbers(const Item& item, size_t count, double min, double max,
-                                        std::string_view expectation) const {
-        auto elements = r_.readList(item, count, count, expectation);
-        if (!elements)
-            return elements.status();
-        std::vector<double> out;
-        for (const Item& e : *elements) {
-            auto v = r_.number(e, min, max, false);
-            if (!v)
-                return v.status();
-            out.push_back(*v);
-        }
-        return out;
-    }
-
     Result<CalibratedCamera> parseCamera(const Item& item) const {
         auto fields = r_.readMap(item, kCameraKeys, "a camera mapping with name: and model:");
         if (!fields)
@@ -271,11 +248,11 @@ private:
         }
         if (const Item* stddev = find(*fields, "intrinsics_stddev")) {
             const size_t count = 4 + c.model.distortion.size();
-            auto values = numbers(*stddev, count, 0, 1e9,
-                                  "a list of " + std::to_string(count) +
-                                      " standard deviations (fx fy cx cy, then the " +
-                                      std::to_string(c.model.distortion.size()) +
-                                      " distortion coefficients)");
+            auto values = detail::readNumbers(r_, *stddev, count, count, 0, 1e9,
+                                              "a list of " + std::to_string(count) +
+                                                  " standard deviations (fx fy cx cy, then the " +
+                                                  std::to_string(c.model.distortion.size()) +
+                                                  " distortion coefficients)");
             if (!values)
                 return values.status();
             c.intrinsics_stddev = *values;
@@ -303,7 +280,7 @@ private:
             return rows.status();
         Eigen::Matrix<double, 6, 6> m;
         for (int i = 0; i < 6; ++i) {
-            auto row = numbers((*rows)[i], 6, -1e6, 1e6, kExpect);
+            auto row = detail::readNumbers(r_, (*rows)[i], 6, 6, -1e6, 1e6, kExpect);
             if (!row)
                 return row.status();
             for (int j = 0; j < 6; ++j)
@@ -672,6 +649,29 @@ std::string yamlQuoted(std::string_view text) {
     return out + "\"";
 }
 
+std::string yamlList(const std::vector<double>& values) {
+    std::string out = "[";
+    for (size_t i = 0; i < values.size(); ++i)
+        out += (i ? ", " : "") + yaml::shortest(values[i]);
+    return out + "]";
+}
+
+Result<std::vector<double>> readNumbers(const yaml::Reader& r, const yaml::Item& item,
+                                        size_t min_count, size_t max_count, double min, double max,
+                                        std::string_view expectation) {
+    auto elements = r.readList(item, min_count, max_count, expectation);
+    if (!elements)
+        return elements.status();
+    std::vector<double> out;
+    for (const yaml::Item& e : *elements) {
+        auto v = r.number(e, min, max, false);
+        if (!v)
+            return v.status();
+        out.push_back(*v);
+    }
+    return out;
+}
+
 }  // namespace detail
 
 const CalibratedCamera* CalibrationFile::find(std::string_view name) const {
@@ -785,11 +785,11 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
                 std::vector<double> row(6);
                 for (int j = 0; j < 6; ++j)
                     row[j] = (*c.pose_covariance)(i, j);
-                o << "      - " << list(row) << "\n";
+                o << "      - " << detail::yamlList(row) << "\n";
             }
         }
         if (!c.intrinsics_stddev.empty())
-            o << "    intrinsics_stddev: " << list(c.intrinsics_stddev) << "\n";
+            o << "    intrinsics_stddev: " << detail::yamlList(c.intrinsics_stddev) << "\n";
         if (c.rms_px > 0)
             o << "    rms_px: " << num(c.rms_px) << "\n";
         if (c.views > 0)

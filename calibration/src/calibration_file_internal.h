@@ -11,12 +11,15 @@
 #include <vector>
 
 #include "mixray/calibration/calibration_file.h"
+#include "mixray/graph/yaml_reader.h"
 
 namespace mixray::calibration::detail {
 
 // Largest file any calibration format is read from: a 1280x1024 per-pixel depth map in base64
 // is 7 MB; anything far larger is not a calibration file.
 constexpr size_t kMaxCalibrationFileBytes = 64u << 20;
+// Deepest YAML nesting any calibration format has, with room to spare.
+constexpr int kMaxCalibrationNesting = 16;
 
 // Camera and frame names: 1–128 of letters, digits, '_', '-', '.', '/'. Stream names
 // ("kinect/color") and ROS topics without their leading '/' are such names.
@@ -40,5 +43,12 @@ std::optional<std::vector<uint8_t>> base64Decode(std::string_view text);
 
 // A YAML double-quoted scalar.
 std::string yamlQuoted(std::string_view text);
+// A YAML flow sequence of numbers, each in its shortest exact form: "[1, 0.5]".
+std::string yamlList(const std::vector<double>& values);
+// A YAML sequence of `min_count`..`max_count` numbers, each in [min, max]; the reader's error
+// naming `expectation` otherwise.
+Result<std::vector<double>> readNumbers(const yaml::Reader& r, const yaml::Item& item,
+                                        size_t min_count, size_t max_count, double min, double max,
+                                        std::string_view expectation);
 
 }  // namespace mixray::calibration::detail

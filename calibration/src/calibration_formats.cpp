@@ -28,7 +28,6 @@ constexpr std::array<std::string_view, 8> kRosKeys = {
     "camera_matrix",        "distortion_model", "distortion_coefficients",
     "rectification_matrix", "projection_matrix"};
 constexpr std::array<std::string_view, 3> kRosMatrixKeys = {"rows", "cols", "data"};
-constexpr int kMaxNesting = 16;
 
 Status invalid(std::string what) {
     return Status(ErrorCode::kInvalidArgument, std::move(what));
@@ -36,17 +35,6 @@ Status invalid(std::string what) {
 
 Status corruptFile(const std::filesystem::path& path, std::string_view what) {
     return Status(ErrorCode::kCorruptData, path.string() + ": " + std::string(what));
-}
-
-std::string num(double v) {
-    return yaml::shortest(v);
-}
-
-std::string list(const std::vector<double>& values) {
-    std::string out = "[";
-    for (size_t i = 0; i < values.size(); ++i)
-        out += (i ? ", " : "") + num(values[i]);
-    return out + "]";
 }
 
 // The camera name a one-camera file gets when it names none: its file name without the
@@ -279,8 +267,8 @@ public:
     explicit YamlImporter(const std::filesystem::path& path) : path_(path), r_(path.string()) {}
 
     Result<CalibrationFile> kalibr(std::string_view text) {
-        auto root =
-            r_.load(text, detail::kMaxCalibrationFileBytes, kMaxNesting, "a Kalibr camchain file");
+        auto root = r_.load(text, detail::kMaxCalibrationFileBytes, detail::kMaxCalibrationNesting,
+                            "a Kalibr camchain file");
         if (!root)
             return root.status();
         auto fields = r_.readMap(*root, {}, "a Kalibr camchain mapping with cam0, cam1, ...");
@@ -305,8 +293,8 @@ public:
     }
 
     Result<CalibrationFile> ros(std::string_view text) {
-        auto root =
-            r_.load(text, detail::kMaxCalibrationFileBytes, kMaxNesting, "a ROS camera_info file");
+        auto root = r_.load(text, detail::kMaxCalibrationFileBytes, detail::kMaxCalibrationNesting,
+                            "a ROS camera_info file");
         if (!root)
             return root.status();
         auto fields = r_.readMap(*root, kRosKeys,
@@ -409,17 +397,7 @@ public:
 private:
     Result<std::vector<double>> numbers(const Item& item, size_t min, size_t max,
                                         std::string_view expectation) const {
-        auto elements = r_.readList(item, min, max, expectation);
-        if (!elements)
-            return elements.status();
-        std::vector<double> out;
-        for (const Item& e : *elements) {
-            auto v = r_.number(e, -1e9, 1e9, false);
-            if (!v)
-                return v.status();
-            out.push_back(*v);
-        }
-        return out;
+        return detail::readNumbers(r_, item, min, max, -1e9, 1e9, expectation);
     }
 
     // {rows, cols, data}; cols < 0: any.
@@ -602,7 +580,7 @@ Result<std::pair<std::string, std::vector<double>>> kalibrDistortion(const Calib
 }
 
 std::string matrixRow(const Eigen::Matrix4d& M, int row) {
-    return list({M(row, 0), M(row, 1), M(row, 2), M(row, 3)});
+    return detail::yamlList({M(row, 0), M(row, 1), M(row, 2), M(row, 3)});
 }
 
 Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& file) {
@@ -632,9 +610,9 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
         }
         const CameraModel& m = c.model;
         o << "  camera_model: pinhole\n";
-        o << "  intrinsics: " << list({m.fx, m.fy, m.cx, m.cy}) << "\n";
+        o << "  intrinsics: " << detail::yamlList({m.fx, m.fy, m.cx, m.cy}) << "\n";
         o << "  distortion_model: " << distortion->first << "\n";
-        o << "  distortion_coeffs: " << list(distortion->second) << "\n";
+        o << "  distortion_coeffs: " << detail::yamlList(distortion->second) << "\n";
         o << "  resolution: [" << m.width << ", " << m.height << "]\n";
         o << "  rostopic: " << detail::yamlQuoted("/" + c.name) << "\n";
         if (i > 0)
@@ -646,7 +624,7 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
 std::string rosMatrixYaml(std::string_view key, int rows, int cols,
                           const std::vector<double>& data) {
     return std::string(key) + ":\n  rows: " + std::to_string(rows) +
-           "\n  cols: " + std::to_string(cols) + "\n  data: " + list(data) + "\n";
+           "\n  cols: " + std::to_string(cols) + "\n  data: " + detail::yamlList(data) + "\n";
 }
 
 Status writeRos(const std::filesystem::path& path, const CalibratedCamera& c) {

@@ -6,20 +6,20 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <string>
 
+#include "lens_distortion.h"
 #include "mrcal_lens.h"
 
 namespace mixray::calibration {
 
 namespace {
 
-// The fish-eye model is used up to 100° off the optical axis (a 200° field of view). Beyond
-// that the polynomial is extrapolated far past any calibration data, so such directions are
-// treated as outside the field of view. The limit shrinks further where θ_d(θ) stops
-// increasing, since there the model folds over and no longer has a unique inverse.
-constexpr double kFisheyeMaxThetaRad = 100.0 * std::numbers::pi / 180.0;
+using detail::FisheyeCoefficients;
+using detail::fisheyeThetaD;
+using detail::fisheyeThetaDDerivative;
+using detail::kFisheyeMaxThetaRad;
+using detail::PinholeCoefficients;
 
 // Iteration limits for unproject(). Newton converges in a handful of steps for real lenses;
 // the generous cap leaves room for damped steps near the image corners.
@@ -40,68 +40,15 @@ bool allFinite(const std::vector<double>& values) {
 
 // ---- pinhole (OpenCV rational model) ----
 
-struct PinholeCoefficients {
-    double k1, k2, p1, p2, k3, k4, k5, k6;
-};
-
 PinholeCoefficients pinholeCoefficients(const std::vector<double>& d) {
     return {coefficient(d, 0), coefficient(d, 1), coefficient(d, 2), coefficient(d, 3),
             coefficient(d, 4), coefficient(d, 5), coefficient(d, 6), coefficient(d, 7)};
 }
 
-// Distorts normalised coordinates (x, y) = (X/Z, Y/Z) as cv::projectPoints does, with the
-// same operation order so results agree to the last bits. Optionally returns the Jacobian.
-Eigen::Vector2d distortPinhole(const PinholeCoefficients& c, const Eigen::Vector2d& xy,
-                               Eigen::Matrix2d* jacobian) {
-    const double x = xy.x(), y = xy.y();
-    const double r2 = x * x + y * y;
-    const double r4 = r2 * r2;
-    const double r6 = r4 * r2;
-    const double a1 = 2 * x * y;
-    const double a2 = r2 + 2 * x * x;
-    const double a3 = r2 + 2 * y * y;
-    const double num = 1 + c.k1 * r2 + c.k2 * r4 + c.k3 * r6;
-    const double den = 1 + c.k4 * r2 + c.k5 * r4 + c.k6 * r6;
-    const double inv_den = 1 / den;
-    const double radial = num * inv_den;
-    const Eigen::Vector2d out(x * radial + c.p1 * a1 + c.p2 * a2,
-                              y * radial + c.p1 * a3 + c.p2 * a1);
-    if (jacobian) {
-        // d(radial)/d(r2) by the quotient rule; d(r2)/dx = 2x.
-        const double dnum = c.k1 + 2 * c.k2 * r2 + 3 * c.k3 * r4;
-        const double dden = c.k4 + 2 * c.k5 * r2 + 3 * c.k6 * r4;
-        const double dradial_dr2 = (dnum * den - num * dden) * inv_den * inv_den;
-        const double drdx = dradial_dr2 * 2 * x;
-        const double drdy = dradial_dr2 * 2 * y;
-        (*jacobian)(0, 0) = radial + x * drdx + 2 * c.p1 * y + 6 * c.p2 * x;
-        (*jacobian)(0, 1) = x * drdy + 2 * c.p1 * x + 2 * c.p2 * y;
-        (*jacobian)(1, 0) = y * drdx + 2 * c.p1 * x + 2 * c.p2 * y;
-        (*jacobian)(1, 1) = radial + y * drdy + 6 * c.p1 * y + 2 * c.p2 * x;
-    }
-    return out;
-}
-
 // ---- fish-eye (Kannala–Brandt as cv::fisheye) ----
-
-struct FisheyeCoefficients {
-    double k1, k2, k3, k4;
-};
 
 FisheyeCoefficients fisheyeCoefficients(const std::vector<double>& d) {
     return {coefficient(d, 0), coefficient(d, 1), coefficient(d, 2), coefficient(d, 3)};
-}
-
-double fisheyeThetaD(const FisheyeCoefficients& c, double theta) {
-    const double t2 = theta * theta;
-    const double t4 = t2 * t2;
-    const double t6 = t4 * t2;
-    const double t8 = t4 * t4;
-    return theta * (1 + c.k1 * t2 + c.k2 * t4 + c.k3 * t6 + c.k4 * t8);
-}
-
-double fisheyeThetaDDerivative(const FisheyeCoefficients& c, double theta) {
-    const double t2 = theta * theta;
-    return 1 + t2 * (3 * c.k1 + t2 * (5 * c.k2 + t2 * (7 * c.k3 + t2 * 9 * c.k4)));
 }
 
 // True when θ_d surely increases on [0, theta]: a lower bound of its derivative, keeping only
@@ -420,7 +367,7 @@ std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam
     if (p_cam.z() <= 0)
         return std::nullopt;
     const Eigen::Vector2d xy(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
-    const Eigen::Vector2d d = distortPinhole(pinholeCoefficients(distortion), xy, nullptr);
+    const Eigen::Vector2d d = detail::distortPinhole(pinholeCoefficients(distortion), xy, nullptr);
     return Eigen::Vector2d(fx * d.x() + cx, fy * d.y() + cy);
 }
 
@@ -455,7 +402,7 @@ std::optional<Eigen::Vector3d> CameraModel::unproject(const Eigen::Vector2d& pix
     // polynomial near the image corners.
     Eigen::Vector2d xy = target;
     Eigen::Matrix2d jacobian;
-    Eigen::Vector2d residual = distortPinhole(c, xy, &jacobian) - target;
+    Eigen::Vector2d residual = detail::distortPinhole(c, xy, &jacobian) - target;
     double residual_norm = residual.norm();
     for (int i = 0; i < kMaxIterations && residual_norm >= tolerance; ++i) {
         const double det = jacobian.determinant();
@@ -468,7 +415,7 @@ std::optional<Eigen::Vector3d> CameraModel::unproject(const Eigen::Vector2d& pix
             const Eigen::Vector2d candidate = xy - scale * step;
             Eigen::Matrix2d candidate_jacobian;
             const Eigen::Vector2d candidate_residual =
-                distortPinhole(c, candidate, &candidate_jacobian) - target;
+                detail::distortPinhole(c, candidate, &candidate_jacobian) - target;
             const double candidate_norm = candidate_residual.norm();
             if (std::isfinite(candidate_norm) && candidate_norm < residual_norm) {
                 xy = candidate;

@@ -106,48 +106,16 @@ Result<CameraCalibration> solveWithCeres(const SolveInput& input,
                                          valid.message() + ")");
     }
 
-    double sum2 = 0;
-    int inliers = 0;
-    for (size_t u = 0; u < input.used.size(); ++u) {
-        const TargetView& view = views.views[input.used[u]];
-        ViewFit fit;
-        fit.view = input.used[u];
-        fit.T_camera_target = fromRt(poses[u].data());
-        double view_sum2 = 0;
-        int view_inliers = 0;
-        for (size_t c = 0; c < view.corners.size(); ++c) {
-            const Corner& corner = view.corners[c];
-            PointResidual point;
-            point.view = input.used[u];
-            point.id = corner.id;
-            point.observed = corner.pixel;
-            point.outlier = !input.inlier[u][c];
-            const auto projected =
-                out.model.project(fit.T_camera_target * points[static_cast<size_t>(corner.id)]);
-            point.residual =
-                projected ? Eigen::Vector2d(*projected - corner.pixel)
-                          : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
-            if (!projected && !point.outlier) {
-                return Status(kNotConverged, "camera '" + views.camera + "': view '" + view.source +
-                                                 "': corner " + std::to_string(corner.id) +
-                                                 " does not project through the solved model");
-            }
-            if (point.outlier) {
-                ++fit.outliers;
-            } else {
-                view_sum2 += point.residual.squaredNorm();
-                ++view_inliers;
-            }
-            out.residuals.push_back(point);
-        }
-        fit.corners = static_cast<int>(view.corners.size());
-        fit.rms_px = view_inliers > 0 ? std::sqrt(view_sum2 / view_inliers) : 0;
-        sum2 += view_sum2;
-        inliers += view_inliers;
-        out.outliers += fit.outliers;
-        out.views.push_back(fit);
+    std::vector<Eigen::Isometry3d> T_camera_target;
+    for (const Vector6d& pose : poses)
+        T_camera_target.push_back(fromRt(pose.data()));
+    if (const auto unprojected = fillResiduals(input, T_camera_target, points, out)) {
+        const TargetView& view = views.views[input.used[unprojected->first]];
+        return Status(kNotConverged, "camera '" + views.camera + "': view '" + view.source +
+                                         "': corner " +
+                                         std::to_string(view.corners[unprojected->second].id) +
+                                         " does not project through the solved model");
     }
-    out.rms_px = inliers > 0 ? std::sqrt(sum2 / inliers) : 0;
 
     // σ² from the weighted residuals the solve minimised, with the degrees of freedom it used.
     const int free_parameters = problem.NumParameters() - (options.fix_aspect_ratio ? 1 : 0);

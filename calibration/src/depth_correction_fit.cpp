@@ -61,6 +61,11 @@ struct PerPixelFit {
     double scale = 1, offset = 0, alpha0 = 0, alpha1 = 0;
     Eigen::VectorXd nodes;
     double rms = 0;
+
+    // Herrera's model at a reading: zc = scale·z_raw + offset, and the decay e^(α0 − α1·zc)
+    // that scales the spatial term there.
+    double linear(double z_raw) const { return scale * z_raw + offset; }
+    double decay(double zc) const { return std::exp(alpha0 - alpha1 * zc); }
 };
 
 // For a given α1, the linear least squares in (scale, offset, D nodes) with the membrane and
@@ -98,8 +103,7 @@ PerPixelFit fitPerPixel(const std::vector<Sample>& samples, const std::vector<ui
             const Sample& sm = samples[s];
             const int x = sm.pixel % width, y = sm.pixel / width;
             grid.weights(x, y, node, bw);
-            const double zc = fit.scale * sm.z_raw + fit.offset;
-            const double w = std::exp(fit.alpha0 - alpha1 * zc);
+            const double w = fit.decay(fit.linear(sm.z_raw));
             const double target = sm.z_plane;
             for (int a = 0; a < 4; ++a) {
                 const double fa = w * bw[a];
@@ -177,8 +181,8 @@ PerPixelFit fitPerPixel(const std::vector<Sample>& samples, const std::vector<ui
         double d = 0;
         for (int a = 0; a < 4; ++a)
             d += bw[a] * fit.nodes[node[a]];
-        const double zc = fit.scale * sm.z_raw + fit.offset;
-        const double r = zc + d * std::exp(fit.alpha0 - alpha1 * zc) - sm.z_plane;
+        const double zc = fit.linear(sm.z_raw);
+        const double r = zc + d * fit.decay(zc) - sm.z_plane;
         sum += r * r;
     }
     fit.rms = std::sqrt(sum / std::max<size_t>(used, 1));

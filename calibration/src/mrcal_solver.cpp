@@ -390,45 +390,18 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
         return covariance.status();
     result.covariance = std::move(*covariance);
 
-    double sum2_all = 0;
-    int inliers_all = 0;
-    for (size_t f = 0; f < input.used.size(); ++f) {
-        const TargetView& view = views.views[input.used[f]];
-        ViewFit fit;
-        fit.view = input.used[f];
-        fit.T_camera_target = isometryFromPose(problem.frames[f]) * T_target_board.inverse();
-        fit.corners = static_cast<int>(view.corners.size());
-        double sum2 = 0;
-        int inliers = 0;
-        for (size_t c = 0; c < view.corners.size(); ++c) {
-            const Corner& corner = view.corners[c];
-            PointResidual residual;
-            residual.view = input.used[f];
-            residual.id = corner.id;
-            residual.observed = corner.pixel;
-            residual.outlier = !input.inlier[f][c];
-            const Eigen::Vector3d p_target(
-                grid->origin.x() + grid->spacing * (corner.id % grid->width_n),
-                grid->origin.y() + grid->spacing * (corner.id / grid->width_n), 0);
-            const std::optional<Eigen::Vector2d> projected =
-                result.model.project(fit.T_camera_target * p_target);
-            residual.residual =
-                projected ? Eigen::Vector2d(*projected - corner.pixel) : Eigen::Vector2d(NAN, NAN);
-            if (residual.outlier) {
-                ++fit.outliers;
-            } else if (projected) {
-                sum2 += residual.residual.squaredNorm();
-                ++inliers;
-            }
-            result.residuals.push_back(residual);
-        }
-        fit.rms_px = inliers ? std::sqrt(sum2 / inliers) : 0.0;
-        result.outliers += fit.outliers;
-        sum2_all += sum2;
-        inliers_all += inliers;
-        result.views.push_back(fit);
+    // An inlier the solved model cannot project is left out of the RMS values, not refused:
+    // mrcal judged the solve itself.
+    std::vector<Eigen::Isometry3d> T_camera_target;
+    for (size_t f = 0; f < input.used.size(); ++f)
+        T_camera_target.push_back(isometryFromPose(problem.frames[f]) * T_target_board.inverse());
+    std::vector<Eigen::Vector3d> points;
+    for (size_t id = 0; id < npoints; ++id) {
+        const int i = static_cast<int>(id);
+        points.emplace_back(grid->origin.x() + grid->spacing * (i % grid->width_n),
+                            grid->origin.y() + grid->spacing * (i / grid->width_n), 0);
     }
-    result.rms_px = inliers_all ? std::sqrt(sum2_all / inliers_all) : 0.0;
+    fillResiduals(input, T_camera_target, points, result);
     progress(1.0, "mrcal: done");
     return result;
 }

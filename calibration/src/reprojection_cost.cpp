@@ -10,8 +10,9 @@
 #include <array>
 #include <cassert>
 #include <cmath>
-#include <numbers>
 #include <vector>
+
+#include "lens_distortion.h"
 
 namespace mixray::calibration::detail {
 
@@ -20,9 +21,6 @@ namespace {
 // Residual of a point the model cannot project: large enough that any step reaching it is
 // rejected, constant so that it pulls nowhere.
 constexpr double kInvalidResidualPx = 1e4;
-
-// The fish-eye model's field of view, as CameraModel::project uses it.
-constexpr double kFisheyeMaxThetaRad = 100.0 * std::numbers::pi / 180.0;
 
 // Below this rotation angle the closed forms lose precision; their Taylor series are exact to
 // double precision there.
@@ -76,71 +74,34 @@ Projection projectPinhole(const Eigen::Vector3d& p, const double* intrinsics, in
     std::array<double, 8> k{};
     for (int i = 0; i < count; ++i)
         k[i] = intrinsics[4 + i];
-    const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3], k3 = k[4], k4 = k[5], k5 = k[6],
-                 k6 = k[7];
+    const PinholeCoefficients coefficients{k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7]};
     const double fx = intrinsics[0], fy = intrinsics[1];
     const double inv_z = 1 / p.z();
     const double x = p.x() * inv_z, y = p.y() * inv_z;
-    // The same operation order as CameraModel::project (and cv::projectPoints).
-    const double r2 = x * x + y * y;
-    const double r4 = r2 * r2;
-    const double r6 = r4 * r2;
-    const double a1 = 2 * x * y;
-    const double a2 = r2 + 2 * x * x;
-    const double a3 = r2 + 2 * y * y;
-    const double num = 1 + k1 * r2 + k2 * r4 + k3 * r6;
-    const double den = 1 + k4 * r2 + k5 * r4 + k6 * r6;
-    const double inv_den = 1 / den;
-    const double radial = num * inv_den;
-    const double xd = x * radial + p1 * a1 + p2 * a2;
-    const double yd = y * radial + p1 * a3 + p2 * a1;
-    out.valid = true;
-    out.pixel = Eigen::Vector2d(fx * xd + intrinsics[2], fy * yd + intrinsics[3]);
-
-    const double dnum = k1 + 2 * k2 * r2 + 3 * k3 * r4;
-    const double dden = k4 + 2 * k5 * r2 + 3 * k6 * r4;
-    const double dradial_dr2 = (dnum * den - num * dden) * inv_den * inv_den;
     Eigen::Matrix2d d_distorted;  // d(xd, yd)/d(x, y)
-    d_distorted(0, 0) = radial + x * dradial_dr2 * 2 * x + 2 * p1 * y + 6 * p2 * x;
-    d_distorted(0, 1) = x * dradial_dr2 * 2 * y + 2 * p1 * x + 2 * p2 * y;
-    d_distorted(1, 0) = y * dradial_dr2 * 2 * x + 2 * p1 * x + 2 * p2 * y;
-    d_distorted(1, 1) = radial + y * dradial_dr2 * 2 * y + 6 * p1 * y + 2 * p2 * x;
+    Eigen::Matrix<double, 2, 8> d_coefficients;
+    const Eigen::Vector2d distorted =
+        distortPinhole(coefficients, Eigen::Vector2d(x, y), &d_distorted, &d_coefficients);
+    out.valid = true;
+    out.pixel =
+        Eigen::Vector2d(fx * distorted.x() + intrinsics[2], fy * distorted.y() + intrinsics[3]);
     Eigen::Matrix<double, 2, 3> d_normalised;
     d_normalised << inv_z, 0, -x * inv_z, 0, inv_z, -y * inv_z;
-    out.d_point = Eigen::Vector2d(fx, fy).asDiagonal() * d_distorted * d_normalised;
+    const Eigen::Vector2d focal(fx, fy);
+    out.d_point = focal.asDiagonal() * d_distorted * d_normalised;
 
     out.d_intrinsics.setZero(2, 4 + count);
-    out.d_intrinsics(0, 0) = xd;
-    out.d_intrinsics(1, 1) = yd;
+    out.d_intrinsics(0, 0) = distorted.x();
+    out.d_intrinsics(1, 1) = distorted.y();
     out.d_intrinsics(0, 2) = 1;
     out.d_intrinsics(1, 3) = 1;
-    // d(xd, yd)/d(coefficient), in coefficient order.
-    const double num_den2 = num * inv_den * inv_den;
-    const std::array<Eigen::Vector2d, 8> d_coefficient = {
-        Eigen::Vector2d(x * r2 * inv_den, y * r2 * inv_den),
-        Eigen::Vector2d(x * r4 * inv_den, y * r4 * inv_den),
-        Eigen::Vector2d(a1, a3),
-        Eigen::Vector2d(a2, a1),
-        Eigen::Vector2d(x * r6 * inv_den, y * r6 * inv_den),
-        Eigen::Vector2d(-x * r2 * num_den2, -y * r2 * num_den2),
-        Eigen::Vector2d(-x * r4 * num_den2, -y * r4 * num_den2),
-        Eigen::Vector2d(-x * r6 * num_den2, -y * r6 * num_den2),
-    };
-    for (int i = 0; i < count; ++i) {
-        out.d_intrinsics(0, 4 + i) = fx * d_coefficient[i].x();
-        out.d_intrinsics(1, 4 + i) = fy * d_coefficient[i].y();
-    }
+    out.d_intrinsics.rightCols(count) = focal.asDiagonal() * d_coefficients.leftCols(count);
     return out;
-}
-
-double fisheyeThetaDDerivative(const double* k, double theta) {
-    const double t2 = theta * theta;
-    return 1 + t2 * (3 * k[0] + t2 * (5 * k[1] + t2 * (7 * k[2] + t2 * 9 * k[3])));
 }
 
 // Whether θ_d increases on [0, theta]: CameraModel::project refuses directions past the first
 // fold of the polynomial, and the solver must not fit through the folded branch either.
-bool fisheyeIncreasingUpTo(const double* k, double theta) {
+bool fisheyeIncreasingUpTo(const FisheyeCoefficients& k, double theta) {
     constexpr int kSamples = 16;
     for (int i = 1; i <= kSamples; ++i) {
         if (fisheyeThetaDDerivative(k, theta * i / kSamples) <= 0)
@@ -152,7 +113,7 @@ bool fisheyeIncreasingUpTo(const double* k, double theta) {
 // cv::fisheye's Kannala–Brandt model, θ = atan2(ρ, z) as CameraModel::project extends it.
 Projection projectFisheye(const Eigen::Vector3d& p, const double* intrinsics) {
     Projection out;
-    const double* k = intrinsics + 4;
+    const FisheyeCoefficients k{intrinsics[4], intrinsics[5], intrinsics[6], intrinsics[7]};
     const double fx = intrinsics[0], fy = intrinsics[1];
     const double rho2 = p.x() * p.x() + p.y() * p.y();
     const double rho = std::sqrt(rho2);
@@ -162,7 +123,7 @@ Projection projectFisheye(const Eigen::Vector3d& p, const double* intrinsics) {
     if (theta > kFisheyeMaxThetaRad || !fisheyeIncreasingUpTo(k, theta))
         return out;
     const double t2 = theta * theta;
-    const double theta_d = theta * (1 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+    const double theta_d = fisheyeThetaD(k, theta);
     out.valid = true;
     out.d_intrinsics.setZero(2, 8);
     Eigen::Matrix<double, 2, 3> d_distorted;  // d(xd, yd)/d(X, Y, Z)

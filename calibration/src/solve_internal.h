@@ -3,6 +3,8 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "mixray/calibration/calibrate.h"
@@ -28,6 +30,15 @@ Result<CameraCalibration> solveWithCeres(const SolveInput& input,
                                          const CalibrationOptions& options);
 Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
                                          const CalibrationOptions& options);
+
+// What both back ends report after their solve: out.views, out.residuals, out.outliers and
+// out.rms_px for every corner of the used views, projected through out.model at
+// T_camera_target (per used view); `points` are the target's points by corner id. The RMS
+// values are over the inliers that project. Returns the first inlier that does not project,
+// as (index into input.used, index into that view's corners), or nullopt.
+std::optional<std::pair<size_t, size_t>> fillResiduals(
+    const SolveInput& input, const std::vector<Eigen::Isometry3d>& T_camera_target,
+    const std::vector<Eigen::Vector3d>& points, CameraCalibration& out);
 
 // Whether mrcal has the model named by CalibrationOptions::model.
 bool mrcalHasModel(std::string_view model);

@@ -5,11 +5,9 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 
 #include "mixray/calibration/depth_registration.h"
 #include "mixray/graph/mkv.h"
@@ -22,12 +20,7 @@ std::filesystem::path dataDir() {
     return test::sharedDataDir() / "07_azure_kinect_mkv";
 }
 
-std::string readText(const std::filesystem::path& path) {
-    std::ifstream in(path);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+using mixray::test::readText;
 
 TEST(AzureKinectCalibration, ValuesFollowTheFileAndTheSdkModeTable) {
     const auto path = dataDir() / "pyk4a_calibration.json";

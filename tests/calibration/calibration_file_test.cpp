@@ -7,9 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -82,16 +80,8 @@ CalibrationFile fullFile() {
     return f;
 }
 
-void writeText(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
-
-std::string readText(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+using mixray::test::readText;
+using mixray::test::writeText;
 
 void expectSameCamera(const CalibratedCamera& a, const CalibratedCamera& b) {
     SCOPED_TRACE(a.name);

@@ -13,40 +13,23 @@
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
+#include "published_lenses.h"
 #include "reprojection_cost.h"
 
 namespace mixray::calibration {
 namespace {
 
-struct NamedModel {
-    std::string name;
-    CameraModel model;
-};
-
-CameraModel withDistortion(CameraModel model, std::vector<double> distortion) {
-    model.distortion = std::move(distortion);
-    return model;
-}
+using test::NamedModel;
+using test::publishedModel;
 
 std::vector<NamedModel> models() {
-    CameraModel fisheye = CameraModel::pinhole(1032, 778, 280.3, 281.1, 515.2, 390.6);
-    fisheye.lens = LensModel::kFisheye;
-    fisheye.distortion = {0.031, -0.012, 0.0021, -0.0004};
     return {
         {"opencv0", CameraModel::pinhole(640, 480, 525, 527, 319.5, 239.5)},
-        {"opencv4",
-         withDistortion(CameraModel::pinhole(640, 480, 628.158, 628.156, 324.099, 260.908),
-                        {0.0995485, -0.206384, 0.00754589, 0.00336531})},
-        {"opencv5",
-         withDistortion(
-             CameraModel::pinhole(640, 480, 535.91573396, 535.91573396, 342.28315473, 235.57082910),
-             {-0.26637261, -0.03858890, 0.00178319, -0.00028122, 0.23839153})},
-        {"opencv8",
-         withDistortion(
-             CameraModel::pinhole(4000, 2200, 1761.181055, 1761.250444, 1965.706996, 1087.518797),
-             {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652, 0.01968883397,
-              0.01482863541, -0.0562239888, 0.0500223357})},
-        {"fisheye", fisheye},
+        {"opencv4", publishedModel("aruco_tutorial")},
+        {"opencv5", publishedModel("opencv_left")},
+        {"opencv8", publishedModel("mrcal_cam0_opencv8")},
+        {"fisheye",
+         test::fisheye(1032, 778, 280.3, 281.1, 515.2, 390.6, {0.031, -0.012, 0.0021, -0.0004})},
     };
 }
 
@@ -144,6 +127,19 @@ Eigen::Vector2d residualOnly(const ceres::CostFunction& cost,
     return r;
 }
 
+// d(residual)/d(blocks[b][c]) by central differences of step h; the block is left unchanged.
+Eigen::Vector2d centralDifference(const ceres::CostFunction& cost,
+                                  std::vector<Eigen::VectorXd>& blocks, size_t b, Eigen::Index c,
+                                  double h) {
+    const double x = blocks[b][c];
+    blocks[b][c] = x + h;
+    const Eigen::Vector2d plus = residualOnly(cost, blocks);
+    blocks[b][c] = x - h;
+    const Eigen::Vector2d minus = residualOnly(cost, blocks);
+    blocks[b][c] = x;
+    return (plus - minus) / (2 * h);
+}
+
 TEST(CeresCost, ResidualAndJacobiansMatchProjectionAndCentralDifferences) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> unit(-1, 1);
@@ -179,14 +175,9 @@ TEST(CeresCost, ResidualAndJacobiansMatchProjectionAndCentralDifferences) {
 
                     for (size_t b = 0; b < blocks.size(); ++b) {
                         for (Eigen::Index c = 0; c < blocks[b].size(); ++c) {
-                            const double x = blocks[b][c];
-                            const double h = 1e-6 * std::max(1.0, std::abs(x));
-                            blocks[b][c] = x + h;
-                            const Eigen::Vector2d plus = residualOnly(*cost, blocks);
-                            blocks[b][c] = x - h;
-                            const Eigen::Vector2d minus = residualOnly(*cost, blocks);
-                            blocks[b][c] = x;
-                            const Eigen::Vector2d numeric = (plus - minus) / (2 * h);
+                            const double h = 1e-6 * std::max(1.0, std::abs(blocks[b][c]));
+                            const Eigen::Vector2d numeric =
+                                centralDifference(*cost, blocks, b, c, h);
                             const Eigen::Vector2d column = analytic.jacobians[b].col(c);
                             EXPECT_LT((column - numeric).norm(),
                                       1e-6 * std::max(1.0, numeric.norm()))
@@ -220,14 +211,7 @@ TEST(CeresCost, OtherLensesWithFixedIntrinsicsMatchCentralDifferences) {
             EXPECT_LT(analytic.residual.norm(), 1e-8);
             for (size_t b = 0; b < blocks.size(); ++b) {
                 for (Eigen::Index c = 0; c < 6; ++c) {
-                    const double x = blocks[b][c];
-                    const double h = 1e-5;
-                    blocks[b][c] = x + h;
-                    const Eigen::Vector2d plus = residualOnly(*cost, blocks);
-                    blocks[b][c] = x - h;
-                    const Eigen::Vector2d minus = residualOnly(*cost, blocks);
-                    blocks[b][c] = x;
-                    const Eigen::Vector2d numeric = (plus - minus) / (2 * h);
+                    const Eigen::Vector2d numeric = centralDifference(*cost, blocks, b, c, 1e-5);
                     EXPECT_LT((analytic.jacobians[b].col(c) - numeric).norm(),
                               1e-5 * std::max(1.0, numeric.norm()));
                 }

@@ -21,14 +21,7 @@ CameraModel irCamera() {
     return ir;
 }
 
-// A 9x6 chessboard's inner corners, 60 mm squares: the outline is 0.48 m x 0.30 m.
-std::vector<Eigen::Vector3d> boardPoints() {
-    std::vector<Eigen::Vector3d> points;
-    for (int r = 0; r < 6; ++r)
-        for (int c = 0; c < 9; ++c)
-            points.emplace_back(c * 0.06, r * 0.06, 0);
-    return points;
-}
+using test::boardPoints;
 
 // Board poses spread over the image and over 0.7–2.6 m, tilted up to 35°.
 std::vector<Eigen::Isometry3d> boardPoses(int count, uint32_t seed) {

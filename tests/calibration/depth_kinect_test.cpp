@@ -49,14 +49,7 @@ Kinect trueKinect() {
     return k;
 }
 
-// A 9x6 chessboard's inner corners, 60 mm squares.
-std::vector<Eigen::Vector3d> boardPoints() {
-    std::vector<Eigen::Vector3d> points;
-    for (int r = 0; r < 6; ++r)
-        for (int c = 0; c < 9; ++c)
-            points.emplace_back(c * 0.06, r * 0.06, 0);
-    return points;
-}
+using test::boardPoints;
 
 struct Session {
     CameraViews ir;
@@ -78,10 +71,7 @@ Session session(const Kinect& k, int count, uint32_t seed) {
     s.ir.camera = "kinect/ir";
     s.ir.width = ir.width;
     s.ir.height = ir.height;
-    s.ir.target.kind = TargetKind::kChessboard;
-    s.ir.target.cols = 9;
-    s.ir.target.rows = 6;
-    s.ir.target.square_m = 0.06;
+    s.ir.target = test::depthBoard();
     CameraCalibration color_cal, ir_cal;
     color_cal.camera = "kinect/color";
     color_cal.model = k.truth.color;

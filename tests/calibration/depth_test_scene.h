@@ -12,6 +12,7 @@
 
 #include "mixray/calibration/camera_model.h"
 #include "mixray/calibration/depth_registration.h"
+#include "mixray/calibration/target.h"
 #include "mixray/graph/image.h"
 
 namespace mixray::calibration::test {
@@ -157,6 +158,21 @@ inline Image depthImage(const Rendered& rendered, const DepthCorrection* correct
         }
     }
     return image;
+}
+
+// The depth tests' board: a chessboard of 9x6 inner corners, 60 mm squares, so the corners'
+// outline is 0.48 m x 0.30 m.
+inline CalibrationTarget depthBoard() {
+    CalibrationTarget board;
+    board.kind = TargetKind::kChessboard;
+    board.cols = 9;
+    board.rows = 6;
+    board.square_m = 0.06;
+    return board;
+}
+
+inline std::vector<Eigen::Vector3d> boardPoints() {
+    return depthBoard().points();
 }
 
 }  // namespace mixray::calibration::test

@@ -5,9 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <fstream>
 #include <opencv2/core.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -51,15 +49,32 @@ CalibrationFile oneCamera(const std::string& name, const CameraModel& model) {
     return f;
 }
 
-void writeText(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
+using mixray::test::readText;
+using mixray::test::writeText;
 
-std::string readText(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
+// A valid file made invalid: `from` replaced by `to`; `expected` is what the error says after
+// the path (line, column, field and cause).
+struct BrokenEdit {
+    std::string from, to, expected;
+};
+
+// Each edit of `original`, written to `path` and imported as `format`, is refused as
+// kCorruptData naming the path, line, column and field.
+void expectEditsRefused(const std::string& original, const std::vector<BrokenEdit>& edits,
+                        const fs::path& path, CalibrationFormat format) {
+    for (const BrokenEdit& c : edits) {
+        SCOPED_TRACE(c.to);
+        std::string text = original;
+        const size_t at = text.find(c.from);
+        ASSERT_NE(at, std::string::npos);
+        text.replace(at, c.from.size(), c.to);
+        writeText(path, text);
+        auto f = importCalibration(path, format);
+        ASSERT_FALSE(f.isOk());
+        EXPECT_EQ(f.status().code(), ErrorCode::kCorruptData);
+        EXPECT_NE(f.status().message().find(path.string() + c.expected), std::string::npos)
+            << f.status().message();
+    }
 }
 
 void expectSameModel(const CameraModel& a, const CameraModel& b) {
@@ -397,10 +412,7 @@ TEST(KalibrFormat, RefusesWhatItCannotHold) {
 
 TEST(KalibrFormat, ErrorsNameLineAndField) {
     const fs::path dir = test::tempDir();
-    struct Case {
-        std::string from, to, expected;
-    };
-    const std::vector<Case> cases = {
+    const std::vector<BrokenEdit> edits = {
         {"camera_model: pinhole\n  intrinsics: [461", "camera_model: omni\n  intrinsics: [461",
          ":2:17: cam0.camera_model: camera_model \"omni\" has no mixray lens model"},
         {"distortion_model: equidistant", "distortion_model: fov",
@@ -413,20 +425,7 @@ TEST(KalibrFormat, ErrorsNameLineAndField) {
         {"resolution: [752, 480]\ncam1", "resolution: [752]\ncam1",
          ":13:15: cam0.resolution: expected [width, height]"},
     };
-    for (const Case& c : cases) {
-        SCOPED_TRACE(c.to);
-        std::string text = kCamchain;
-        const size_t at = text.find(c.from);
-        ASSERT_NE(at, std::string::npos);
-        text.replace(at, c.from.size(), c.to);
-        const fs::path path = dir / "bad_camchain.yaml";
-        writeText(path, text);
-        auto f = importCalibration(path, CalibrationFormat::kKalibr);
-        ASSERT_FALSE(f.isOk());
-        EXPECT_EQ(f.status().code(), ErrorCode::kCorruptData);
-        EXPECT_NE(f.status().message().find(path.string() + c.expected), std::string::npos)
-            << f.status().message();
-    }
+    expectEditsRefused(kCamchain, edits, dir / "bad_camchain.yaml", CalibrationFormat::kKalibr);
 }
 
 // ---- ROS camera_info ----
@@ -501,10 +500,7 @@ TEST(RosFormat, RoundTripsEveryModel) {
 
 TEST(RosFormat, ErrorsNameLineAndField) {
     const fs::path dir = test::tempDir();
-    struct Case {
-        std::string from, to, expected;
-    };
-    const std::vector<Case> cases = {
+    const std::vector<BrokenEdit> edits = {
         {"distortion_model: plumb_bob", "distortion_model: fisheye",
          ":8:19: distortion_model: distortion model \"fisheye\" has no mixray lens model"},
         {"data: [580.46715, 0,", "data: [580.46715, 1,",
@@ -515,20 +511,7 @@ TEST(RosFormat, ErrorsNameLineAndField) {
          ":9:1: distortion_coefficents: unknown field (did you mean distortion_coefficients?)"},
         {"image_width: 640", "image_width: -640", ":1:14: image_width: expected an integer"},
     };
-    for (const Case& c : cases) {
-        SCOPED_TRACE(c.to);
-        std::string text = kCameraInfo;
-        const size_t at = text.find(c.from);
-        ASSERT_NE(at, std::string::npos);
-        text.replace(at, c.from.size(), c.to);
-        const fs::path path = dir / "bad_ost.yaml";
-        writeText(path, text);
-        auto f = importCalibration(path, CalibrationFormat::kRos);
-        ASSERT_FALSE(f.isOk());
-        EXPECT_EQ(f.status().code(), ErrorCode::kCorruptData);
-        EXPECT_NE(f.status().message().find(path.string() + c.expected), std::string::npos)
-            << f.status().message();
-    }
+    expectEditsRefused(kCameraInfo, edits, dir / "bad_ost.yaml", CalibrationFormat::kRos);
 }
 
 // ---- mixray, sniffing, selection ----

@@ -17,21 +17,7 @@
 namespace mixray::calibration {
 namespace {
 
-CalibrationTarget chessboard() {
-    CalibrationTarget target;
-    target.kind = TargetKind::kChessboard;
-    target.cols = 10;
-    target.rows = 7;
-    target.square_m = 0.04;
-    return target;
-}
-
-CameraModel opencv8Truth() {
-    CameraModel m = CameraModel::pinhole(1280, 704, 563.578, 563.600, 628.876, 347.846);
-    m.distortion = {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652,
-                    0.01968883397,  0.01482863541, -0.0562239888,    0.0500223357};
-    return m;
-}
+using test::opencv8Truth;
 
 #define MIXRAY_REQUIRE_MRCAL_PYTHON()                                                           \
     do {                                                                                        \
@@ -102,7 +88,8 @@ std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, test::Synt
 // The generated problem above.
 std::optional<BothSolves> solveBoth(const std::filesystem::path& dir, const std::string& lensmodel,
                                     const std::string& option, std::string* log) {
-    return solveBoth(dir, test::syntheticViews(opencv8Truth(), chessboard(), 20, 0.3, 2024),
+    return solveBoth(dir,
+                     test::syntheticViews(opencv8Truth(), test::mrcalChessboard(), 20, 0.3, 2024),
                      lensmodel, option, 600, log);
 }
 
@@ -160,7 +147,7 @@ std::optional<test::SyntheticViews> opencvLeftViews() {
     test::SyntheticViews data;
     CameraViews& views = data.views;
     views.camera = "left";
-    views.target = chessboard();
+    views.target = test::mrcalChessboard();
     views.target.cols = 9;
     views.target.rows = 6;
     views.target.square_m = 0.025;

@@ -13,22 +13,7 @@ namespace {
 
 using detail::solveWithMrcal;
 
-CalibrationTarget chessboard() {
-    CalibrationTarget target;
-    target.kind = TargetKind::kChessboard;
-    target.cols = 10;
-    target.rows = 7;
-    target.square_m = 0.04;
-    return target;
-}
-
-// A real-lens-like rational model (mrcal's cam0.opencv8 scaled to 1280x704).
-CameraModel opencv8Truth() {
-    CameraModel m = CameraModel::pinhole(1280, 704, 563.578, 563.600, 628.876, 347.846);
-    m.distortion = {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652,
-                    0.01968883397,  0.01482863541, -0.0562239888,    0.0500223357};
-    return m;
-}
+using test::opencv8Truth;
 
 CameraModel pinholeSeed(const CameraModel& truth) {
     // What a front end's seed looks like: a focal length 10 % off, the principal point at the
@@ -52,7 +37,8 @@ TEST(MrcalSolverTest, HasTheModelsMrcalHas) {
 
 TEST(MrcalSolverTest, Opencv8RecoversTheLens) {
     const CameraModel truth = opencv8Truth();
-    const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 20, 0.3, 11);
+    const test::SyntheticViews data =
+        test::syntheticViews(truth, test::mrcalChessboard(), 20, 0.3, 11);
     const detail::SolveInput input = test::seededInput(data.views, pinholeSeed(truth));
     CalibrationOptions options;
     options.model = "opencv8";
@@ -105,7 +91,7 @@ TEST(MrcalSolverTest, Opencv8RecoversTheLens) {
 
 TEST(MrcalSolverTest, OutliersPassedInStayOut) {
     const CameraModel truth = opencv8Truth();
-    test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 15, 0.2, 5);
+    test::SyntheticViews data = test::syntheticViews(truth, test::mrcalChessboard(), 15, 0.2, 5);
     // Ten corners moved 20 px and flagged: the solve must not see them.
     detail::SolveInput input = test::seededInput(data.views, pinholeSeed(truth));
     for (int k = 0; k < 10; ++k) {
@@ -133,7 +119,8 @@ TEST(MrcalSolverTest, SplinedFitsAWideLens) {
     // mrcal's own cam0 lens resampled to a splined model (04_mrcal/cam0.splined) is too big a
     // problem for a unit test; a coarser grid over a 1280x704 image is the same model.
     CameraModel truth = opencv8Truth();
-    const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 20, 0.2, 3);
+    const test::SyntheticViews data =
+        test::syntheticViews(truth, test::mrcalChessboard(), 20, 0.2, 3);
     const detail::SolveInput input = test::seededInput(data.views, pinholeSeed(truth));
     CalibrationOptions options;
     options.model = "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=10_Ny=7_fov_x_deg=120";
@@ -171,7 +158,8 @@ TEST(MrcalSolverTest, ASolvedSplinedSeedStaysPut) {
     // Seeding with a solution of the same configuration starts at the optimum: the solve keeps
     // its core (no stereographic pre-solve moves it) and returns the same lens.
     const CameraModel truth = opencv8Truth();
-    const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 12, 0.2, 9);
+    const test::SyntheticViews data =
+        test::syntheticViews(truth, test::mrcalChessboard(), 12, 0.2, 9);
     CalibrationOptions options;
     options.model = "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=8_Ny=6_fov_x_deg=120";
     auto first = solveWithMrcal(test::seededInput(data.views, pinholeSeed(truth)), options);
@@ -189,7 +177,8 @@ TEST(MrcalSolverTest, ASolvedSplinedSeedStaysPut) {
 
 TEST(MrcalSolverTest, RefusesWhatMrcalCannotSolve) {
     const CameraModel truth = opencv8Truth();
-    const test::SyntheticViews data = test::syntheticViews(truth, chessboard(), 5, 0.2, 1);
+    const test::SyntheticViews data =
+        test::syntheticViews(truth, test::mrcalChessboard(), 5, 0.2, 1);
     const detail::SolveInput input = test::seededInput(data.views, pinholeSeed(truth));
     CalibrationOptions options;
     options.model = "fisheye";

@@ -13,8 +13,13 @@
 #include <random>
 #include <sstream>
 
+#include "ceres_synthetic.h"
+#include "test_data.h"
+
 namespace mixray::calibration::test {
 namespace {
+
+using mixray::test::readText;
 
 std::vector<Eigen::Vector3d> gridPoints(const CalibrationTarget& target) {
     std::vector<Eigen::Vector3d> points;
@@ -25,14 +30,18 @@ std::vector<Eigen::Vector3d> gridPoints(const CalibrationTarget& target) {
     return points;
 }
 
-std::string readFile(const std::filesystem::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
+}  // namespace
+
+CalibrationTarget mrcalChessboard() {
+    return chessboard(10, 7, 0.04);
 }
 
-}  // namespace
+CameraModel opencv8Truth() {
+    CameraModel m = CameraModel::pinhole(1280, 704, 563.578, 563.600, 628.876, 347.846);
+    m.distortion = {-0.01266096516, 0.03590794372, -0.0002547045941, 0.0005275929652,
+                    0.01968883397,  0.01482863541, -0.0562239888,    0.0500223357};
+    return m;
+}
 
 SyntheticViews syntheticViews(const CameraModel& truth, const CalibrationTarget& target, int count,
                               double noise_px, unsigned seed) {
@@ -169,9 +178,9 @@ std::optional<CliResult> runMrcalCalibrateCameras(const std::filesystem::path& v
             << views.width << " " << views.height << " --outdir '" << outdir.string() << "' "
             << extra << " 'view*.png' > cli.out 2> cli.err";
     const int status = std::system(command.str().c_str());
-    const std::string err = readFile(outdir / "cli.err");
+    const std::string err = readText(outdir / "cli.err");
     if (log)
-        *log = command.str() + "\n" + readFile(outdir / "cli.out") + err;
+        *log = command.str() + "\n" + readText(outdir / "cli.out") + err;
     if (status != 0)
         return std::nullopt;
     CliResult result;
@@ -194,7 +203,7 @@ std::optional<std::string> runPython(const std::string& program, const std::file
         "cd '" + dir.string() + "' && /usr/bin/python3 program.py > program.out 2> program.err";
     if (std::system(command.c_str()) != 0)
         return std::nullopt;
-    return readFile(dir / "program.out");
+    return readText(dir / "program.out");
 }
 
 double maxProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px) {

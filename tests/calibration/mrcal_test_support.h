@@ -13,6 +13,11 @@
 
 namespace mixray::calibration::test {
 
+// The board and lens the mrcal tests share: 10x7 inner corners of 40 mm, and a real-lens-like
+// rational model (mrcal's cam0.opencv8 scaled to 1280x704).
+CalibrationTarget mrcalChessboard();
+CameraModel opencv8Truth();
+
 // `count` views of `target` through `truth` from poses spread over the image and tilted up to
 // ~35°, every corner inside the image, with Gaussian pixel noise of `noise_px` (seeded).
 struct SyntheticViews {

@@ -60,11 +60,7 @@ TEST(ProjectionUncertaintyTest, ScalesWithTheNoiseAndIsSmallestWhereTheBoardsWer
         m.distortion = {-0.0127, 0.0359, -0.00025, 0.00053, 0.0197};
         return m;
     }();
-    CalibrationTarget board;
-    board.kind = TargetKind::kChessboard;
-    board.cols = 10;
-    board.rows = 7;
-    board.square_m = 0.04;
+    const CalibrationTarget board = test::mrcalChessboard();
     const test::SyntheticViews data = test::syntheticViews(truth, board, 15, 0.3, 8);
     CalibrationOptions options;
     options.model = "opencv5";

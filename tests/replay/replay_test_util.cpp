@@ -42,15 +42,6 @@ void expectSameFrames(const std::vector<OwnedFrame>& a, const std::vector<OwnedF
     }
 }
 
-namespace {
-
-void writeText(const std::filesystem::path& file, const std::string& text) {
-    std::ofstream out(file, std::ios::binary);
-    out << text;
-}
-
-}  // namespace
-
 std::vector<int64_t> writeSyntheticTum(const std::filesystem::path& dir, int frames, int w, int h) {
     using replay::formatTumStamp;
     std::filesystem::create_directories(dir / "rgb");

@@ -1,8 +1,9 @@
-// Test helpers: where the repository, the build and ../shared/data are.
+// Test helpers: where the repository, the build and ../shared/data are; whole files as text.
 #pragma once
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 namespace mixray::test {
 
@@ -14,6 +15,10 @@ std::filesystem::path sharedDataDir();
 std::filesystem::path kinectV1Oni();
 // A fresh empty directory under the build tree, unique to the calling test.
 std::filesystem::path tempDir();
+// The whole file, "" when it cannot be read.
+std::string readText(const std::filesystem::path& path);
+// Writes `text` as the whole file, byte for byte.
+void writeText(const std::filesystem::path& path, std::string_view text);
 
 }  // namespace mixray::test
 
