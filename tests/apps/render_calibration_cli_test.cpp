@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
-#include <sstream>
 #include <string>
 
 #include "cli_runner.h"
@@ -26,19 +25,12 @@ using test::q;
 
 const fs::path kSessions = test::fixturesDir() / "sessions";
 
-std::string readText(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
-}
-
 // A red sphere hidden behind the board of the first board view: only the board's depth, which
 // the session records raw (aligned with the IR camera), can hide it.
 TEST(RenderCalibrationCli, RawDepthOccludesOnlyWhenTheCalibrationRegistersIt) {
     const fs::path dir = test::tempDir();
-    auto options = render::readSimulationOptions(readText(kSessions / "sim_calibration.truth.yaml"),
-                                                 "sim_calibration.truth.yaml");
+    auto options = render::readSimulationOptions(
+        test::readText(kSessions / "sim_calibration.truth.yaml"), "sim_calibration.truth.yaml");
     ASSERT_TRUE(options) << options.status().toString();
     options->asset_dir = dir / "assets";
     auto sim = render::Simulator::create(*options);
