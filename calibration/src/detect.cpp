@@ -384,6 +384,22 @@ private:
     std::set<StreamId> in_key_;
 };
 
+// detectTarget() for a collector's view: `view` keeps its source and key. The tilt check's
+// model only applies to images of its size.
+Status detectInto(const ImageView& image, const CalibrationTarget& target,
+                  const DetectionOptions& options, TargetView& view) {
+    DetectionOptions o = options;
+    if (o.camera && (o.camera->width != image.desc.width || o.camera->height != image.desc.height))
+        o.camera.reset();
+    auto found = detectTarget(image, target, o);
+    if (!found)
+        return found.status().withContext(view.source);
+    found->source = std::move(view.source);
+    found->key = view.key;
+    view = std::move(found).value();
+    return Status::ok();
+}
+
 CameraModel roughCamera(int width, int height) {
     CameraModel m;
     m.width = width;
@@ -561,15 +577,7 @@ Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
             v.desc = ImageDesc{format, img.cols, img.rows, static_cast<int>(img.step[0])};
             v.data = img.data;
             v.size_bytes = img.step[0] * static_cast<size_t>(img.rows);
-            DetectionOptions o = options;
-            if (o.camera && (o.camera->width != img.cols || o.camera->height != img.rows))
-                o.camera.reset();
-            auto found = detectTarget(v, target, o);
-            if (!found)
-                return found.status().withContext(view.source);
-            found->source = view.source;
-            found->key = view.key;
-            view = std::move(found).value();
+            MIXRAY_RETURN_IF_ERROR(detectInto(v, target, options, view));
         }
         out.views.push_back(std::move(view));
         if (progress)
@@ -721,15 +729,7 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
                        ", the stream's " + std::to_string(cam.width) + "x" +
                        std::to_string(cam.height);
         } else {
-            DetectionOptions o = options;
-            if (o.camera && (o.camera->width != cam.width || o.camera->height != cam.height))
-                o.camera.reset();
-            auto found = detectTarget(use, target, o);
-            if (!found)
-                return found.status().withContext(view.source);
-            found->source = view.source;
-            found->key = view.key;
-            view = std::move(found).value();
+            MIXRAY_RETURN_IF_ERROR(detectInto(use, target, options, view));
         }
         cam.views.push_back(std::move(view));
         ++done;
