@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -384,6 +385,30 @@ private:
     std::set<StreamId> in_key_;
 };
 
+// Reads `recording` from the start and hands every frame to `visit` in order, after its stream
+// list (`streams`); stops at the first error `visit` returns, or the reader's (but its end).
+// Every frame is released before the next is read, so a stream never runs out of buffers;
+// kUnavailable twice in a row is the reader's fault, not a wait.
+Status forEachFrame(const std::filesystem::path& recording,
+                    const std::function<void(const std::vector<StreamInfo>&)>& streams,
+                    const std::function<Status(const FrameRef&)>& visit) {
+    auto reader = openMkv(recording);
+    if (!reader)
+        return reader.status();
+    streams((*reader)->streams());
+    while (true) {
+        auto frame = (*reader)->next();
+        if (!frame && frame.status().code() == ErrorCode::kUnavailable)
+            frame = (*reader)->next();
+        if (!frame) {
+            if (frame.status().code() == ErrorCode::kEndOfStream)
+                return Status::ok();
+            return frame.status().withContext(recording.string());
+        }
+        MIXRAY_RETURN_IF_ERROR(visit(*frame));
+    }
+}
+
 // detectTarget() for a collector's view: `view` keeps its source and key. The tilt check's
 // model only applies to images of its size.
 Status detectInto(const ImageView& image, const CalibrationTarget& target,
@@ -608,37 +633,18 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
                 return false;
         }
     };
-    const auto next = [](RecordingReader& reader) -> Result<FrameRef> {
-        // Every frame is released before the next is read, so a stream never runs out of
-        // buffers; kUnavailable twice in a row is the reader's fault, not a wait.
-        auto frame = reader.next();
-        if (!frame && frame.status().code() == ErrorCode::kUnavailable)
-            frame = reader.next();
-        return frame;
-    };
+    // A first pass counts the image frames, so that progress is a fraction.
     size_t total = 0;
-    {
-        // A first pass counts the image frames, so that progress is a fraction.
-        auto reader = openMkv(recording);
-        if (!reader)
-            return reader.status();
-        const auto& streams = (*reader)->streams();
-        while (true) {
-            auto frame = next(**reader);
-            if (!frame) {
-                if (frame.status().code() == ErrorCode::kEndOfStream)
-                    break;
-                return frame.status().withContext(recording.string());
-            }
-            const StreamId s = frame->meta().stream;
+    std::vector<StreamInfo> streams;
+    MIXRAY_RETURN_IF_ERROR(forEachFrame(
+        recording, [&](const std::vector<StreamInfo>& s) { streams = s; },
+        [&](const FrameRef& frame) {
+            const StreamId s = frame.meta().stream;
             if (s < streams.size() && usable(streams[s].format.format))
                 ++total;
-        }
-    }
-    auto reader = openMkv(recording);
-    if (!reader)
-        return reader.status();
-    const std::vector<StreamInfo>& streams = (*reader)->streams();
+            return Status::ok();
+        }));
+
     RecordingDetection detection;
     std::vector<CameraViews>& out = detection.cameras;
     std::map<StreamId, size_t> index;
@@ -669,26 +675,21 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
     const std::string name = recording.filename().string();
     KeyClock keys(options.max_skew_ns);
     size_t done = 0;
-    while (true) {
-        auto frame = next(**reader);
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kEndOfStream)
-                break;
-            return frame.status().withContext(recording.string());
-        }
-        const FrameMetadata meta = frame->meta();
+    const auto ignore = [](const std::vector<StreamInfo>&) {};
+    const Status scanned = forEachFrame(recording, ignore, [&](const FrameRef& frame) -> Status {
+        const FrameMetadata meta = frame.meta();
         const auto it = index.find(meta.stream);
         if (it == index.end()) {
             if (depth_index.count(meta.stream))
                 keys.keyOf(meta);
-            continue;
+            return Status::ok();
         }
         const int64_t key = keys.keyOf(meta);
         CameraViews& cam = out[it->second];
         TargetView view;
         view.source = name + "#" + cam.camera + "@" + std::to_string(meta.sequence);
         view.key = key;
-        const ImageView img = frame->image();
+        const ImageView img = frame.image();
         cv::Mat decoded;
         ImageView use = img;
         try {
@@ -736,7 +737,10 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
         if (progress)
             progress(total ? std::min(1.0, static_cast<double>(done) / total) : 1.0,
                      cam.views.back().source);
-    }
+        return Status::ok();
+    });
+    if (!scanned)
+        return scanned;
     if (detection.depth.empty())
         return detection;
 
@@ -747,31 +751,25 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
         for (const TargetView& v : c.views)
             if (v.rejection == ViewRejection::kNone)
                 wanted.insert(v.key);
-    auto depth_reader = openMkv(recording);
-    if (!depth_reader)
-        return depth_reader.status();
     KeyClock depth_keys(options.max_skew_ns);
-    while (true) {
-        auto frame = next(**depth_reader);
-        if (!frame) {
-            if (frame.status().code() == ErrorCode::kEndOfStream)
-                break;
-            return frame.status().withContext(recording.string());
-        }
-        const FrameMetadata meta = frame->meta();
+    const Status read = forEachFrame(recording, ignore, [&](const FrameRef& frame) -> Status {
+        const FrameMetadata meta = frame.meta();
         if (!index.count(meta.stream) && !depth_index.count(meta.stream))
-            continue;
+            return Status::ok();
         const int64_t key = depth_keys.keyOf(meta);
         const auto it = depth_index.find(meta.stream);
         if (it == depth_index.end() || !wanted.count(key) || meta.status == FrameStatus::kCorrupt)
-            continue;
-        const ImageView image = frame->image();
+            return Status::ok();
+        const ImageView image = frame.image();
         Image copy(ImageDesc::packed(PixelFormat::kDepth16, image.desc.width, image.desc.height));
         const MutableImageView dst = copy.mutableView();
         for (int y = 0; y < image.desc.height; ++y)
             std::copy_n(image.row<uint16_t>(y), image.desc.width, dst.row<uint16_t>(y));
         detection.depth[it->second].frames.push_back({key, std::move(copy)});
-    }
+        return Status::ok();
+    });
+    if (!read)
+        return read;
     return detection;
 }
 
