@@ -342,6 +342,8 @@ Outcome solve(const CalibrateCommandOptions& o, const Inputs& inputs,
         options.rig.camera.model = models.at(color_name);
         options.rig.models[ir_name] = models.at(ir_name);
         options.rig.reference = color_name;
+        options.rig.solved = {{color_name, outcome.cameras.at(color_name)},
+                              {ir_name, outcome.cameras.at(ir_name)}};
         options.depth.per_pixel = o.depth_per_pixel;
         status.update("calibrating " + stream + " (depth↔colour)");
         auto kinect = calibrateKinect(*color, *ir, depth, options);
@@ -396,6 +398,8 @@ Outcome solve(const CalibrateCommandOptions& o, const Inputs& inputs,
         for (const CameraViews& m : members)
             options.models[m.camera] = models.at(m.camera);
         options.camera.model = models.at(members.front().camera);
+        for (const CameraViews& m : members)
+            options.solved[m.camera] = outcome.cameras.at(m.camera);
         status.update("calibrating rig " + list);
         auto rig = calibrateRig(members, options);
         if (!rig) {

@@ -179,7 +179,10 @@ Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
                          std::string(views[i].camera) + ": " + std::string(stage));
             };
         }
-        Result<CameraCalibration> own = calibrateCamera(views[i], camera_options);
+        const auto done = options.solved.find(views[i].camera);
+        Result<CameraCalibration> own = done != options.solved.end()
+                                            ? Result<CameraCalibration>(done->second)
+                                            : calibrateCamera(views[i], camera_options);
         if (!own)
             return own.status().withContext("rig");
         if (options.refine_intrinsics && !costHasLens(own->model.lens)) {

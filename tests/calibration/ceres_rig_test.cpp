@@ -186,6 +186,31 @@ void expectInvalid(const Status& status, const std::string& cause) {
         << "'" << status.message() << "' does not name '" << cause << "'";
 }
 
+// Cameras already calibrated on the same views are taken as they are: the same rig comes out.
+TEST(CeresRigReference, CamerasAlreadySolvedAreNotSolvedAgain) {
+    const std::vector<Camera> truth = rigTruth();
+    std::mt19937 rng(7);
+    const std::vector<CameraViews> views = rigViews(truth, 18, rng);
+    RigOptions options = rigOptions(false);
+    const Result<RigCalibration> first = calibrateRig(views, options);
+    ASSERT_TRUE(first) << first.status().toString();
+    for (const CameraCalibration& c : first->cameras)
+        options.solved[c.camera] = c;
+    int own_solves = 0;
+    options.camera.progress = [&](double, std::string_view stage) {
+        own_solves += stage.find("checking views") != std::string_view::npos;
+    };
+    const Result<RigCalibration> again = calibrateRig(views, options);
+    ASSERT_TRUE(again) << again.status().toString();
+    EXPECT_EQ(own_solves, 0);
+    for (size_t i = 0; i < views.size(); ++i) {
+        EXPECT_EQ(again->cameras[i].model.fx, first->cameras[i].model.fx);
+        EXPECT_LT(
+            (again->T_ref_camera[i].translation() - first->T_ref_camera[i].translation()).norm(),
+            1e-9);
+    }
+}
+
 TEST(CeresRigRefuses, ACameraLinkedToNoOtherNamingIt) {
     const std::vector<Camera> truth = rigTruth();
     std::mt19937 rng(11);

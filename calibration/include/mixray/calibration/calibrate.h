@@ -109,6 +109,9 @@ struct RigOptions {
     CalibrationOptions camera;  // for each camera's own intrinsic solve
     // Per camera name, a lens model other than camera.model (a fish-eye among pinholes).
     std::map<std::string, std::string> models;
+    // Cameras already calibrated on the same views (by name): their own solve is taken as it is
+    // instead of being repeated.
+    std::map<std::string, CameraCalibration> solved;
     bool refine_intrinsics = false;  // in the joint solve too (else fixed after their own)
     std::string reference;           // the camera whose frame is the rig's; empty: the first
 };
