@@ -850,8 +850,8 @@ Status EmbreeRenderer::checkInputs(const RenderInputs& in) const {
         return bad("camera image buffer is too small for its size");
     const ImageDesc& dd = in.depth_mm.desc;
     const calibration::DepthRegistration* reg = in.depth_registration;
+    // The registration itself is validated once, when its Registrar is made (registeredDepth).
     if (reg) {
-        MIXRAY_RETURN_IF_ERROR(reg->validate().withContext("render inputs: depth registration"));
         if (!sameModel(reg->color, in.camera))
             return bad("the depth registration's colour camera is not the camera model");
     }
