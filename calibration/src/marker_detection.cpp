@@ -25,6 +25,8 @@
 #include <string>
 #include <utility>
 
+#include "mixray/graph/srgb.h"
+
 namespace mixray::calibration {
 namespace {
 
@@ -280,15 +282,7 @@ std::array<Vector2d, 4> refineCorners(const cv::Mat& lin, const std::array<Vecto
 // half-covered pixel reads 188, not 128, which pulls every edge towards the dark side (OpenCV's
 // cornerSubPix on raw values puts corners 0.2–0.4 px inside the marker).
 cv::Mat linearImage(const cv::Mat& grey) {
-    static const std::array<float, 256> lut = [] {
-        std::array<float, 256> t{};  // IEC 61966-2-1 decoding
-        for (size_t i = 0; i < t.size(); ++i) {
-            const double c = static_cast<double>(i) / 255.0;
-            t[i] =
-                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
-        }
-        return t;
-    }();
+    const std::array<float, 256>& lut = srgbToLinearTable();
     cv::Mat lin(grey.rows, grey.cols, CV_32F);
     for (int y = 0; y < grey.rows; ++y) {
         const uint8_t* src = grey.ptr<uint8_t>(y);

@@ -26,7 +26,7 @@ Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const Environ
     if (width < 16 || width > 8192 || width % 2 != 0)
         return Status(ErrorCode::kInvalidArgument,
                       "environment map width must be even, 16 to 8192");
-    const auto& table = detail::srgbToLinearTable();
+    const auto& table = srgbToLinearTable();
     FloatImage map;
     map.width = width;
     map.height = width / 2;

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "srgb.h"
+#include "mixray/graph/srgb.h"
 
 namespace mixray::tracking {
 namespace {
@@ -159,7 +159,7 @@ Result<IntensityFit> fitLightIntensities(const ImageView& color,
             if (options.ambient)
                 terms[unknowns - 1] = options.albedo;
             shading.push_back(std::move(terms));
-            const auto& linear = detail::srgbToLinearTable();
+            const auto& linear = srgbToLinearTable();
             values.emplace_back(linear[static_cast<size_t>(r)], linear[static_cast<size_t>(g)],
                                 linear[static_cast<size_t>(bl)]);
         }

@@ -46,7 +46,7 @@ struct Pixel {
 };
 
 Pixel pixelAt(const ImageView& image, int x, int y) {
-    const auto& table = detail::srgbToLinearTable();
+    const auto& table = srgbToLinearTable();
     const auto codes = detail::codesAt(image, x, y);
     Pixel p;
     Vector3d encoded;

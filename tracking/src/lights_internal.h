@@ -10,8 +10,8 @@
 
 #include "mixray/graph/image.h"
 #include "mixray/graph/result.h"
+#include "mixray/graph/srgb.h"
 #include "mixray/tracking/lights.h"
-#include "srgb.h"
 
 namespace mixray::tracking::detail {
 
