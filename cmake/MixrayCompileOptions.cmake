@@ -44,10 +44,18 @@ if(MIXRAY_FUZZ)
     endif()
 endif()
 
+# ccache with paths relative to the checkout, so that another clone of the same commit (CI clones
+# into a fresh folder) hits the cache made by this one: CCACHE_BASEDIR rewrites the absolute
+# -I and source paths, and the working directory is left out of the hash (it only names the
+# build folder in the debug info). Absolute paths in -D values would still miss: keep them in
+# one small source file each (tests/support/test_data.cpp, apps/src/test_data_paths.cpp).
 find_program(CCACHE_PROGRAM ccache)
 if(CCACHE_PROGRAM)
-    set(CMAKE_CXX_COMPILER_LAUNCHER ${CCACHE_PROGRAM})
-    set(CMAKE_C_COMPILER_LAUNCHER ${CCACHE_PROGRAM})
+    set(MIXRAY_CCACHE_LAUNCHER ${CMAKE_COMMAND} -E env CCACHE_BASEDIR=${PROJECT_SOURCE_DIR}
+                               CCACHE_NOHASHDIR=true CCACHE_MAXSIZE=20G
+                               ${CCACHE_PROGRAM})
+    set(CMAKE_CXX_COMPILER_LAUNCHER ${MIXRAY_CCACHE_LAUNCHER})
+    set(CMAKE_C_COMPILER_LAUNCHER ${MIXRAY_CCACHE_LAUNCHER})
 endif()
 
 # mixray_library(<target> ALIAS <mixray::name> SOURCES ... ) declares a module library whose

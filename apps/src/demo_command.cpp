@@ -21,6 +21,7 @@
 #include "mixray/render/simulator.h"
 #include "mixray/replay/open_recording.h"
 #include "recording_frames.h"
+#include "test_data_paths.h"
 #include "tracking_pipeline.h"
 
 namespace mixray::cli {
@@ -32,9 +33,9 @@ using Eigen::Vector3d;
 using nlohmann::json;
 
 struct DemoOptions {
-    std::string session = std::string(MIXRAY_SOURCE_DIR) + "/fixtures/sessions/sim_tabletop.mkv";
+    std::string session = (sourceDir() / "fixtures/sessions/sim_tabletop.mkv").string();
     std::string objects =
-        std::string(MIXRAY_SOURCE_DIR) + "/fixtures/scenes/sim_tabletop_demo.yaml";
+        (sourceDir() / "fixtures/scenes/sim_tabletop_demo.yaml").string();
     std::string real_scene;  // default: the session's NAME.scene.yaml
     std::string setup;
     std::string output = "out/demo";

@@ -5,10 +5,14 @@
 
 namespace mixray::cli {
 
+std::filesystem::path sourceDir() {
+    return MIXRAY_SOURCE_DIR;
+}
+
 std::filesystem::path defaultSharedDataDir() {
     if (const char* env = std::getenv("MIXRAY_SHARED_DATA"))
         return env;
-    return std::filesystem::path(MIXRAY_SOURCE_DIR).parent_path() / "shared" / "data";
+    return sourceDir().parent_path() / "shared" / "data";
 }
 
 }  // namespace mixray::cli

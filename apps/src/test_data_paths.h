@@ -5,6 +5,9 @@
 
 namespace mixray::cli {
 
+// The source tree this binary was built from (its fixtures/ hold the bundled sessions).
+std::filesystem::path sourceDir();
+
 // $MIXRAY_SHARED_DATA, else ../shared/data beside the source tree this binary was built from.
 std::filesystem::path defaultSharedDataDir();
 

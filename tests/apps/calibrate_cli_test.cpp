@@ -105,7 +105,7 @@ class CalibrateSession : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         // ctest runs each test in its own process, possibly at once: one folder per process.
-        out_ = new fs::path(fs::path(MIXRAY_BINARY_DIR) / "test-tmp" /
+        out_ = new fs::path(test::binaryDir() / "test-tmp" /
                             ("CalibrateSession-" + std::to_string(getpid())));
         fs::remove_all(*out_);
         run_ = new CliRun(mixray("calibrate " + q(kSession) + " --target " + kTarget +

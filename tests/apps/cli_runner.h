@@ -1,5 +1,5 @@
-// Runs the mixray binary for end-to-end tests of the command line. MIXRAY_CLI_PATH is the
-// binary's path, defined by the test target.
+// Runs the mixray binary of the build tree (test::cliPath()) for end-to-end tests of the
+// command line.
 #pragma once
 
 #include <sys/wait.h>
@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+
+#include "test_data.h"
 
 namespace mixray::test {
 
@@ -18,7 +20,7 @@ struct CliRun {
 
 // Runs `mixray args` (args already shell-quoted where needed, see q()).
 inline CliRun mixray(const std::string& args) {
-    const std::string command = std::string(MIXRAY_CLI_PATH) + " " + args + " 2>&1";
+    const std::string command = cliPath().string() + " " + args + " 2>&1";
     CliRun run;
     FILE* pipe = popen(command.c_str(), "r");
     if (!pipe)

@@ -35,7 +35,7 @@ const std::string kPlugin = kPrivateOpenNI2 + "/OpenNI2/Drivers/libFreenectDrive
 const std::string kKinectUri = std::string("freenect://0/") + KinectUsbEmulator::kCameraSerial;
 
 std::string tree(const char* name) {
-    return std::string(MIXRAY_SOURCE_DIR) + "/tests/usb/" + name;
+    return (mixray::test::sourceDir() / "tests/usb" / name).string();
 }
 
 // OpenNI2 initialised for one test: its drivers enumerate USB when it initialises, so each

@@ -147,7 +147,7 @@ const TabletopFrame& tabletop() {
         o.width = 320;
         o.height = 240;
         // Kept for the whole run (never destroyed): its assets go to the build tree, not /tmp.
-        o.asset_dir = fs::path(MIXRAY_BINARY_DIR) / "test-tmp" / "simulator_shared_tabletop";
+        o.asset_dir = test::binaryDir() / "test-tmp" / "simulator_shared_tabletop";
         auto sim = Simulator::create(o);
         EXPECT_TRUE(sim) << sim.status().toString();
         if (sim) {
@@ -448,7 +448,7 @@ TEST(Simulator, RawDepthIsAlignedWithTheIrCamera) {
     o.height = 240;
     o.samples_per_pixel = 1;
     o.register_depth = false;
-    o.asset_dir = fs::path(MIXRAY_BINARY_DIR) / "test-tmp" / "simulator_raw_depth";
+    o.asset_dir = test::binaryDir() / "test-tmp" / "simulator_raw_depth";
     auto sim = Simulator::create(o);
     ASSERT_TRUE(sim) << sim.status().toString();
     ASSERT_FALSE((*sim)->truth().depth_registered);

@@ -13,6 +13,14 @@ std::filesystem::path sourceDir() {
     return MIXRAY_SOURCE_DIR;
 }
 
+std::filesystem::path binaryDir() {
+    return MIXRAY_BINARY_DIR;
+}
+
+std::filesystem::path cliPath() {
+    return binaryDir() / "apps" / "mixray";
+}
+
 std::filesystem::path fixturesDir() {
     return sourceDir() / "fixtures";
 }
@@ -34,7 +42,7 @@ std::filesystem::path tempDir() {
         if (c == '/')
             c = '_';
     }
-    auto dir = std::filesystem::path(MIXRAY_BINARY_DIR) / "test-tmp" / name;
+    auto dir = binaryDir() / "test-tmp" / name;
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;

@@ -9,6 +9,10 @@ namespace mixray::test {
 
 std::filesystem::path sourceDir();
 std::filesystem::path fixturesDir();
+// The build tree the tests were built in.
+std::filesystem::path binaryDir();
+// The mixray command line of that build tree.
+std::filesystem::path cliPath();
 // ../shared/data beside the repository (override with MIXRAY_SHARED_DATA).
 std::filesystem::path sharedDataDir();
 // The Kinect v1 .oni recording under shared data that the OpenNI2 tests play.
