@@ -35,6 +35,7 @@ struct BenchRenderOptions {
     bool json = false;
     int repeats = 3;
     std::string shared_data;
+    std::string embree_isas = "best";  // "best", "all" or a comma list of embreeIsas()
 };
 
 struct Size {
@@ -467,10 +468,35 @@ nlohmann::json toJson(const Figures& f) {
              f.renderer_cpu_ms > 0 ? 1e3 * f.bare.totalCpu() / f.renderer_cpu_ms : 0.0}};
 }
 
+// "best" is Embree's own choice (""), "all" every ISA this machine offers, else a comma list.
+Result<std::vector<std::string>> parseIsas(const std::string& text) {
+    if (text == "best")
+        return std::vector<std::string>{""};
+    const std::vector<std::string> available = embreeIsas();
+    if (text == "all")
+        return available;
+    std::vector<std::string> isas = splitList(text);
+    for (const std::string& isa : isas) {
+        if (std::find(available.begin(), available.end(), isa) == available.end()) {
+            std::string names;
+            for (const std::string& a : available)
+                names += " " + a;
+            return Status(ErrorCode::kInvalidArgument, "--embree-isa: '" + isa +
+                                                           "' is not available here (best, all "
+                                                           "or some of:" +
+                                                           names + ")");
+        }
+    }
+    return isas;
+}
+
 int runBenchRender(BenchRenderOptions options) {
     auto sizes = parseSizes(options.sizes);
     if (!sizes)
         return fail("bench render", sizes.status());
+    auto isas = parseIsas(options.embree_isas);
+    if (!isas)
+        return fail("bench render", isas.status());
     auto scenes = parseScenes(options.scenes);
     if (!scenes)
         return fail("bench render", scenes.status());
@@ -506,7 +532,16 @@ int runBenchRender(BenchRenderOptions options) {
                               : Result<SceneDescription>(teapotScene(shared, name == "soft"));
         if (!scene)
             return fail("bench render", scene.status());
-        for (const Config& config : configsFor(name, options.threads)) {
+        std::vector<Config> configs;
+        for (const std::string& isa : *isas) {
+            for (Config config : configsFor(name, options.threads)) {
+                config.options.embree_isa = isa;
+                if (!isa.empty())
+                    config.name += " [isa=" + isa + "]";
+                configs.push_back(std::move(config));
+            }
+        }
+        for (const Config& config : configs) {
             auto renderer = Renderer::create(*scene, config.options);
             if (!renderer)
                 return fail("bench render", renderer.status());
@@ -554,6 +589,12 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         ->check(CLI::Range(1, 100))
         ->capture_default_str();
     render->add_flag("--json", options->json, "Print the figures as JSON");
+    render
+        ->add_option("--embree-isa", options->embree_isas,
+                     "Embree kernels: best (Embree's choice), all (every instruction set this "
+                     "machine offers, one after another) or a comma list of sse2, sse4.2, avx, "
+                     "avx2, avx512")
+        ->capture_default_str();
     render->add_option("--shared-data", options->shared_data,
                        "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({render, [options] { return runBenchRender(*options); }});

@@ -12,6 +12,8 @@
 #include <limits>
 #include <vector>
 
+#include "embree_scene.h"
+
 namespace mixray::render::detail {
 namespace {
 
@@ -208,7 +210,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
                             [&](RTCRayHit16* first, size_t n, size_t offset) {
                                 RTCIntersectContext context;
                                 rtcInitIntersectContext(&context);
-                                context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+                                context.flags = kOcclusionPacketFlags;
                                 for (size_t i = 0; i < n; ++i)
                                     rtcOccluded16(packets.valid[offset + i].lanes, scenes[s],
                                                   &context, &first[i].ray);

@@ -1,7 +1,10 @@
 // Embree prototypes (exact spheres, triangle meshes) instanced per object, posed each frame.
 #include "embree_scene.h"
 
+#include <algorithm>
 #include <cstring>
+
+#include "mixray/render/renderer.h"
 
 namespace mixray::render::detail {
 namespace {
@@ -40,6 +43,25 @@ RTCGeometry triangleGeometry(RTCDevice device, const TriangleMesh& mesh) {
     return geometry;
 }
 
+// Whether this CPU has what Embree's kernels of `isa` need (Embree's own ISA groups).
+bool cpuRuns(const std::string& isa) {
+    __builtin_cpu_init();
+    if (isa == "sse2")
+        return __builtin_cpu_supports("sse2");
+    if (isa == "sse4.2")
+        return __builtin_cpu_supports("sse4.2");
+    if (isa == "avx")
+        return __builtin_cpu_supports("avx");
+    if (isa == "avx2")
+        return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+               __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2");
+    if (isa == "avx512")
+        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512cd") &&
+               __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
+               __builtin_cpu_supports("avx512vl");
+    return false;
+}
+
 }  // namespace
 
 EmbreeScene::~EmbreeScene() {
@@ -65,9 +87,21 @@ Status EmbreeScene::deviceStatus(const std::string& what) const {
     return {ErrorCode::kInternal, what + ": " + *last_error_};
 }
 
-Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>& objects) {
+Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>& objects,
+                                                        const std::string& isa) {
     std::unique_ptr<EmbreeScene> scene(new EmbreeScene());
-    scene->device_ = rtcNewDevice(nullptr);
+    if (!isa.empty()) {
+        const std::vector<std::string> available = embreeIsas();
+        if (std::find(available.begin(), available.end(), isa) == available.end()) {
+            std::string names;
+            for (const std::string& a : available)
+                names += (names.empty() ? "" : ", ") + a;
+            return Status(ErrorCode::kInvalidArgument,
+                          "Embree ISA '" + isa +
+                              "' is not available here (this CPU and Embree: " + names + ")");
+        }
+    }
+    scene->device_ = rtcNewDevice(isa.empty() ? nullptr : ("isa=" + isa).c_str());
     if (scene->device_ == nullptr)
         return Status(ErrorCode::kInternal, "rtcNewDevice failed");
     rtcSetDeviceErrorFunction(scene->device_, onEmbreeError, scene->last_error_.get());
@@ -244,7 +278,7 @@ void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
                              const bool* active, int count, bool* occluded) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    context.flags = kOcclusionPacketFlags;
     alignas(64) int valid[16];
     alignas(64) RTCRay16 ray;
     for (int i = 0; i < 16; ++i) {
@@ -270,3 +304,24 @@ void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
 }
 
 }  // namespace mixray::render::detail
+
+namespace mixray::render {
+
+std::vector<std::string> embreeIsas() {
+    static const std::vector<std::string> isas = [] {
+        std::vector<std::string> found;
+        for (const char* isa : detail::kEmbreeIsaNames) {
+            if (!detail::cpuRuns(isa))
+                continue;
+            RTCDevice device = rtcNewDevice((std::string("isa=") + isa).c_str());
+            if (device == nullptr)
+                continue;
+            rtcReleaseDevice(device);
+            found.push_back(isa);
+        }
+        return found;
+    }();
+    return isas;
+}
+
+}  // namespace mixray::render

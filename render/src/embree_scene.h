@@ -59,6 +59,16 @@ struct LightData {
     Eigen::Matrix3f R_environment_world = Eigen::Matrix3f::Identity();
 };
 
+// Embree's `isa=` values RenderOptions::embree_isa may name, narrowest first.
+constexpr const char* kEmbreeIsaNames[] = {"sse2", "sse4.2", "avx", "avx2", "avx512"};
+
+// Context flags for rtcOccluded16 packets. Embree 3.13.5's AVX-512 coherent (frustum)
+// occlusion traversal never returns on ordinary shadow packets on AMD Zen 4 (one origin, 16
+// directions in a cone, tnear 0: 100 % CPU for minutes), while the same packets return at once
+// traced incoherently or on the AVX2 kernels; incoherent is as fast on the soft-shadow bench
+// (docs/benchmarks.md). No coherent occlusion packet anywhere: EmbreePacketTest runs every ISA.
+constexpr RTCIntersectContextFlags kOcclusionPacketFlags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+
 // Embree geometry masks: rays with kObjectMask see the scene's objects but not the depth mesh.
 constexpr unsigned kObjectMask = 1u;
 constexpr unsigned kDepthMeshMask = 2u;
@@ -80,8 +90,10 @@ class EmbreeScene {
 public:
     ~EmbreeScene();
 
-    // Builds prototypes and instances for `objects` (which keep their meshes afterwards).
-    static Result<std::unique_ptr<EmbreeScene>> build(std::vector<ObjectData>& objects);
+    // Builds prototypes and instances for `objects` (which keep their meshes afterwards) on a
+    // device of instruction set `isa` ("": the widest the CPU has; else one of embreeIsas()).
+    static Result<std::unique_ptr<EmbreeScene>> build(std::vector<ObjectData>& objects,
+                                                      const std::string& isa = "");
 
     // Moves each object's instances to its pose, disables inactive ones, recommits.
     Status setPoses(const std::vector<ObjectData>& objects);
@@ -101,8 +113,9 @@ public:
     static void intersect16(RTCScene scene, const Eigen::Vector3f& origin,
                             const Eigen::Vector3f* directions, int count, Hit* hits,
                             unsigned mask = kAnyMask);
-    // occluded() of up to 16 coherent rays from one origin (soft-shadow samples) as one
-    // packet; lanes with active[i] false (active may be null: all) are not traced and false.
+    // occluded() of up to 16 rays from one origin (soft-shadow samples) as one packet; lanes
+    // with active[i] false (active may be null: all) are not traced and false. Traced as an
+    // incoherent packet: see kOcclusionPacketFlags.
     static void occluded16(RTCScene scene, const Eigen::Vector3f& origin,
                            const Eigen::Vector3f* directions, const float* t_far,
                            const bool* active, int count, bool* occluded);

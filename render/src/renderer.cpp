@@ -41,6 +41,11 @@ Status RenderOptions::validate() const {
         return bad("threads must be >= 0");
     if (tile_size < 1 || tile_size > 1024)
         return bad("tile_size must be in [1, 1024]");
+    if (!embree_isa.empty() &&
+        std::none_of(std::begin(detail::kEmbreeIsaNames), std::end(detail::kEmbreeIsaNames),
+                     [&](const char* name) { return embree_isa == name; }))
+        return bad("embree_isa '" + embree_isa +
+                   "' is none of sse2, sse4.2, avx, avx2, avx512 (or empty: the best)");
     return Status::ok();
 }
 
@@ -227,7 +232,7 @@ public:
     }
 
     Status init() {
-        auto built = EmbreeScene::build(objects_);
+        auto built = EmbreeScene::build(objects_, options_.embree_isa);
         if (!built)
             return built.status();
         scene_ = std::move(built).value();

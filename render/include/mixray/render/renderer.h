@@ -58,9 +58,18 @@ struct RenderOptions {
     int threads = 0;           // 0: all hardware threads
     int tile_size = 16;        // pixels per tile side
     uint64_t seed = 1;         // sampling is deterministic for a given seed
+    // Embree's instruction set: "" (default) the widest this CPU has, else one of
+    // embreeIsas() ("sse2", "sse4.2", "avx", "avx2", "avx512"), Embree's `isa=` device option.
+    // For tests and benchmarks that must cover every kernel, and as a way round a kernel that
+    // misbehaves on one CPU.
+    std::string embree_isa;
 
     Status validate() const;
 };
+
+// The Embree instruction sets this CPU runs and this Embree accepts, narrowest first; the
+// values RenderOptions::embree_isa takes besides "".
+std::vector<std::string> embreeIsas();
 
 // Every ray one frame traced, in a deterministic order, so a benchmark can trace the same rays
 // with bare Embree on the same BVH. Filled only on request (RenderInputs::ray_log).
