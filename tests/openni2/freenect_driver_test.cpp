@@ -23,6 +23,7 @@
 #include "mixray/graph/graph.h"
 #include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
+#include "test_data.h"
 #include "umockdev_preload.h"
 
 namespace mixray::openni2 {
