@@ -177,7 +177,7 @@ void freeHandler(gpointer data, GClosure* /*closure*/) {
 
 // The motor's block of tests/usb/kinect_v1.umockdev, to add it again after an unplug.
 std::string motorDescription() {
-    std::ifstream in(test::sourceDir() / "tests/usb/kinect_v1.umockdev");
+    std::ifstream in(mixray::test::sourceDir() / "tests/usb/kinect_v1.umockdev");
     std::stringstream out;
     std::string line;
     bool inside = false;

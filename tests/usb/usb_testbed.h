@@ -20,7 +20,7 @@ public:
 
     // Adds the devices of tests/usb/<file>; a test failure when umockdev refuses them.
     bool add(const char* file) {
-        const std::string path = (test::sourceDir() / "tests/usb" / file).string();
+        const std::string path = (mixray::test::sourceDir() / "tests/usb" / file).string();
         GError* error = nullptr;
         if (!umockdev_testbed_add_from_file(testbed_, path.c_str(), &error)) {
             ADD_FAILURE() << "umockdev: " << path << ": " << error->message;
