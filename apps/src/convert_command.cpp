@@ -103,7 +103,8 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
         "convert",
         "Convert a recording: mkv <-> TUM RGB-D folder, PCL TIFF folder or Azure Kinect .mkv -> "
         "mkv. Frames, timestamps, attachments and tags are kept exactly where the target "
-        "format can hold them.");
+        "format can hold them. Also reads NYU Depth V2 raw and SUN RGB-D folders and OpenNI "
+        ".oni files, and writes organized point clouds (--to ply|pcd, docs/rgbd-formats.md).");
     auto options = std::make_shared<ConvertOptions>();
     sub->add_option("INPUT", options->input, "Recording to read")->required();
     sub->add_option("OUTPUT", options->output,
