@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <sstream>
 
 #include "mixray/replay/convert.h"
 #include "mixray/replay/pcl_tiff.h"
@@ -254,6 +255,48 @@ TEST(PointCloud, PclToolsReadOurFiles) {
     ASSERT_TRUE(from_ply) << from_ply.status().toString();
     expectSameCloud(*from_ply, cloud, "PCL's PCD of our PLY");
     EXPECT_EQ(from_ply->rgb, cloud.rgb);
+}
+
+// Open3D (Debian python3-open3d) reads the same files: every point, NaN kept, colours equal.
+TEST(PointCloud, Open3dReadsOurFiles) {
+    if (std::system("/usr/bin/python3 -c 'import open3d' > /dev/null 2>&1") != 0) {
+        GTEST_SKIP() << "Open3D is absent (Debian package python3-open3d, scripts/setup-deps)";
+    }
+    const auto dir = test::tempDir();
+    const PointCloud cloud = syntheticCloud(true);
+    ASSERT_TRUE(writePointCloud(dir / "b.pcd", cloud, PointCloudFormat::kPcd));
+    ASSERT_TRUE(writePointCloud(dir / "a.pcd", cloud, PointCloudFormat::kPcd, PcdEncoding::kAscii));
+    ASSERT_TRUE(writePointCloud(dir / "c.ply", cloud, PointCloudFormat::kPly));
+    test::writeText(dir / "dump.py",
+                    "import sys, open3d\n"
+                    "p = open3d.io.read_point_cloud(sys.argv[1], remove_nan_points=False,\n"
+                    "                               remove_infinite_points=False)\n"
+                    "for x, c in zip(p.points, p.colors):\n"
+                    "    print(repr(float(x[0])), repr(float(x[1])), repr(float(x[2])),\n"
+                    "          round(c[0] * 255), round(c[1] * 255), round(c[2] * 255))\n");
+    for (const char* name : {"b.pcd", "a.pcd", "c.ply"}) {
+        const auto out = dir / (std::string(name) + ".txt");
+        const std::string command = "/usr/bin/python3 '" + (dir / "dump.py").string() + "' '" +
+                                    (dir / name).string() + "' > '" + out.string() + "' 2>&1";
+        ASSERT_EQ(std::system(command.c_str()), 0) << name << ": " << test::readFile(out);
+        std::istringstream lines(test::readFile(out));
+        PointCloud read;
+        read.width = cloud.width;
+        read.height = cloud.height;
+        std::string x, y, z;
+        int r = 0, g = 0, b = 0;
+        while (lines >> x >> y >> z >> r >> g >> b) {
+            for (const std::string& v : {x, y, z}) {
+                read.xyz.push_back(v == "nan" ? std::numeric_limits<float>::quiet_NaN()
+                                              : static_cast<float>(std::stod(v)));
+            }
+            for (int c : {r, g, b})
+                read.rgb.push_back(static_cast<uint8_t>(c));
+        }
+        ASSERT_EQ(read.xyz.size(), cloud.xyz.size()) << name << ": " << test::readFile(out);
+        expectSameCloud(read, cloud, std::string("Open3D reading our ") + name);
+        EXPECT_EQ(read.rgb, cloud.rgb) << name;
+    }
 }
 
 TEST(PointCloud, WriterNeedsIntrinsicsAndSaysHow) {
