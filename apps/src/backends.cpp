@@ -5,8 +5,10 @@
 #include <memory>
 
 #include "mixray/aravis/aravis_backend.h"
+#include "mixray/openni2/oni_recording.h"
 #include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
+#include "mixray/replay/open_recording.h"
 #include "mixray/replay/replay_backend.h"
 #include "mixray/usb/usb_backend.h"
 #include "mixray/v4l2/v4l2_backend.h"
@@ -37,6 +39,14 @@ BackendRegistry makeBackendRegistry() {
     (void)registry.add(std::make_unique<openni2::OpenNI2Backend>());
     (void)registry.add(std::make_unique<usb::UsbBackend>());
     return registry;
+}
+
+void registerRecordingFormats() {
+    replay::registerRecordingFormat(
+        {"oni", "an OpenNI .oni recording (played by OpenNI2)", openni2::looksLikeOni,
+         [](const std::filesystem::path& path, const replay::OpenRecordingOptions& options) {
+             return openni2::openOniRecording(path, options.buffers_per_stream);
+         }});
 }
 
 }  // namespace mixray::cli

@@ -8,6 +8,7 @@
 #include "mixray/replay/convert.h"
 #include "mixray/replay/open_recording.h"
 #include "mixray/replay/pcl_tiff.h"
+#include "mixray/replay/point_cloud.h"
 #include "mixray/replay/tum.h"
 
 namespace mixray::cli {
@@ -16,9 +17,30 @@ namespace {
 struct ConvertOptions {
     std::string input;
     std::string output;
-    std::string to;  // mkv | tum | pcl-tiff; empty: from the output name
+    std::string to;  // mkv | tum | pcl-tiff | ply | pcd; empty: from the output name
     bool force = false;
+    // Point clouds (--to ply|pcd).
+    std::string intrinsics;           // "fx,fy,cx,cy"; empty: from the recording
+    std::string pcd_data = "binary";  // ascii | binary
+    bool no_color = false;
 };
+
+Result<std::unique_ptr<RecordingWriter>> createCloudWriter(const ConvertOptions& options,
+                                                           const RecordingHeader& header) {
+    replay::PointCloudWriterOptions cloud;
+    cloud.format =
+        options.to == "pcd" ? replay::PointCloudFormat::kPcd : replay::PointCloudFormat::kPly;
+    cloud.pcd_encoding =
+        options.pcd_data == "ascii" ? replay::PcdEncoding::kAscii : replay::PcdEncoding::kBinary;
+    cloud.color = !options.no_color;
+    if (!options.intrinsics.empty()) {
+        auto k = replay::parseIntrinsics(options.intrinsics);
+        if (!k)
+            return k.status().withContext("--intrinsics");
+        cloud.intrinsics = *k;
+    }
+    return replay::createPointCloudWriter(options.output, header, cloud);
+}
 
 Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& options,
                                                       const RecordingHeader& header) {
@@ -31,7 +53,10 @@ Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& opti
         return replay::createTumWriter(options.output, header);
     if (to == "pcl-tiff")
         return replay::createPclTiffWriter(options.output, header);
-    return {ErrorCode::kInvalidArgument, "--to " + to + ": expected mkv, tum or pcl-tiff"};
+    if (to == "ply" || to == "pcd")
+        return createCloudWriter(options, header);
+    return {ErrorCode::kInvalidArgument,
+            "--to " + to + ": expected mkv, tum, pcl-tiff, ply or pcd"};
 }
 
 int runConvert(const ConvertOptions& options) {
@@ -78,14 +103,26 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
         "convert",
         "Convert a recording: mkv <-> TUM RGB-D folder, PCL TIFF folder or Azure Kinect .mkv -> "
         "mkv. Frames, timestamps, attachments and tags are kept exactly where the target "
-        "format can hold them.");
+        "format can hold them. Also reads NYU Depth V2 raw and SUN RGB-D folders and OpenNI "
+        ".oni files, and writes organized point clouds (--to ply|pcd, docs/rgbd-formats.md).");
     auto options = std::make_shared<ConvertOptions>();
     sub->add_option("INPUT", options->input, "Recording to read")->required();
     sub->add_option("OUTPUT", options->output,
                     "What to write: a .mkv file, or a folder for TUM / PCL TIFF")
         ->required();
-    sub->add_option("--to", options->to, "Output format (default: mkv for *.mkv, else tum)")
-        ->check(CLI::IsMember({"mkv", "tum", "pcl-tiff"}));
+    sub->add_option("--to", options->to,
+                    "Output format (default: mkv for *.mkv, else tum); ply and pcd write one "
+                    "organized point cloud per depth frame into the OUTPUT folder")
+        ->check(CLI::IsMember({"mkv", "tum", "pcl-tiff", "ply", "pcd"}));
+    sub->add_option("--intrinsics", options->intrinsics,
+                    "With --to ply|pcd: the depth camera's pinhole intrinsics fx,fy,cx,cy in "
+                    "pixels (default: what the recording carries; an error when it has none)");
+    sub->add_option("--pcd-data", options->pcd_data,
+                    "With --to pcd: DATA ascii or binary (default binary)")
+        ->check(CLI::IsMember({"ascii", "binary"}));
+    sub->add_flag("--no-color", options->no_color,
+                  "With --to ply|pcd: points without colour even when the depth is registered "
+                  "to a colour stream");
     sub->add_flag("--force", options->force, "Overwrite an existing output file");
     commands.push_back({sub, [options] { return runConvert(*options); }});
 }

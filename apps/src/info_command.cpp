@@ -229,7 +229,8 @@ void registerInfoCommand(CLI::App& app, Commands& commands) {
     };
     auto options = std::make_shared<Options>();
     sub->add_option("FILE", options->path,
-                    "Recording: mixray or Azure Kinect .mkv, TUM RGB-D folder, PCL TIFF folder")
+                    "Recording: mixray or Azure Kinect .mkv, TUM RGB-D folder, PCL TIFF folder, "
+                    "NYU Depth V2 raw scene folder, SUN RGB-D frame folder, OpenNI .oni file")
         ->required();
     sub->add_flag("--json", options->json, "Print the description as JSON");
     commands.push_back({sub, [options] { return runInfo(options->path, options->json); }});

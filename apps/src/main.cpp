@@ -1,6 +1,7 @@
 // The mixray command line: one binary, one subcommand per job.
 #include <CLI/CLI.hpp>
 
+#include "backends.h"
 #include "cli.h"
 
 int main(int argc, char** argv) {
@@ -11,6 +12,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", "mixray 0.1.0");
     app.require_subcommand(1, 1);
 
+    registerRecordingFormats();
     Commands commands;
     registerDevicesCommand(app, commands);
     registerInfoCommand(app, commands);

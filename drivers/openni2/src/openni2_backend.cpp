@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <filesystem>
@@ -693,6 +694,16 @@ Status OpenNI2Device::connect(Graph& graph) {
         info.tags["openni2_uri"] = impl_->device.getDeviceInfo().getUri();
         if (s->unmirror)
             info.tags["openni2_unmirrored"] = "software";
+        // The field of view OpenNI2 reports (a recording replays the recorded one), for
+        // consumers that deproject depth (oni_recording.h derives pinhole intrinsics from it).
+        const float hfov = s->stream.getHorizontalFieldOfView();
+        const float vfov = s->stream.getVerticalFieldOfView();
+        if (hfov > 0 && vfov > 0 && std::isfinite(hfov) && std::isfinite(vfov)) {
+            char fov[64];
+            std::snprintf(fov, sizeof fov, "%.9g,%.9g", static_cast<double>(hfov),
+                          static_cast<double>(vfov));
+            info.tags[kFieldOfViewTag] = fov;
+        }
         auto stream = addPooledStream(graph, info, options_.buffers);
         if (!stream)
             return stream.status().withContext("openni2 device '" + name_ + "'");

@@ -1,7 +1,9 @@
 // Depth unit tags and exact integer rescaling of 16-bit depth images.
 #include "mixray/replay/depth_units.h"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <string>
 
@@ -60,6 +62,69 @@ Status rescaleDepth(const ImageView& src, int from_per_m, const MutableImageView
         }
     }
     return Status::ok();
+}
+
+uint16_t nyuRawToMm(uint16_t raw) {
+    if (raw == 0 || raw >= kNyuDepthParam2)
+        return 0;
+    const double metres = kNyuDepthParam1 / (kNyuDepthParam2 - raw);
+    if (metres > kNyuMaxDepthM)
+        return 0;
+    return static_cast<uint16_t>(std::lround(metres * 1000.0));
+}
+
+Status convertNyuRawToMm(const MutableImageView& image, std::string_view where) {
+    if (pixelFormatInfo(image.desc.format).bits_per_pixel != 16) {
+        return {ErrorCode::kInvalidArgument, std::string(where) + ": NYU raw depth must be 16-bit"};
+    }
+    const auto swap = [](uint16_t v) { return static_cast<uint16_t>((v >> 8) | (v << 8)); };
+    uint16_t max_stored = 0, max_swapped = 0;
+    for (int y = 0; y < image.desc.height; ++y) {
+        const uint16_t* row = image.row<uint16_t>(y);
+        for (int x = 0; x < image.desc.width; ++x) {
+            max_stored = std::max(max_stored, row[x]);
+            max_swapped = std::max(max_swapped, swap(row[x]));
+        }
+    }
+    bool swapped = false;
+    if (max_stored > kNyuRawMax) {
+        if (max_swapped > kNyuRawMax) {
+            return {ErrorCode::kCorruptData,
+                    std::string(where) +
+                        ": not NYU raw Kinect depth: values exceed 11 bits in "
+                        "either byte order (largest " +
+                        std::to_string(max_stored) + ")"};
+        }
+        swapped = true;
+    }
+    for (int y = 0; y < image.desc.height; ++y) {
+        uint16_t* row = image.row<uint16_t>(y);
+        for (int x = 0; x < image.desc.width; ++x)
+            row[x] = nyuRawToMm(swapped ? swap(row[x]) : row[x]);
+    }
+    return Status::ok();
+}
+
+double sunRotatedShare(const ImageView& image) {
+    uint64_t nonzero = 0, rotated = 0;
+    for (int y = 0; y < image.desc.height; ++y) {
+        const uint16_t* row = image.row<uint16_t>(y);
+        for (int x = 0; x < image.desc.width; ++x) {
+            if (row[x] == 0)
+                continue;
+            ++nonzero;
+            rotated += (row[x] & 7u) == 0 ? 1 : 0;
+        }
+    }
+    return nonzero == 0 ? 1.0 : static_cast<double>(rotated) / static_cast<double>(nonzero);
+}
+
+void convertSunDepthToMm(const MutableImageView& image) {
+    for (int y = 0; y < image.desc.height; ++y) {
+        uint16_t* row = image.row<uint16_t>(y);
+        for (int x = 0; x < image.desc.width; ++x)
+            row[x] = sunDepthToMm(row[x]);
+    }
 }
 
 }  // namespace mixray::replay

@@ -307,6 +307,9 @@ Result<FrameRef> ImageSequenceReader::next() {
                                              "' are held by consumers"};
     }
     MIXRAY_RETURN_IF_ERROR(readImageInto(entry.file, frame.image(), entry.where));
+    auto post = post_.find(entry.stream);
+    if (post != post_.end())
+        MIXRAY_RETURN_IF_ERROR(post->second(frame.image(), entry.where));
     FrameMetadata& meta = frame.meta();
     meta.stream = entry.stream;
     meta.sequence = entry.sequence;

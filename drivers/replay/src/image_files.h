@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -86,6 +87,12 @@ public:
     Result<FrameRef> next() override;
     Status seek(int64_t host_stamp_ns) override;
 
+    // Turns a stream's decoded file into the frame's values in place (datasets that store
+    // depth in their own encoding: NYU's raw disparity, SUN RGB-D's rotated bits). `where`
+    // names the file for messages.
+    using PostDecode = std::function<Status(const MutableImageView& image, std::string_view where)>;
+    void setPostDecode(uint32_t stream, PostDecode post) { post_[stream] = std::move(post); }
+
 private:
     std::string format_;
     std::vector<StreamInfo> streams_;
@@ -93,6 +100,7 @@ private:
     std::map<std::string, std::string> tags_;
     std::vector<SequenceEntry> entries_;
     std::vector<std::shared_ptr<BufferPool>> pools_;
+    std::map<uint32_t, PostDecode> post_;
     size_t position_ = 0;
 };
 

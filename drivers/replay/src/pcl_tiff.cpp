@@ -13,6 +13,7 @@
 #include "image_files.h"
 #include "mixray/replay/convert.h"
 #include "mixray/replay/depth_units.h"
+#include "mixray/replay/point_cloud.h"
 
 namespace mixray::replay {
 namespace {
@@ -305,6 +306,15 @@ Result<std::unique_ptr<RecordingReader>> openPclTiff(const std::filesystem::path
         streams.push_back(std::move(info));
     }
     detail::sortEntries(entries);
+    // PCL's recorder stores OpenNI depth registered to the colour image (its grabber colours
+    // point (u,v) with pixel (u,v)): say so, for point clouds with colour.
+    if (streams.size() == 2 && streams[0].format.width == streams[1].format.width &&
+        streams[0].format.height == streams[1].format.height) {
+        for (StreamInfo& s : streams) {
+            if (s.kind == StreamKind::kDepth)
+                s.tags[kRegisteredToTag] = "pcl/color";
+        }
+    }
 
     std::sort(sidecars.begin(), sidecars.end());
     std::vector<Attachment> attachments;

@@ -10,6 +10,7 @@
 #include "image_files.h"
 #include "mixray/replay/convert.h"
 #include "mixray/replay/depth_units.h"
+#include "mixray/replay/point_cloud.h"
 
 namespace mixray::replay {
 namespace {
@@ -428,6 +429,12 @@ Result<std::unique_ptr<RecordingReader>> openTum(const std::filesystem::path& di
     if (has_depth) {
         MIXRAY_RETURN_IF_ERROR(
             addList(**depth, "depth.txt", "depth", StreamKind::kDepth, PixelFormat::kDepth16));
+    }
+    // The benchmark's depth images are registered to its colour images (same pixel grid, the
+    // colour camera's intrinsics): say so, for point clouds with colour.
+    if (streams.size() == 2 && streams[0].format.width == streams[1].format.width &&
+        streams[0].format.height == streams[1].format.height) {
+        streams[1].tags[kRegisteredToTag] = streams[0].name;
     }
     detail::sortEntries(entries);
 

@@ -17,6 +17,10 @@
 
 namespace mixray::openni2 {
 
+// Stream tag: the stream's field of view as OpenNI2 reports it, "horizontal,vertical" in
+// radians (absent when the device or recording reports none).
+inline constexpr const char* kFieldOfViewTag = "openni2_fov_rad";
+
 // The sensors of an OpenNI2 device, published as "<device>/depth", "/color", "/ir".
 enum class Sensor : uint8_t { kDepth, kColor, kInfrared };
 std::string_view toString(Sensor sensor);
