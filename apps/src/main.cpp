@@ -3,6 +3,12 @@
 
 #include "cli.h"
 
+namespace mixray::cli {
+// Declared here, not in cli.h beside the others, until the parallel branches adding commands
+// are merged: every subcommand's file includes cli.h and would rebuild for it.
+void registerDetectCommand(CLI::App& app, Commands& commands);
+}  // namespace mixray::cli
+
 int main(int argc, char** argv) {
     using namespace mixray::cli;
     CLI::App app{
@@ -19,6 +25,7 @@ int main(int argc, char** argv) {
     registerConvertCommand(app, commands);
     registerRenderCommand(app, commands);
     registerCalibrateCommand(app, commands);
+    registerDetectCommand(app, commands);
     registerTrackCommand(app, commands);
     registerSimulateCommand(app, commands);
     registerDemoCommand(app, commands);
