@@ -2,7 +2,6 @@
 // single images; writes detections.csv, detections.json and an overlay picture per image.
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <set>
 #include <string>
@@ -30,15 +29,6 @@ struct DetectCommandOptions {
     float apriltag_sigma = 0.0f;
     int threads = 1;
 };
-
-Status writeText(const fs::path& path, const std::string& text) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.close();
-    if (!out)
-        return {ErrorCode::kIoError, path.string() + ": cannot write"};
-    return Status::ok();
-}
 
 // "<stem>.overlay.png", made unique when two images share a file name.
 fs::path overlayPath(const fs::path& dir, const std::string& image, std::set<std::string>& used) {
@@ -134,9 +124,7 @@ int runDetect(const DetectCommandOptions& o) {
     status.finish();
     if (interrupt.raised())
         return fail("detect", {ErrorCode::kCancelled, "interrupted; nothing written"});
-    if (Status s = writeText(dir / "detections.csv", calibration::detectionsCsv(found)); !s)
-        return fail("detect", s);
-    if (Status s = writeText(dir / "detections.json", calibration::detectionsJson(found)); !s)
+    if (Status s = calibration::writeDetections(dir, found); !s)
         return fail("detect", s);
     for (const std::string& line : lines)
         std::printf("%s\n", line.c_str());

@@ -12,6 +12,7 @@
 #include <system_error>
 #include <utility>
 
+#include "calibration_file_internal.h"
 #include "image_file.h"
 
 namespace mixray::calibration {
@@ -312,6 +313,12 @@ std::string detectionsJson(const std::vector<ImageDetections>& images) {
         {"convention", "pixels: (0,0) is the centre of the top-left pixel, x right, y down"},
         {"images", list}};
     return doc.dump(2) + "\n";
+}
+
+Status writeDetections(const std::filesystem::path& dir,
+                       const std::vector<ImageDetections>& images) {
+    MIXRAY_RETURN_IF_ERROR(detail::writeTextFile(dir / "detections.csv", detectionsCsv(images)));
+    return detail::writeTextFile(dir / "detections.json", detectionsJson(images));
 }
 
 Result<Image> drawDetections(const ImageView& image, const ImageDetections& found) {

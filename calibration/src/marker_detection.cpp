@@ -392,6 +392,23 @@ Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const Apri
     return out;
 }
 
+// The markers `keep` accepts as OpenCV's aruco functions take them: corners back in OpenCV's
+// pixel convention, ids beside.
+template <typename Keep>
+void toOpenCvMarkers(const std::vector<MarkerDetection>& markers, const Keep& keep,
+                     std::vector<std::vector<cv::Point2f>>& corners, std::vector<int>& ids) {
+    for (const MarkerDetection& d : markers) {
+        if (!keep(d))
+            continue;
+        std::vector<cv::Point2f> c;
+        for (const Vector2d& p : d.corners)
+            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
+                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
+        corners.push_back(std::move(c));
+        ids.push_back(d.id);
+    }
+}
+
 // An 8-bit grey copy of a kMono8, kRGB8 or kBGR8 image; kInvalidArgument for anything else.
 Result<cv::Mat> toGrey(const ImageView& image) {
     const ImageDesc& d = image.desc;
@@ -551,16 +568,9 @@ Result<std::vector<DiamondDetection>> detectDiamonds(const ImageView& image,
         return grey.status();
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    for (const MarkerDetection& d : markers) {
-        if (d.dictionary != dictionary.name)
-            continue;
-        std::vector<cv::Point2f> c;
-        for (const Vector2d& p : d.corners)
-            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
-                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
-        corners.push_back(std::move(c));
-        ids.push_back(d.id);
-    }
+    toOpenCvMarkers(
+        markers, [&](const MarkerDetection& d) { return d.dictionary == dictionary.name; }, corners,
+        ids);
     std::vector<DiamondDetection> out;
     if (ids.size() < 4)  // OpenCV asserts on an empty list; a diamond has four markers
         return out;
@@ -619,17 +629,13 @@ Result<std::vector<Corner>> charucoCorners(const ImageView& image, const Charuco
                       "ChArUco board: its marker ids do not all exist in " + spec.dictionary);
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    for (const MarkerDetection& d : markers) {
-        if (d.dictionary != spec.dictionary ||
-            std::find(board->ids.begin(), board->ids.end(), d.id) == board->ids.end())
-            continue;
-        std::vector<cv::Point2f> c;
-        for (const Vector2d& p : d.corners)
-            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
-                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
-        corners.push_back(std::move(c));
-        ids.push_back(d.id);
-    }
+    toOpenCvMarkers(
+        markers,
+        [&](const MarkerDetection& d) {
+            return d.dictionary == spec.dictionary &&
+                   std::find(board->ids.begin(), board->ids.end(), d.id) != board->ids.end();
+        },
+        corners, ids);
     std::vector<Corner> out;
     if (ids.size() < 2)
         return out;

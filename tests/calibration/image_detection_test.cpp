@@ -425,6 +425,11 @@ TEST(ImageDetection, CsvHasOneRowPerCornerInThePixelCentreConvention) {
         "\"shots/a,b.png\",diamond,DICT_4X4_50,1_2_3_4,3,7.0000,8.0000\n"
         "\"shots/a,b.png\",chessboard,chessboard:8x5:0.03,5,0,100.5000,200.5000\n";
     EXPECT_EQ(csv, expected);
+    const fs::path dir = test::tempDir();
+    ASSERT_TRUE(writeDetections(dir, {handMade()}));
+    EXPECT_EQ(test::readText(dir / "detections.csv"), expected);
+    EXPECT_EQ(test::readText(dir / "detections.json"), detectionsJson({handMade()}));
+    EXPECT_EQ(writeDetections(dir / "missing", {}).code(), ErrorCode::kIoError);
 }
 
 TEST(ImageDetection, JsonHoldsEveryDetection) {

@@ -83,6 +83,11 @@ std::string detectionsCsv(const std::vector<ImageDetections>& images);
 // "usable", "rejection", "why"}}]}; "board" only when a board was looked for.
 std::string detectionsJson(const std::vector<ImageDetections>& images);
 
+// Writes detectionsCsv() and detectionsJson() as `dir`/detections.csv and
+// `dir`/detections.json (each replaced whole, never left half written). kIoError naming the file.
+Status writeDetections(const std::filesystem::path& dir,
+                       const std::vector<ImageDetections>& images);
+
 // A bgr8 copy of `image` (any format detectInImage takes) with what was found drawn in:
 // marker and diamond outlines with their ids at the centre and each corner's index beside it
 // (corner 0 boxed), board corners as dots joined in point-id order with every id written.
