@@ -392,6 +392,16 @@ Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const Apri
     return out;
 }
 
+// The edge fit's camera model (may be absent) must be the image's size.
+Status checkCameraSize(const ImageView& image, const CameraModel* camera) {
+    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
+        return Status(ErrorCode::kInvalidArgument,
+                      "image is " + std::to_string(image.desc.width) + "x" +
+                          std::to_string(image.desc.height) + ", the camera model " +
+                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    return Status::ok();
+}
+
 // The markers `keep` accepts as OpenCV's aruco functions take them: corners back in OpenCV's
 // pixel convention, ids beside.
 template <typename Keep>
@@ -487,11 +497,7 @@ Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
         return Status(ErrorCode::kInvalidArgument,
                       "unknown marker dictionary '" + std::string(dictionary) +
                           "' (OpenCV's DICT_* names or apriltag:<family>)");
-    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
-        return Status(ErrorCode::kInvalidArgument,
-                      "image is " + std::to_string(image.desc.width) + "x" +
-                          std::to_string(image.desc.height) + ", the camera model " +
-                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    MIXRAY_RETURN_IF_ERROR(checkCameraSize(image, camera));
     auto grey = toGrey(image);
     if (!grey)
         return grey.status();
@@ -516,11 +522,7 @@ Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
     auto dict = toOpenCv(dictionary);
     if (!dict)
         return dict.status();
-    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
-        return Status(ErrorCode::kInvalidArgument,
-                      "image is " + std::to_string(image.desc.width) + "x" +
-                          std::to_string(image.desc.height) + ", the camera model " +
-                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    MIXRAY_RETURN_IF_ERROR(checkCameraSize(image, camera));
     auto grey = toGrey(image);
     if (!grey)
         return grey.status();
