@@ -19,6 +19,7 @@
 #include <system_error>
 #include <utility>
 
+#include "image_file.h"
 #include "mixray/graph/mkv.h"
 
 namespace mixray::calibration {
@@ -39,27 +40,6 @@ ImageView viewOf(const cv::Mat& grey) {
     v.data = grey.data;
     v.size_bytes = grey.step[0] * static_cast<size_t>(grey.rows);
     return v;
-}
-
-// 16-bit images (IR, mono) hold their signal in a small, camera-dependent part of the range;
-// a percentile stretch puts the board's black and white at the ends of 8 bits whatever it is.
-cv::Mat stretch16(const cv::Mat& src) {
-    std::vector<uint16_t> values;
-    values.reserve(src.total());
-    for (int y = 0; y < src.rows; ++y) {
-        const uint16_t* row = src.ptr<uint16_t>(y);
-        values.insert(values.end(), row, row + src.cols);
-    }
-    const auto at = [&](double q) {
-        auto k = static_cast<size_t>(q * static_cast<double>(values.size() - 1));
-        std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
-        return static_cast<double>(values[k]);
-    };
-    const double lo = at(0.005), hi = at(0.995);
-    cv::Mat out;
-    const double scale = hi > lo ? 255.0 / (hi - lo) : 1.0;
-    src.convertTo(out, CV_8U, scale, -lo * scale);
-    return out;
 }
 
 Result<cv::Mat> greyOf(const ImageView& image) {
@@ -93,7 +73,7 @@ Result<cv::Mat> greyOf(const ImageView& image) {
             cv::cvtColor(cv::Mat(d.height, d.width, CV_8UC3, data, step), grey, cv::COLOR_BGR2GRAY);
             break;
         default:
-            grey = stretch16(cv::Mat(d.height, d.width, CV_16UC1, data, step));
+            grey = detail::stretch16(cv::Mat(d.height, d.width, CV_16UC1, data, step));
             break;
     }
     return grey;
@@ -569,27 +549,11 @@ Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
         TargetView view;
         view.source = files[i].string();
         view.key = static_cast<int64_t>(i);
-        cv::Mat img;
-        try {
-            img = cv::imread(files[i].string(), cv::IMREAD_UNCHANGED);
-        } catch (const cv::Exception&) {
-            img.release();
-        }
-        if (!img.empty() && img.channels() == 4)
-            cv::cvtColor(img, img,
-                         img.depth() == CV_16U ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGRA2BGR);
-        if (!img.empty() && img.depth() == CV_16U && img.channels() == 3)
-            cv::cvtColor(img, img, cv::COLOR_BGR2GRAY);
-        PixelFormat format = PixelFormat::kUnknown;
-        if (!img.empty() && img.depth() == CV_8U)
-            format = img.channels() == 1 ? PixelFormat::kMono8 : PixelFormat::kBGR8;
-        else if (!img.empty() && img.depth() == CV_16U && img.channels() == 1)
-            format = PixelFormat::kMono16;
-        if (format == PixelFormat::kUnknown) {
+        const detail::ImageFile file = detail::readImageFile(files[i]);
+        const cv::Mat& img = file.mat;
+        if (file.format == PixelFormat::kUnknown) {
             view.rejection = ViewRejection::kUnreadable;
-            view.why = img.empty() ? "not an image OpenCV can read"
-                                   : "unsupported sample type (" + std::to_string(img.depth()) +
-                                         ", " + std::to_string(img.channels()) + " channels)";
+            view.why = file.why;
         } else if (out.width != 0 && (img.cols != out.width || img.rows != out.height)) {
             view.rejection = ViewRejection::kWrongSize;
             view.why = std::to_string(img.cols) + "x" + std::to_string(img.rows) +
@@ -598,11 +562,7 @@ Result<CameraViews> detectInFolder(const std::filesystem::path& folder,
         } else {
             out.width = img.cols;
             out.height = img.rows;
-            ImageView v;
-            v.desc = ImageDesc{format, img.cols, img.rows, static_cast<int>(img.step[0])};
-            v.data = img.data;
-            v.size_bytes = img.step[0] * static_cast<size_t>(img.rows);
-            MIXRAY_RETURN_IF_ERROR(detectInto(v, target, options, view));
+            MIXRAY_RETURN_IF_ERROR(detectInto(file.view(), target, options, view));
         }
         out.views.push_back(std::move(view));
         if (progress)

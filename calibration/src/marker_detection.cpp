@@ -293,14 +293,14 @@ cv::Mat linearImage(const cv::Mat& grey) {
     return lin;
 }
 
-Result<std::vector<MarkerDetection>> detectAruco(const cv::Mat& grey, const ArucoName& dict,
+Result<std::vector<MarkerDetection>> detectAruco(const cv::Mat& grey,
+                                                 const cv::Ptr<cv::aruco::Dictionary>& dictionary,
+                                                 const std::string& name,
                                                  const DetectorOptions& options,
                                                  const EdgePlane& plane) {
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    cv::Ptr<cv::aruco::Dictionary> dictionary;
     try {
-        dictionary = cv::aruco::getPredefinedDictionary(dict.id);
         auto params = cv::aruco::DetectorParameters::create();
         // The edge fit starts from the contour's corners; without it, OpenCV's own refinement.
         params->cornerRefinementMethod = options.refine_corners ? cv::aruco::CORNER_REFINE_NONE
@@ -315,7 +315,7 @@ Result<std::vector<MarkerDetection>> detectAruco(const cv::Mat& grey, const Aruc
     std::vector<MarkerDetection> out;
     for (size_t i = 0; i < ids.size(); ++i) {
         MarkerDetection m;
-        m.dictionary = std::string(dict.name);
+        m.dictionary = name;
         m.id = ids[i];
         for (size_t k = 0; k < 4; ++k)
             m.corners[k] = Vector2d(corners[i][k].x - kOpenCvArucoOffsetPx,
@@ -325,6 +325,24 @@ Result<std::vector<MarkerDetection>> detectAruco(const cv::Mat& grey, const Aruc
         out.push_back(std::move(m));
     }
     return out;
+}
+
+// OpenCV's form of a validated custom dictionary.
+Result<cv::Ptr<cv::aruco::Dictionary>> toOpenCv(const MarkerDictionary& dict) {
+    MIXRAY_RETURN_IF_ERROR(dict.validate());
+    try {
+        cv::Mat bytes;
+        cv::Mat bits(dict.marker_size, dict.marker_size, CV_8UC1);
+        for (const std::string& code : dict.markers) {
+            for (size_t j = 0; j < code.size(); ++j)
+                bits.at<uint8_t>(static_cast<int>(j)) = code[j] == '1' ? 1 : 0;
+            bytes.push_back(cv::aruco::Dictionary::getByteListFromBits(bits));
+        }
+        return cv::makePtr<cv::aruco::Dictionary>(bytes, dict.marker_size,
+                                                  dict.max_correction_bits);
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInternal, std::string("OpenCV dictionary: ") + e.what());
+    }
 }
 
 Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const AprilFamily& family,
@@ -341,6 +359,7 @@ Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const Apri
     apriltag_detector_add_family_bits(td.get(), tf.get(), 2);
     td->quad_decimate = options.apriltag_quad_decimate;
     td->refine_edges = options.apriltag_refine_edges;
+    td->quad_sigma = options.apriltag_quad_sigma;
     td->nthreads = options.threads;
     image_u8_t im{grey.cols, grey.rows, static_cast<int32_t>(grey.step[0]),
                   const_cast<uint8_t*>(grey.ptr<uint8_t>(0))};
@@ -371,6 +390,33 @@ Result<std::vector<MarkerDetection>> detectApril(const cv::Mat& grey, const Apri
         out.push_back(std::move(m));
     }
     return out;
+}
+
+// The edge fit's camera model (may be absent) must be the image's size.
+Status checkCameraSize(const ImageView& image, const CameraModel* camera) {
+    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
+        return Status(ErrorCode::kInvalidArgument,
+                      "image is " + std::to_string(image.desc.width) + "x" +
+                          std::to_string(image.desc.height) + ", the camera model " +
+                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    return Status::ok();
+}
+
+// The markers `keep` accepts as OpenCV's aruco functions take them: corners back in OpenCV's
+// pixel convention, ids beside.
+template <typename Keep>
+void toOpenCvMarkers(const std::vector<MarkerDetection>& markers, const Keep& keep,
+                     std::vector<std::vector<cv::Point2f>>& corners, std::vector<int>& ids) {
+    for (const MarkerDetection& d : markers) {
+        if (!keep(d))
+            continue;
+        std::vector<cv::Point2f> c;
+        for (const Vector2d& p : d.corners)
+            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
+                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
+        corners.push_back(std::move(c));
+        ids.push_back(d.id);
+    }
 }
 
 // An 8-bit grey copy of a kMono8, kRGB8 or kBGR8 image; kInvalidArgument for anything else.
@@ -408,6 +454,10 @@ Status DetectorOptions::validate() const {
         return {ErrorCode::kInvalidArgument,
                 "detector.apriltag_quad_decimate must be in [1, 8], got " +
                     std::to_string(apriltag_quad_decimate)};
+    if (!(apriltag_quad_sigma >= -10.0f && apriltag_quad_sigma <= 10.0f))
+        return {ErrorCode::kInvalidArgument,
+                "detector.apriltag_quad_sigma must be in [-10, 10], got " +
+                    std::to_string(apriltag_quad_sigma)};
     if (threads < 1 || threads > 256)
         return {ErrorCode::kInvalidArgument,
                 "detector.threads must be in [1, 256], got " + std::to_string(threads)};
@@ -447,18 +497,108 @@ Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
         return Status(ErrorCode::kInvalidArgument,
                       "unknown marker dictionary '" + std::string(dictionary) +
                           "' (OpenCV's DICT_* names or apriltag:<family>)");
-    if (camera && (camera->width != image.desc.width || camera->height != image.desc.height))
-        return Status(ErrorCode::kInvalidArgument,
-                      "image is " + std::to_string(image.desc.width) + "x" +
-                          std::to_string(image.desc.height) + ", the camera model " +
-                          std::to_string(camera->width) + "x" + std::to_string(camera->height));
+    MIXRAY_RETURN_IF_ERROR(checkCameraSize(image, camera));
     auto grey = toGrey(image);
     if (!grey)
         return grey.status();
     const EdgePlane plane{camera};
-    if (aruco)
-        return detectAruco(*grey, *aruco, options, plane);
+    if (aruco) {
+        cv::Ptr<cv::aruco::Dictionary> dict;
+        try {
+            dict = cv::aruco::getPredefinedDictionary(aruco->id);
+        } catch (const cv::Exception& e) {
+            return Status(ErrorCode::kInternal, std::string("OpenCV dictionary: ") + e.what());
+        }
+        return detectAruco(*grey, dict, std::string(aruco->name), options, plane);
+    }
     return detectApril(*grey, *april, options, plane);
+}
+
+Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
+                                                   const MarkerDictionary& dictionary,
+                                                   const DetectorOptions& options,
+                                                   const CameraModel* camera) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    auto dict = toOpenCv(dictionary);
+    if (!dict)
+        return dict.status();
+    MIXRAY_RETURN_IF_ERROR(checkCameraSize(image, camera));
+    auto grey = toGrey(image);
+    if (!grey)
+        return grey.status();
+    return detectAruco(*grey, *dict, dictionary.name, options, EdgePlane{camera});
+}
+
+Result<MarkerDictionary> openCvDictionary(std::string_view name) {
+    const ArucoName* a = findAruco(name);
+    if (!a)
+        return Status(ErrorCode::kInvalidArgument,
+                      "'" + std::string(name) + "' is not one of OpenCV's DICT_* dictionaries");
+    MarkerDictionary out;
+    out.name = std::string(a->name);
+    try {
+        const cv::Ptr<cv::aruco::Dictionary> dict = cv::aruco::getPredefinedDictionary(a->id);
+        out.marker_size = dict->markerSize;
+        out.max_correction_bits = dict->maxCorrectionBits;
+        for (int i = 0; i < dict->bytesList.rows; ++i) {
+            const cv::Mat bits = cv::aruco::Dictionary::getBitsFromByteList(dict->bytesList.row(i),
+                                                                            dict->markerSize);
+            std::string code;
+            for (int j = 0; j < static_cast<int>(bits.total()); ++j)
+                code += bits.at<uint8_t>(j) ? '1' : '0';
+            out.markers.push_back(std::move(code));
+        }
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInternal, std::string("OpenCV dictionary: ") + e.what());
+    }
+    return out;
+}
+
+Result<std::vector<DiamondDetection>> detectDiamonds(const ImageView& image,
+                                                     const MarkerDictionary& dictionary,
+                                                     double square_to_marker,
+                                                     const std::vector<MarkerDetection>& markers) {
+    if (!(square_to_marker > 1.0 && square_to_marker <= 100.0))
+        return Status(ErrorCode::kInvalidArgument,
+                      "diamond square/marker ratio must be in (1, 100], got " +
+                          std::to_string(square_to_marker));
+    auto dict = toOpenCv(dictionary);
+    if (!dict)
+        return dict.status();
+    auto grey = toGrey(image);
+    if (!grey)
+        return grey.status();
+    std::vector<std::vector<cv::Point2f>> corners;
+    std::vector<int> ids;
+    toOpenCvMarkers(
+        markers, [&](const MarkerDetection& d) { return d.dictionary == dictionary.name; }, corners,
+        ids);
+    std::vector<DiamondDetection> out;
+    if (ids.size() < 4)  // OpenCV asserts on an empty list; a diamond has four markers
+        return out;
+    std::vector<std::vector<cv::Point2f>> diamond_corners;
+    std::vector<cv::Vec4i> diamond_ids;
+    try {
+        cv::aruco::detectCharucoDiamond(*grey, corners, ids, static_cast<float>(square_to_marker),
+                                        diamond_corners, diamond_ids, cv::noArray(), cv::noArray(),
+                                        *dict);
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInternal, std::string("OpenCV diamond detection: ") + e.what());
+    }
+    for (size_t i = 0; i < diamond_ids.size() && i < diamond_corners.size(); ++i) {
+        if (diamond_corners[i].size() != 4)
+            continue;
+        DiamondDetection d;
+        d.dictionary = dictionary.name;
+        for (size_t k = 0; k < 4; ++k) {
+            d.ids[k] = diamond_ids[i][static_cast<int>(k)];
+            // interpolateCornersCharuco gives these, with its half-pixel offset.
+            d.corners[k] = Vector2d(diamond_corners[i][k].x - kCharucoOffsetPx,
+                                    diamond_corners[i][k].y - kCharucoOffsetPx);
+        }
+        out.push_back(d);
+    }
+    return out;
 }
 
 Result<std::vector<Corner>> charucoCorners(const ImageView& image, const CharucoBoardSpec& spec,
@@ -491,17 +631,13 @@ Result<std::vector<Corner>> charucoCorners(const ImageView& image, const Charuco
                       "ChArUco board: its marker ids do not all exist in " + spec.dictionary);
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    for (const MarkerDetection& d : markers) {
-        if (d.dictionary != spec.dictionary ||
-            std::find(board->ids.begin(), board->ids.end(), d.id) == board->ids.end())
-            continue;
-        std::vector<cv::Point2f> c;
-        for (const Vector2d& p : d.corners)
-            c.emplace_back(static_cast<float>(p.x() + kOpenCvArucoOffsetPx),
-                           static_cast<float>(p.y() + kOpenCvArucoOffsetPx));
-        corners.push_back(std::move(c));
-        ids.push_back(d.id);
-    }
+    toOpenCvMarkers(
+        markers,
+        [&](const MarkerDetection& d) {
+            return d.dictionary == spec.dictionary &&
+                   std::find(board->ids.begin(), board->ids.end(), d.id) != board->ids.end();
+        },
+        corners, ids);
     std::vector<Corner> out;
     if (ids.size() < 2)
         return out;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mixray/calibration/camera_model.h"
+#include "mixray/calibration/marker_dictionary.h"
 #include "mixray/calibration/target.h"
 #include "mixray/graph/image.h"
 #include "mixray/graph/result.h"
@@ -46,8 +47,14 @@ struct DetectorOptions {
     // Off: OpenCV's subpixel corners, or libapriltag's.
     bool refine_corners = true;
     // AprilTag (libapriltag) settings, as its detector names them.
+    // quad_decimate: find quads in an image decimated this many times ([1, 8]; faster, fewer
+    // small tags; the decode still reads the full image). refine_edges: move each quad's edges
+    // to the strongest gradient nearby. quad_sigma: Gaussian blur (σ px, [0, 10]) of the image
+    // the quads are segmented in; negative ([-10, 0)) sharpens. libapriltag's defaults.
     float apriltag_quad_decimate = 1.0f;
     bool apriltag_refine_edges = true;
+    float apriltag_quad_sigma = 0.0f;
+    // libapriltag's worker threads (nthreads), [1, 256].
     int threads = 1;
 
     Status validate() const;
@@ -74,6 +81,37 @@ Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
                                                    std::string_view dictionary,
                                                    const DetectorOptions& options = {},
                                                    const CameraModel* camera = nullptr);
+
+// The same for the markers of a custom ArUco dictionary (marker_dictionary.h), detected with
+// OpenCV's aruco; detections carry dictionary.name. kInvalidArgument when it fails validate().
+Result<std::vector<MarkerDetection>> detectMarkers(const ImageView& image,
+                                                   const MarkerDictionary& dictionary,
+                                                   const DetectorOptions& options = {},
+                                                   const CameraModel* camera = nullptr);
+
+// Bits of an OpenCV dictionary's markers as a MarkerDictionary (named as the dictionary), so
+// that predefined and custom dictionaries can be handled alike. kInvalidArgument for a name
+// openCvDictionaryId() does not know.
+Result<MarkerDictionary> openCvDictionary(std::string_view name);
+
+// A ChArUco diamond: four markers of one dictionary around the centre square of a 3x3
+// chessboard (OpenCV's drawCharucoDiamond). `ids` as OpenCV's detectCharucoDiamond gives them
+// (the top marker first, then clockwise: left, right, bottom as drawn); `corners` are the four
+// inner chessboard corners of the diamond in docs/conventions.md pixels, in OpenCV's order.
+struct DiamondDetection {
+    std::string dictionary;
+    std::array<int, 4> ids{};
+    std::array<Eigen::Vector2d, 4> corners;
+};
+
+// The diamonds made of `markers` (found by detectMarkers in the same 8-bit image with
+// `dictionary`), whose squares are `square_to_marker` times the side of their markers (> 1;
+// OpenCV's squareMarkerLengthRate): OpenCV's detectCharucoDiamond. Corners are interpolated
+// as for ChArUco boards. kInvalidArgument for a bad ratio, dictionary or image. Reentrant.
+Result<std::vector<DiamondDetection>> detectDiamonds(const ImageView& image,
+                                                     const MarkerDictionary& dictionary,
+                                                     double square_to_marker,
+                                                     const std::vector<MarkerDetection>& markers);
 
 // An OpenCV CharucoBoard as printed: its markers numbered from `first_id`.
 struct CharucoBoardSpec {
