@@ -51,6 +51,16 @@ struct Shot {
     }
 };
 
+// Soft shadows from 7 rays per sample: fewer than 8, so single rays, not Embree's 16-ray packets.
+RenderOptions uniformShadows(int samples_per_pixel) {
+    RenderOptions options;
+    options.soft_shadows = SoftShadowMethod::kUniform;
+    options.shadow_samples = 7;
+    options.samples_per_pixel = samples_per_pixel;
+    options.threads = 2;
+    return options;
+}
+
 std::unique_ptr<Renderer> makeRenderer(const RenderOptions& options) {
     auto renderer = Renderer::create(ballScene(), options);
     EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
@@ -79,15 +89,10 @@ std::pair<Status, double> renderAndStopAfter(Renderer& renderer, Shot& shot,
 }
 
 TEST(RendererCancel, AStopFromAnotherThreadEndsTheFrameWithinATile) {
-    // 64 samples per pixel, each with 7 shadow rays (fewer than 8: single rays, not Embree's
-    // 16-ray packets): ten million rays, seconds for the frame; a 4x4 tile is about 1/1500 of
-    // it.
-    RenderOptions options;
-    options.soft_shadows = SoftShadowMethod::kUniform;
-    options.shadow_samples = 7;
-    options.samples_per_pixel = 64;
+    // 64 samples per pixel, each with 7 shadow rays: ten million rays, seconds for the frame; a
+    // 4x4 tile is about 1/1500 of it.
+    RenderOptions options = uniformShadows(64);
     options.tile_size = 4;
-    options.threads = 2;
     auto renderer = makeRenderer(options);
     ASSERT_TRUE(renderer);
     Shot shot;
@@ -128,11 +133,7 @@ TEST(RendererCancel, AStopRequestedBeforeTheFrameReturnsAtOnce) {
 }
 
 TEST(RendererCancel, TheFrameAfterACancelledOneIsTheSameAsAFreshRenderersFrame) {
-    RenderOptions options;
-    options.soft_shadows = SoftShadowMethod::kUniform;
-    options.shadow_samples = 7;
-    options.samples_per_pixel = 4;
-    options.threads = 2;
+    const RenderOptions options = uniformShadows(4);
     auto fresh = makeRenderer(options);
     auto reused = makeRenderer(options);
     ASSERT_TRUE(fresh && reused);
