@@ -52,7 +52,7 @@ struct Stopped {
 // shadow rays each: most of a second a frame on two threads, 300 tiles), waits until the first
 // frame is written (its PNG appears, right after the video frame) and sends `signal`, so it lands
 // in the middle of the second frame.
-Stopped renderAndSignal(const fs::path& dir, int signal) {
+Stopped renderAndSignal(const fs::path& dir, int signal, int second_signal = 0) {
     const test::CliProcess process =
         test::startMixray({"render",
                            (test::fixturesDir() / "sessions" / "pattern_rgbd.mkv").string(),
@@ -85,9 +85,18 @@ Stopped renderAndSignal(const fs::path& dir, int signal) {
     EXPECT_TRUE(fs::exists(dir / "png" / "frame_000000.png")) << test::readText(dir / "log.txt");
     const auto signalled = Clock::now();
     kill(process.pid, signal);
+    if (second_signal != 0)
+        kill(process.pid, second_signal);
     // stderr is unbuffered: the line appears as soon as the video is closed.
+    // Whether it has exited, without reaping it (waitMixray does).
+    const auto exited = [&] {
+        siginfo_t info{};
+        return waitid(P_PID, static_cast<id_t>(process.pid), &info, WEXITED | WNOHANG | WNOWAIT) ==
+                   0 &&
+               info.si_pid == process.pid;
+    };
     const auto said_deadline = Clock::now() + std::chrono::seconds(120);
-    while (test::readText(dir / "log.txt").find("stopped by") == std::string::npos &&
+    while (test::readText(dir / "log.txt").find("stopped by") == std::string::npos && !exited() &&
            Clock::now() < said_deadline)
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     stopped.said_s = std::chrono::duration<double>(Clock::now() - signalled).count();
@@ -128,6 +137,21 @@ TEST(RenderCancelCli, ASignalStopsMidFrameAndLeavesAPlayableVideoOfTheFramesDone
         EXPECT_GT(frame_s, 0.3) << "the scene renders too fast to show a stop within a frame";
         EXPECT_LT(stopped.said_s, 0.5 * frame_s) << "a frame takes " << frame_s << " s";
     }
+}
+
+// A second signal (another number: the same one could merge with the first while pending)
+// does not wait for the video to be closed: mixray exits at once with 128 + that signal, without
+// the orderly stop's message.
+TEST(RenderCancelCli, ASecondSignalExitsAtOnce) {
+    const fs::path dir = test::tempDir();
+    const Stopped stopped = renderAndSignal(dir, SIGINT, SIGTERM);
+    // Two threads may take the two signals at once; whichever came second sets the code.
+    EXPECT_TRUE(stopped.run.exit_code == 143 || stopped.run.exit_code == 130)
+        << stopped.run.exit_code << "\n"
+        << stopped.run.output;
+    EXPECT_NE(stopped.run.output.find("second signal, exiting at once"), std::string::npos)
+        << stopped.run.output;
+    EXPECT_EQ(stopped.run.output.find("stopped by"), std::string::npos) << stopped.run.output;
 }
 
 TEST(RenderCancelCli, HelpSaysWhatASignalDoes) {
