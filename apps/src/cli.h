@@ -13,11 +13,12 @@ namespace mixray::cli {
 // Exit codes, stable for scripts: what went wrong, not where.
 enum ExitCode : int {
     kExitOk = 0,
-    kExitInternal = 1,     // a bug or a library failure
-    kExitUsage = 2,        // bad command line (CLI11 uses it too)
-    kExitBadInput = 3,     // input files missing, malformed, truncated
-    kExitUnavailable = 4,  // a device or resource is not there now
-    kExitInterrupted = 130,
+    kExitInternal = 1,       // a bug or a library failure
+    kExitUsage = 2,          // bad command line (CLI11 uses it too)
+    kExitBadInput = 3,       // input files missing, malformed, truncated
+    kExitUnavailable = 4,    // a device or resource is not there now
+    kExitInterrupted = 130,  // SIGINT (Ctrl-C): 128 + 2, as shells report it
+    kExitTerminated = 143,   // SIGTERM: 128 + 15 (InterruptFlag::exitCode() picks)
 };
 
 int exitCodeFor(const Status& status);

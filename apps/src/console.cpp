@@ -1,17 +1,37 @@
 // Units, the live status line and Ctrl-C handling for the command line.
 #include "console.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 
 namespace mixray::cli {
 namespace {
-std::atomic<bool> g_interrupted{false};
-extern "C" void onSignal(int) {
-    g_interrupted.store(true);
+// Only lock-free atomics and write(2)/_exit(2) in the handler: it may run on any thread, in the
+// middle of anything.
+std::atomic<int> g_signal{0};
+std::atomic<int> g_wake_fd{-1};
+static_assert(std::atomic<int>::is_always_lock_free);
+
+extern "C" void onSignal(int number) {
+    const int saved_errno = errno;
+    int none = 0;
+    if (!g_signal.compare_exchange_strong(none, number)) {
+        // The user insists: stop now, whatever is half written.
+        static const char kMessage[] = "\nmixray: second signal, exiting at once\n";
+        (void)!write(STDERR_FILENO, kMessage, sizeof kMessage - 1);
+        _exit(128 + number);
+    }
+    const int fd = g_wake_fd.load();
+    if (fd >= 0) {
+        const char byte = 1;
+        (void)!write(fd, &byte, 1);
+    }
+    errno = saved_errno;
 }
 }  // namespace
 
@@ -42,6 +62,14 @@ std::string formatDuration(int64_t ns) {
         std::snprintf(text, sizeof text, "%.0f µs", v / 1e3);
     }
     return text;
+}
+
+std::string signalHelp(const std::string& output) {
+    return "SIGINT (Ctrl-C) or SIGTERM stops within one image tile: the frame in progress is "
+           "dropped, " +
+           output +
+           " is closed with the frames done (it plays), and mixray exits with 130 (SIGINT) or "
+           "143 (SIGTERM). A second signal exits at once, leaving it unfinished.";
 }
 
 int64_t monotonicNowNs() {
@@ -85,18 +113,63 @@ void StatusLine::finish() {
 }
 
 InterruptFlag::InterruptFlag() {
-    g_interrupted.store(false);
-    std::signal(SIGINT, onSignal);
-    std::signal(SIGTERM, onSignal);
+    g_signal.store(0);
+    // Without a pipe the flag still works; only token() then never fires.
+    if (pipe2(pipe_, O_CLOEXEC) == 0) {
+        g_wake_fd.store(pipe_[1]);
+        watcher_ = std::thread([this] {
+            char byte;
+            ssize_t n;
+            do {
+                n = read(pipe_[0], &byte, 1);
+            } while (n < 0 && errno == EINTR);
+            // One wake-up: the first signal, or the destructor.
+            if (g_signal.load() != 0)
+                source_.request_stop();
+        });
+    }
+    struct sigaction action {};
+    action.sa_handler = onSignal;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESTART;
+    sigaction(SIGINT, &action, &previous_[0]);
+    sigaction(SIGTERM, &action, &previous_[1]);
 }
 
 InterruptFlag::~InterruptFlag() {
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
+    sigaction(SIGINT, &previous_[0], nullptr);
+    sigaction(SIGTERM, &previous_[1], nullptr);
+    g_wake_fd.store(-1);
+    if (watcher_.joinable()) {
+        const char byte = 0;
+        (void)!write(pipe_[1], &byte, 1);
+        watcher_.join();
+    }
+    for (int fd : pipe_)
+        if (fd >= 0)
+            close(fd);
 }
 
 bool InterruptFlag::raised() const {
-    return g_interrupted.load();
+    return g_signal.load() != 0;
+}
+
+std::string InterruptFlag::signalName() const {
+    switch (g_signal.load()) {
+        case 0:
+            return "";
+        case SIGINT:
+            return "SIGINT";
+        case SIGTERM:
+            return "SIGTERM";
+        default:
+            return "a signal";
+    }
+}
+
+int InterruptFlag::exitCode() const {
+    const int number = g_signal.load();
+    return 128 + (number != 0 ? number : SIGINT);
 }
 
 }  // namespace mixray::cli

@@ -1,9 +1,13 @@
 // Console output helpers shared by the subcommands: units, a live status line, Ctrl-C.
 #pragma once
 
+#include <signal.h>
+
 #include <atomic>
 #include <cstdint>
+#include <stop_token>
 #include <string>
+#include <thread>
 
 namespace mixray::cli {
 
@@ -31,14 +35,39 @@ private:
     std::string pending_;  // not yet printed (non-terminal output)
 };
 
-// Turns SIGINT/SIGTERM into a flag long-running commands poll, so they stop cleanly and
-// finish their files instead of dying mid-write. Installed for the lifetime of the object.
+// Turns SIGINT/SIGTERM into a flag long-running commands poll (raised()) and a stop request
+// they hand to the libraries (token(): a frame in progress stops within a tile), so they stop
+// cleanly and finish their files instead of dying mid-write. A second signal exits at once with
+// 128 + its number (the files are left as they are). The handler only stores the signal and
+// writes a byte to a pipe; a watcher thread turns that into the stop request, since
+// std::stop_source is not async-signal-safe. Installed for the lifetime of the object; one at a
+// time. Thread-safe.
 class InterruptFlag {
 public:
     InterruptFlag();
     ~InterruptFlag();
+    InterruptFlag(const InterruptFlag&) = delete;
+    InterruptFlag& operator=(const InterruptFlag&) = delete;
+
     bool raised() const;
+    // Requested shortly after the first signal (when the watcher thread wakes).
+    std::stop_token token() const { return source_.get_token(); }
+    // "SIGINT", "SIGTERM" ("a signal" for others, "" when not raised).
+    std::string signalName() const;
+    // What a shell expects from a process a signal stopped: 128 + the signal (130 for SIGINT,
+    // 143 for SIGTERM); 130 when not raised (a command that stops for another reason).
+    int exitCode() const;
+
+private:
+    std::stop_source source_;
+    int pipe_[2] = {-1, -1};  // the handler writes [1]; the watcher reads [0]
+    std::thread watcher_;
+    struct sigaction previous_[2] = {};  // SIGINT's and SIGTERM's actions before, restored
 };
+
+// Help text (a subcommand's footer) for a command that renders under an InterruptFlag: what
+// SIGINT/SIGTERM do; `output` names what is closed with the frames done ("the video").
+std::string signalHelp(const std::string& output);
 
 int64_t monotonicNowNs();
 

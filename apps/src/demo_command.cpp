@@ -34,8 +34,7 @@ using nlohmann::json;
 
 struct DemoOptions {
     std::string session = (sourceDir() / "fixtures/sessions/sim_tabletop.mkv").string();
-    std::string objects =
-        (sourceDir() / "fixtures/scenes/sim_tabletop_demo.yaml").string();
+    std::string objects = (sourceDir() / "fixtures/scenes/sim_tabletop_demo.yaml").string();
     std::string real_scene;  // default: the session's NAME.scene.yaml
     std::string setup;
     std::string output = "out/demo";
@@ -284,6 +283,8 @@ int runDemo(const DemoOptions& options) {
     if (ec)
         return fail("demo", {ErrorCode::kIoError, "cannot create " + out.string()});
     const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30;
+    // From here on a signal stops the work and the video is closed with the frames done.
+    InterruptFlag interrupt;
     auto video = render::VideoWriter::create(out / "composite.mp4", color_info.format.width,
                                              color_info.format.height, fps);
     if (!video)
@@ -297,7 +298,6 @@ int runDemo(const DemoOptions& options) {
     std::string last_lights_key;
     render::RenderLayers layers;
     StatusLine status;
-    InterruptFlag interrupt;
     Status result;
     FrameRef depth;  // the newest depth map
 
@@ -327,6 +327,7 @@ int runDemo(const DemoOptions& options) {
             in.T_world_cam = *f.track.pose.value;
             if (depth && depth.meta().host_stamp_ns == f.color.meta().host_stamp_ns)
                 in.depth_mm = depth.image();
+            in.stop = interrupt.token();  // a signal drops this frame within a tile
             render::RenderStats stats;
             MIXRAY_RETURN_IF_ERROR((*renderer)->render(in, layers, &stats));
             render_ms.push_back(stats.seconds * 1e3);
@@ -455,6 +456,9 @@ int runDemo(const DemoOptions& options) {
         result = processPending();
     status.finish();
     Status closed = (*video)->close();
+    // A signal also ends the frame in progress (kCancelled): the frames done are summarised.
+    if (interrupt.raised() && result.code() == ErrorCode::kCancelled)
+        result = Status::ok();
     if (result)
         result = closed;
     if (!result)
@@ -522,7 +526,13 @@ int runDemo(const DemoOptions& options) {
     std::printf("   wrote %s/composite.mp4, %s/frames/*.png%s, %s/summary.json (%.1f s)\n",
                 out.string().c_str(), out.string().c_str(),
                 truth_sim ? " (with _truth and _diff4x)" : "", out.string().c_str(), seconds);
-    return interrupt.raised() ? kExitInterrupted : kExitOk;
+    if (interrupt.raised()) {
+        std::fprintf(stderr, "mixray demo: stopped by %s after %llu frames; %s holds them\n",
+                     interrupt.signalName().c_str(), static_cast<unsigned long long>(frames),
+                     (out / "composite.mp4").string().c_str());
+        return interrupt.exitCode();
+    }
+    return kExitOk;
 }
 
 }  // namespace
@@ -533,6 +543,7 @@ void registerDemoCommand(CLI::App& app, Commands& commands) {
         "The main job on the bundled simulated session: replay, track the marker, estimate the "
         "real light (probes, fish-eye), composite a glass sphere, a metal teapot and a clay box, "
         "and measure poses, lights and the composite against the simulator's ground truth");
+    sub->footer(signalHelp("OUTPUT/composite.mp4"));
     auto o = std::make_shared<DemoOptions>();
     sub->add_option("--session", o->session, "Recording")->capture_default_str();
     sub->add_option("--objects", o->objects, "Scene file with the virtual objects")

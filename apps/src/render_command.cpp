@@ -254,6 +254,9 @@ int runRender(const RenderCommandOptions& options) {
     if (!renderer)
         return fail("render", renderer.status());
 
+    // From here on a signal stops the work (the frame in progress within a tile) and the video
+    // is closed with the frames done, so it plays.
+    InterruptFlag interrupt;
     const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30.0;
     auto video = render::VideoWriter::create(options.output, color_info.format.width,
                                              color_info.format.height, fps);
@@ -279,7 +282,6 @@ int runRender(const RenderCommandOptions& options) {
         }
     }
 
-    InterruptFlag interrupt;
     StatusLine status;
     auto depths = DepthFrames::create((*reader)->streams(), streams->depth);
     if (!depths)
@@ -311,6 +313,7 @@ int runRender(const RenderCommandOptions& options) {
             inputs.T_world_cam = *T_world_cam;
         }
         inputs.T_world_anchor = anchors;
+        inputs.stop = interrupt.token();
         render::RenderStats stats;
         result = (*renderer)->render(inputs, layers, &stats);
         if (!result)
@@ -374,6 +377,10 @@ int runRender(const RenderCommandOptions& options) {
         composite(pending);
     status.finish();
     Status closed = (*video)->close();
+    // A signal also ends the frame in progress: the renderer drops it whole (kCancelled).
+    const bool stopped = interrupt.raised();
+    if (stopped && result.code() == ErrorCode::kCancelled)
+        result = Status::ok();
     if (!result)
         return fail("render", result);
     if (!closed)
@@ -386,7 +393,22 @@ int runRender(const RenderCommandOptions& options) {
                 std::string(render::toString((*video)->codec())).c_str(),
                 frames ? render_seconds / static_cast<double>(frames) * 1e3 : 0.0,
                 worst_seconds * 1e3);
-    return interrupt.raised() ? kExitInterrupted : kExitOk;
+    if (stopped) {
+        // The planned count is known when --max-frames set it; the recording's own count would
+        // take a pass over the whole file.
+        const auto plural = [](uint64_t n) { return n == 1 ? " frame" : " frames"; };
+        const uint64_t held = static_cast<uint64_t>((*video)->framesWritten());
+        std::string done = std::to_string(frames);
+        if (options.max_frames > 0)
+            done += " of " + std::to_string(options.max_frames) + plural(options.max_frames);
+        else
+            done += std::string(plural(frames)) + " (before the end of the recording)";
+        std::fprintf(stderr, "mixray render: stopped by %s after %s; %s holds %llu%s\n",
+                     interrupt.signalName().c_str(), done.c_str(), options.output.c_str(),
+                     static_cast<unsigned long long>(held), plural(held));
+        return interrupt.exitCode();
+    }
+    return kExitOk;
 }
 
 }  // namespace
@@ -396,6 +418,7 @@ void registerRenderCommand(CLI::App& app, Commands& commands) {
         "render",
         "Composite a scene's virtual objects into every colour frame of a recording by "
         "ray-traced differential rendering, writing a video (and PNG/EXR frames on request)");
+    sub->footer(signalHelp("the video"));
     auto o = std::make_shared<RenderCommandOptions>();
     sub->add_option("SESSION", o->session, "Recording (.mkv, TUM or PCL TIFF folder)")->required();
     sub->add_option("--scene", o->scene, "Scene file (YAML, docs/scene-format.md)")->required();

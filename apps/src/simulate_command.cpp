@@ -63,6 +63,10 @@ int runSimulate(const SimulateCommandOptions& o) {
         return fail("simulate", {ErrorCode::kInvalidArgument,
                                  "-o " + output.string() + ": the recording must be a .mkv file"});
 
+    // A signal stops the session within an image tile; the recording is closed with the frames
+    // done.
+    InterruptFlag interrupt;
+    options.stop = interrupt.token();
     StatusLine status;
     const int64_t start = monotonicNowNs();
     auto summary = render::simulateSession(options, output, [&](int done, int total) {
@@ -83,6 +87,15 @@ int runSimulate(const SimulateCommandOptions& o) {
         std::printf("  %s  %s\n", summary->files[i].string().c_str(),
                     ec ? "?" : formatBytes(bytes).c_str());
     }
+    if (summary->stopped) {
+        std::fprintf(stderr,
+                     "mixray simulate: stopped by %s after %d of %d frames; %s holds %d frame%s "
+                     "(the truth files describe all %d)\n",
+                     interrupt.signalName().c_str(), summary->frames, summary->frames_planned,
+                     output.string().c_str(), summary->frames, summary->frames == 1 ? "" : "s",
+                     summary->frames_planned);
+        return interrupt.exitCode();
+    }
     return kExitOk;
 }
 
@@ -95,6 +108,7 @@ void registerSimulateCommand(CLI::App& app, Commands& commands) {
         "fish-eye environment camera and a ground-truth pose stream, written as an ordinary "
         "recording plus NAME.truth.yaml, NAME.tum and NAME.scene.yaml beside it "
         "(docs/simulation.md)");
+    sub->footer(signalHelp("the recording"));
     auto o = std::make_shared<SimulateCommandOptions>();
     sub->add_option("--scenario", o->scenario,
                     "tabletop (marker, light probes, boxes, moving camera) or calibration "

@@ -1210,6 +1210,12 @@ void meanFilterPenumbra(int w, int h, int ts, PixelBuffers& b) {
 Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     MIXRAY_RETURN_IF_ERROR(checkInputs(in));
+    const auto cancelled = [] {
+        return Status(ErrorCode::kCancelled,
+                      "render: stopped on request before the frame was done");
+    };
+    if (in.stop.stop_requested())
+        return cancelled();
     Frame f;
     MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
 
@@ -1254,7 +1260,14 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
 
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
     std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
+    // Set by the first tile that sees the stop request; the tiles after it return at once. A
+    // skipped tile keeps its last frame's pixels and dirty flag, so the next frame clears it.
+    std::atomic<bool> stopped{false};
     const auto renderTile = [&](int tile) {
+        if (stopped.load(std::memory_order_relaxed) || in.stop.stop_requested()) {
+            stopped.store(true, std::memory_order_relaxed);
+            return;
+        }
         if (b.tile_dirty[static_cast<size_t>(tile)])
             clearTile(tile);
         if (use_mask && !tile_mask_[static_cast<size_t>(tile)])
@@ -1354,9 +1367,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     };
 
     // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
-    if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
-        out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
-    MutableImageView dst = out.composite.mutableView();
+    MutableImageView dst;  // out.composite's, once every tile is done
     const auto compositeRow = [&](int y) {
         const uint8_t* src_row = in.camera_image.row<uint8_t>(y);
         uint8_t* dst_row = dst.row<uint8_t>(y);
@@ -1398,6 +1409,11 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                               for (int t = r.begin(); t < r.end(); ++t)
                                   renderTile(t);
                           });
+        if (stopped)
+            return;
+        if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
+            out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+        dst = out.composite.mutableView();
         if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
             meanFilterPenumbra(w, h, ts, b);
         tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
@@ -1405,6 +1421,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                 compositeRow(y);
         });
     });
+    if (stopped)
+        return cancelled();
     if (in.ray_log != nullptr) {
         in.ray_log->rays.clear();
         for (const RayList& l : tile_logs)

@@ -828,6 +828,7 @@ private:
         in.camera_image = background.view();
         in.camera = model;
         in.T_world_cam = T_world_cam;
+        in.stop = options_.stop;
         RenderLayers layers;
         MIXRAY_RETURN_IF_ERROR(renderers_[static_cast<size_t>(which)]->render(in, layers));
         return std::move(layers.composite);

@@ -465,8 +465,18 @@ Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
     };
 
     uint64_t env_sequence = 0;
+    summary.frames_planned = (*sim)->frameCount();
     for (int i = 0; i < (*sim)->frameCount(); ++i) {
+        if (options.stop.stop_requested()) {
+            summary.stopped = true;
+            break;
+        }
         auto frame = (*sim)->render(i);
+        if (!frame && frame.status().code() == ErrorCode::kCancelled &&
+            options.stop.stop_requested()) {
+            summary.stopped = true;  // the frame in progress is dropped whole
+            break;
+        }
         if (!frame)
             return frame.status();
         const SimFrameTruth& f = t.frames[static_cast<size_t>(i)];

@@ -2,12 +2,15 @@
 // command line.
 #pragma once
 
+#include <fcntl.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "test_data.h"
 
@@ -37,6 +40,44 @@ inline CliRun mixray(const std::string& args) {
 // A path quoted for the shell (test paths hold no single quote).
 inline std::string q(const std::filesystem::path& path) {
     return "'" + path.string() + "'";
+}
+
+// A mixray process running in the background (startMixray), so a test can signal it.
+struct CliProcess {
+    pid_t pid = -1;
+    std::filesystem::path output;  // stdout and stderr together
+};
+
+// Starts `mixray args...` directly (no shell between, so signals reach mixray itself), its
+// output going to `output`. pid -1 when it cannot start.
+inline CliProcess startMixray(const std::vector<std::string>& args,
+                              const std::filesystem::path& output) {
+    const std::string program = cliPath().string();
+    std::vector<char*> argv{const_cast<char*>(program.c_str())};
+    for (const std::string& a : args)
+        argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const std::string out = output.string();
+    CliProcess process{-1, output};
+    process.pid = fork();
+    if (process.pid == 0) {  // only async-signal-safe calls until exec
+        const int fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd < 0 || dup2(fd, STDOUT_FILENO) < 0 || dup2(fd, STDERR_FILENO) < 0)
+            _exit(127);
+        execv(program.c_str(), argv.data());
+        _exit(127);
+    }
+    return process;
+}
+
+// Waits for a process startMixray started: its exit code, or -1 when a signal killed it.
+inline CliRun waitMixray(const CliProcess& process) {
+    CliRun run;
+    int status = 0;
+    if (process.pid > 0 && waitpid(process.pid, &status, 0) == process.pid)
+        run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    run.output = readText(process.output);
+    return run;
 }
 
 }  // namespace mixray::test

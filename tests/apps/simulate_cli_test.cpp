@@ -1,16 +1,20 @@
 // mixray simulate, and mixray info / render on the committed simulated sessions (the render
 // camera following the recording's ground-truth pose stream).
 #include <gtest/gtest.h>
+#include <signal.h>
 
 #include <Eigen/Geometry>
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "cli_runner.h"
 #include "test_data.h"
@@ -58,6 +62,40 @@ TEST(SimulateCli, WritesARecordingThatInfoDescribes) {
     EXPECT_EQ(json["streams"][4]["name"], "kinect/ir");
     EXPECT_EQ(json["streams"][4]["format"], "ir16");
     EXPECT_EQ(json["streams"][4]["frames"], 2);
+}
+
+// SIGTERM while it renders: the recording is closed with the frames done (info reads it to its
+// end), the command says how many, and exits 143.
+TEST(SimulateCli, SigtermKeepsAClosedRecordingOfTheFramesDone) {
+    const fs::path dir = test::tempDir();
+    const test::CliProcess process =
+        test::startMixray({"simulate", "--frames", "40", "--size", "320x240", "--threads", "2",
+                           "-o", (dir / "s.mkv").string()},
+                          dir / "log.txt");
+    ASSERT_GT(process.pid, 0);
+    // The first frame's progress line (printed at once when stderr is a file).
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (test::readText(dir / "log.txt").find("frame 1/40") == std::string::npos &&
+           std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    kill(process.pid, SIGTERM);
+    const CliRun run = test::waitMixray(process);
+    EXPECT_EQ(run.exit_code, 143) << run.output;
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(
+        run.output, m,
+        std::regex("stopped by SIGTERM after ([0-9]+) of 40 frames; .*s\\.mkv holds ([0-9]+) "
+                   "frames? \\(the truth files describe all 40\\)")))
+        << run.output;
+    const int done = std::stoi(m[1]);
+    EXPECT_EQ(std::stoi(m[2]), done);
+    EXPECT_GE(done, 1);
+    EXPECT_LT(done, 40);
+    CliRun info = mixray("info --json " + q(dir / "s.mkv"));
+    ASSERT_EQ(info.exit_code, 0) << info.output;
+    auto json = nlohmann::json::parse(info.output);
+    EXPECT_EQ(json["streams"][0]["name"], "kinect/color");
+    EXPECT_EQ(json["streams"][0]["frames"], done);
 }
 
 TEST(SimulateCli, InfoDescribesTheCommittedSessions) {

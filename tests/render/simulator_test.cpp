@@ -15,6 +15,7 @@
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <stop_token>
 
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
@@ -630,6 +631,49 @@ TEST(Simulator, CalibrationBoardCornersLandWhereTheTruthProjectsThem) {
             EXPECT_LT(env, 0.35) << "fish-eye";
         }
     }
+}
+
+// A stop requested while the session renders (here from the progress callback after two
+// frames; a signal does it through mixray simulate) ends it with a closed recording of the
+// frames done, and a summary that says so.
+TEST(Simulator, AStoppedSessionKeepsAClosedRecordingOfTheFramesDone) {
+    const fs::path dir = test::tempDir();
+    std::stop_source stop;
+    SimulatorOptions o;
+    o.width = 160;
+    o.height = 120;
+    o.frames = 5;
+    o.stop = stop.get_token();
+    auto summary = simulateSession(o, dir / "clip.mkv", [&](int done, int) {
+        if (done == 2)
+            stop.request_stop();
+    });
+    ASSERT_TRUE(summary) << summary.status().toString();
+    EXPECT_TRUE(summary->stopped);
+    EXPECT_EQ(summary->frames, 2);
+    EXPECT_EQ(summary->frames_planned, 5);
+    auto reader = openMkv(dir / "clip.mkv");
+    ASSERT_TRUE(reader) << reader.status().toString();
+    int colour = 0;
+    while (true) {
+        auto frame = (*reader)->next();
+        if (!frame) {
+            // Not kCorruptData: the file was finished, not cut.
+            EXPECT_EQ(frame.status().code(), ErrorCode::kEndOfStream) << frame.status().toString();
+            break;
+        }
+        colour += (*reader)->streams()[frame->meta().stream].name == "kinect/color";
+    }
+    EXPECT_EQ(colour, 2);
+
+    // Stopped before it starts: no frame rendered.
+    std::stop_source early;
+    early.request_stop();
+    o.stop = early.get_token();
+    auto none = simulateSession(o, dir / "none.mkv");
+    ASSERT_TRUE(none) << none.status().toString();
+    EXPECT_TRUE(none->stopped);
+    EXPECT_EQ(none->frames, 0);
 }
 
 TEST(Simulator, SessionIsAnOrdinaryRecordingWithTruthBesideIt) {

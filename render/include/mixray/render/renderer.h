@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <stop_token>
 #include <string>
 #include <vector>
 
@@ -119,6 +120,9 @@ struct RenderInputs {
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
     // Debug hook: when set, every ray of this frame is appended (slower; off costs nothing).
     RayLog* ray_log = nullptr;
+    // Cancels this frame: render() checks it before each tile, so a stop requested from another
+    // thread (or a signal watcher) ends the frame within about one tile's time. Default: never.
+    std::stop_token stop;
 };
 
 struct RenderLayers {
@@ -149,7 +153,9 @@ public:
     virtual ~Renderer() = default;
 
     // Composites the scene into inputs.camera_image. kInvalidArgument for images of the wrong
-    // size or format, non-finite or non-rigid poses, invalid camera models.
+    // size or format, non-finite or non-rigid poses, invalid camera models. kCancelled when
+    // inputs.stop was requested before the frame was done: the frame is dropped whole (`out`
+    // and `stats` are left as they were, never half a frame) and the next render() is exact.
     virtual Status render(const RenderInputs& inputs, RenderLayers& out,
                           RenderStats* stats = nullptr) = 0;
 

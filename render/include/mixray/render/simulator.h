@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <stop_token>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -51,6 +52,9 @@ struct SimulatorOptions {
     // them gives the ground truth a compositor aims for (the virtual objects as if they were
     // real). Their names must not clash with the scenario's; lights are not taken.
     SceneDescription inserted;
+    // Cancels the work: once a stop is requested, Simulator::render() returns kCancelled within
+    // about one image tile and simulateSession() stops (see there). Default: never.
+    std::stop_token stop;
 
     Status validate() const;
 };
@@ -166,7 +170,11 @@ Result<SimulatorOptions> readSimulationOptions(std::string_view truth_text,
                                                std::string_view source_name);
 
 struct SimulationSummary {
-    int frames = 0;
+    int frames = 0;          // colour frames written
+    int frames_planned = 0;  // the session's colour frames (truth files describe them all)
+    // options.stop ended the session early: the recording holds the first `frames` frames
+    // (closed, playable), the truth files every planned one.
+    bool stopped = false;
     int env_frames = 0;
     double seconds = 0;                        // rendering and writing
     std::vector<std::filesystem::path> files;  // everything written, the recording first
@@ -176,7 +184,9 @@ struct SimulationSummary {
 // registered), env/color (rgb8 fish-eye), kinect/ir (ir16, calibration only) and truth/pose
 // (ground-truth T_world_color as pose records), plus beside it NAME.truth.yaml, NAME.tum (TUM
 // trajectory of kinect/color), NAME.scene.yaml (the real scene as ghosts), NAME.env.exr and the
-// textures. `progress` (may be empty) is called after each frame with (done, total).
+// textures. `progress` (may be empty) is called after each frame with (done, total). A stop
+// requested through options.stop drops the frame in progress and returns the summary of the
+// frames done with `stopped` set.
 Result<SimulationSummary> simulateSession(const SimulatorOptions& options,
                                           const std::filesystem::path& recording,
                                           const std::function<void(int, int)>& progress = {});
