@@ -455,9 +455,12 @@ Result<OpenNI2Options> OpenNI2Options::fromConfig(const DeviceConfig& config) {
         o.streams.push_back(request);
     }
     for (const auto& [sensor, request] : modes) {
-        if (!names.empty() &&
-            std::none_of(o.streams.begin(), o.streams.end(),
-                         [&](const SensorRequest& r) { return r.sensor == sensor; })) {
+        if (!names.empty() && std::none_of(o.streams.begin(), o.streams.end(),
+                                           // An init-capture: clang 14 cannot capture a
+                                           // structured binding (the fuzz build uses clang).
+                                           [wanted = sensor](const SensorRequest& r) {
+                                               return r.sensor == wanted;
+                                           })) {
             return {ErrorCode::kInvalidArgument,
                     "openni2 device '" + config.name + "': a mode is given for stream '" +
                         std::string(toString(sensor)) + "', which is not enabled"};
