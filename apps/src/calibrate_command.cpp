@@ -280,6 +280,10 @@ void noteRig(Outcome& outcome, const RigCalibration& rig) {
                                 fixed(rotationDeg(rig.pose_covariance[i]), 4) + "°; joint RMS " +
                                 fixed(rig.rms_px, 3) + " px");
     }
+    // Views the joint solve renumbered or left out: a user checks them (a detector's corner
+    // order, a frame paired with the wrong instant).
+    for (const RigViewChange& change : rig.changes)
+        outcome.notes.push_back("rig of " + rig.reference + ": " + change.message);
 }
 
 Outcome solve(const CalibrateCommandOptions& o, const Inputs& inputs,

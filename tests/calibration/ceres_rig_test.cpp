@@ -1,13 +1,18 @@
 // calibrateRig() on generated corners with ground truth: three cameras (pinhole OpenCV 5,
 // pinhole OpenCV 4, Kannala–Brandt fish-eye), the third linked to the reference only through
 // the second; extrinsics within 1 mm and 0.1° with the intrinsics fixed and refined, pose
-// covariances against the errors, a non-first reference, and the refusals.
+// covariances against the errors, a non-first reference, and the refusals. Chessboard views whose
+// corners a detector numbered from another corner (turned 180°, or 90° on square boards) in one
+// camera only are renumbered and the rig comes out as without them; views no corner order
+// explains are dropped, or the solve refused, never a wrong rig.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <numbers>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -55,8 +60,8 @@ std::vector<Camera> rigTruth() {
 // keys of its own, as a user takes for intrinsics: a board that fits a narrow camera's view is
 // small in the fish-eye's.
 std::vector<CameraViews> rigViews(const std::vector<Camera>& cameras, int per_pair,
-                                  std::mt19937& rng, int solo = 10) {
-    const CalibrationTarget board = test::chessboard(12, 9, 0.03);
+                                  std::mt19937& rng, int solo = 10,
+                                  const CalibrationTarget& board = test::chessboard(12, 9, 0.03)) {
     std::vector<CameraViews> views(cameras.size());
     for (size_t i = 0; i < cameras.size(); ++i) {
         views[i].camera = cameras[i].name;
@@ -246,6 +251,246 @@ TEST(CeresRigRefuses, BadNamesAndKeys) {
     std::vector<CameraViews> few = views;
     few[2].views.resize(2);
     expectInvalid(calibrateRig(few, rigOptions(false)).status(), "camera 'env': too few");
+}
+
+// What a chessboard detector gives when it numbers the corners from another corner: the corner
+// at (col, row) labelled as the one the board turned by `deg` about its centre puts there.
+void turnCorners(TargetView& view, const CalibrationTarget& board, int deg) {
+    for (Corner& corner : view.corners) {
+        const int col = corner.id % board.cols, row = corner.id / board.cols;
+        int c = col, r = row;
+        if (deg == 180) {
+            c = board.cols - 1 - col;
+            r = board.rows - 1 - row;
+        } else if (deg == 90) {
+            c = board.rows - 1 - row;
+            r = col;
+        }
+        corner.id = r * board.cols + c;
+    }
+}
+
+// The stereo pair left (reference) and right of rigTruth(): keys 0–17 seen by both.
+std::vector<Camera> stereoTruth() {
+    std::vector<Camera> truth = rigTruth();
+    truth.resize(2);
+    return truth;
+}
+
+std::vector<CameraViews> stereoViews(std::mt19937& rng,
+                                     const CalibrationTarget& board = test::chessboard(12, 9,
+                                                                                       0.03)) {
+    std::vector<CameraViews> views = rigViews(rigTruth(), 18, rng, 10, board);
+    views.resize(2);
+    return views;
+}
+
+RigOptions stereoOptions() {
+    RigOptions options;
+    options.camera.solver = Solver::kCeres;
+    options.models = {{"right", "opencv4"}};
+    return options;
+}
+
+// Index of the view with `key` in `camera`.
+size_t viewAt(const CameraViews& camera, int64_t key) {
+    for (size_t i = 0; i < camera.views.size(); ++i)
+        if (camera.views[i].key == key)
+            return i;
+    ADD_FAILURE() << camera.camera << " has no view at key " << key;
+    return 0;
+}
+
+void expectRightRig(const RigCalibration& rig) {
+    const Eigen::Isometry3d truth = stereoTruth()[1].T_ref_camera;
+    const double mm = (rig.T_ref_camera[1].translation() - truth.translation()).norm() * 1e3;
+    const double deg = test::rotationErrorDeg(rig.T_ref_camera[1], truth);
+    std::cout << "baseline " << rig.T_ref_camera[1].translation().norm() * 1e3 << " mm (truth "
+              << truth.translation().norm() * 1e3 << "): " << mm << " mm, " << deg
+              << " deg off; joint RMS " << rig.rms_px << " px\n";
+    EXPECT_LT(mm, 1.0);
+    EXPECT_LT(deg, 0.1);
+    EXPECT_NEAR(rig.rms_px, kNoisePx * std::sqrt(2.0), 0.03);
+}
+
+struct Turned {
+    size_t camera;
+    int64_t key;
+};
+
+TEST(CeresRigCornerOrder, ViewsNumberedFromTheOppositeCornerInOneCameraAreRenumbered) {
+    const CalibrationTarget board = test::chessboard(12, 9, 0.03);
+    // One pair; four pairs, some turned in the left camera; every view of an upside-down right
+    // camera whose detector numbers from the image's top left.
+    std::vector<std::vector<Turned>> cases = {{{1, 5}}, {{1, 2}, {0, 7}, {1, 11}, {0, 16}}, {}};
+    for (int64_t key = 0; key < 18; ++key)
+        cases.back().push_back({1, key});
+    for (const std::vector<Turned>& turned : cases) {
+        SCOPED_TRACE(std::to_string(turned.size()) + " views turned");
+        std::mt19937 rng(21);
+        std::vector<CameraViews> views = stereoViews(rng, board);
+        for (const Turned& t : turned)
+            turnCorners(views[t.camera].views[viewAt(views[t.camera], t.key)], board, 180);
+        const Result<RigCalibration> rig = calibrateRig(views, stereoOptions());
+        ASSERT_TRUE(rig) << rig.status().toString();
+        expectRightRig(*rig);
+        // Each turned pair renumbered once: in the camera it was turned in, or (where all of one
+        // camera's views are turned) the other, the key's first camera keeping its order.
+        size_t reordered = 0;
+        for (const RigViewChange& change : rig->changes) {
+            EXPECT_EQ(change.kind, RigViewChange::Kind::kReordered) << change.message;
+            EXPECT_EQ(change.rotation_deg, 180);
+            EXPECT_NE(change.message.find("turned by 180°"), std::string::npos) << change.message;
+            const bool expected = std::any_of(turned.begin(), turned.end(),
+                                              [&](const Turned& t) { return t.key == change.key; });
+            EXPECT_TRUE(expected) << change.message;
+            ++reordered;
+        }
+        EXPECT_EQ(reordered, turned.size());
+    }
+}
+
+TEST(CeresRigCornerOrder, ASquareBoardTurnedByAQuarterIsRenumbered) {
+    const CalibrationTarget board = test::chessboard(8, 8, 0.04);
+    std::mt19937 rng(23);
+    std::vector<CameraViews> views = stereoViews(rng, board);
+    turnCorners(views[1].views[viewAt(views[1], 4)], board, 90);
+    turnCorners(views[1].views[viewAt(views[1], 9)], board, 180);
+    const Result<RigCalibration> rig = calibrateRig(views, stereoOptions());
+    ASSERT_TRUE(rig) << rig.status().toString();
+    expectRightRig(*rig);
+    ASSERT_EQ(rig->changes.size(), 2u);
+    EXPECT_EQ(rig->changes[0].key, 4);
+    EXPECT_TRUE(rig->changes[0].rotation_deg == 90 || rig->changes[0].rotation_deg == 270);
+    EXPECT_EQ(rig->changes[1].key, 9);
+    EXPECT_EQ(rig->changes[1].rotation_deg, 180);
+}
+
+// Views of keys 0–17 seen by both cameras, with the board's poses in the reference frame.
+std::vector<CameraViews> stereoViewsWithTruth(std::mt19937& rng,
+                                              std::vector<Eigen::Isometry3d>& T_ref_board) {
+    const std::vector<Camera> truth = stereoTruth();
+    const CalibrationTarget board = test::chessboard(12, 9, 0.03);
+    std::vector<CameraViews> views(2);
+    for (size_t c = 0; c < 2; ++c) {
+        views[c].camera = truth[c].name;
+        views[c].width = truth[c].model.width;
+        views[c].height = truth[c].model.height;
+        views[c].target = board;
+    }
+    for (int key = 0; key < 18;) {
+        const Eigen::Isometry3d T = test::randomBoardPose(truth[0].model, board, rng);
+        if (test::visibleFraction(truth[1].model, board, truth[1].T_ref_camera.inverse() * T) < 0.8)
+            continue;
+        T_ref_board.push_back(T);
+        for (size_t c = 0; c < 2; ++c)
+            views[c].views.push_back(
+                test::observe(truth[c].model, board, truth[c].T_ref_camera.inverse() * T, kNoisePx,
+                              rng, key, truth[c].name + "/" + std::to_string(key)));
+        ++key;
+    }
+    for (size_t c = 0; c < 2; ++c)
+        for (int i = 0; i < 10; ++i)
+            views[c].views.push_back(test::observe(
+                truth[c].model, board, test::randomBoardPose(truth[c].model, board, rng), kNoisePx,
+                rng, 1000 * static_cast<int64_t>(c + 1) + i, truth[c].name + "/solo"));
+    return views;
+}
+
+// The right camera's view at `key` replaced by one of the board moved by `turn_deg` about its
+// own x axis and `shift_m` along it, as a frame paired with the wrong instant shows.
+void mispair(std::vector<CameraViews>& views, const std::vector<Eigen::Isometry3d>& T_ref_board,
+             int64_t key, double turn_deg, double shift_m, std::mt19937& rng) {
+    const Camera right = stereoTruth()[1];
+    Eigen::Isometry3d moved = T_ref_board[static_cast<size_t>(key)];
+    moved.translate(Eigen::Vector3d(shift_m, 0, 0));
+    moved.rotate(Eigen::AngleAxisd(turn_deg * kDeg, Eigen::Vector3d::UnitX()));
+    views[1].views[viewAt(views[1], key)] =
+        test::observe(right.model, views[1].target, right.T_ref_camera.inverse() * moved, kNoisePx,
+                      rng, key, "right/" + std::to_string(key) + "-mispaired");
+}
+
+size_t countChanges(const RigCalibration& rig, RigViewChange::Kind kind) {
+    return static_cast<size_t>(
+        std::count_if(rig.changes.begin(), rig.changes.end(),
+                      [&](const RigViewChange& c) { return c.kind == kind; }));
+}
+
+TEST(CeresRigMismatch, AFewMispairedViewsAreDroppedNamingThem) {
+    std::mt19937 rng(31);
+    std::vector<Eigen::Isometry3d> T_ref_board;
+    std::vector<CameraViews> views = stereoViewsWithTruth(rng, T_ref_board);
+    // Far off (no board symmetry explains it: dropped before the solve), and slightly off (it
+    // passes as the same instant, its residuals give it away).
+    mispair(views, T_ref_board, 3, 25, 0.05, rng);
+    mispair(views, T_ref_board, 12, 2, 0.01, rng);
+    const Result<RigCalibration> rig = calibrateRig(views, stereoOptions());
+    ASSERT_TRUE(rig) << rig.status().toString();
+    expectRightRig(*rig);
+    EXPECT_EQ(countChanges(*rig, RigViewChange::Kind::kReordered), 0u);
+    std::set<int64_t> dropped_keys;
+    for (const RigViewChange& change : rig->changes) {
+        std::cout << change.message << "\n";
+        EXPECT_EQ(change.kind, RigViewChange::Kind::kDropped);
+        dropped_keys.insert(change.key);
+    }
+    EXPECT_EQ(dropped_keys, (std::set<int64_t>{3, 12}));
+    const auto named = [&](const std::string& part) {
+        return std::any_of(rig->changes.begin(), rig->changes.end(), [&](const RigViewChange& c) {
+            return c.message.find(part) != std::string::npos;
+        });
+    };
+    EXPECT_TRUE(named("right/3-mispaired")) << "the dropped view is named";
+    EXPECT_TRUE(named("in every corner order")) << "key 3: no order explains it";
+    EXPECT_TRUE(named("px RMS in the joint solve")) << "key 12: its residuals give it away";
+}
+
+TEST(CeresRigMismatch, MostViewsMispairedIsRefusedNotARig) {
+    std::mt19937 rng(37);
+    std::vector<Eigen::Isometry3d> T_ref_board;
+    std::vector<CameraViews> views = stereoViewsWithTruth(rng, T_ref_board);
+    // The right camera's frames one instant late: every shared key pairs different poses.
+    std::vector<TargetView> late = views[1].views;
+    for (int64_t key = 0; key < 18; ++key) {
+        TargetView& view = views[1].views[viewAt(views[1], key)];
+        view.corners = late[viewAt(views[1], (key + 1) % 18)].corners;
+    }
+    const Result<RigCalibration> rig = calibrateRig(views, stereoOptions());
+    ASSERT_FALSE(rig) << "baseline " << rig->T_ref_camera[1].translation().norm() * 1e3 << " mm at "
+                      << rig->rms_px << " px passed as a rig";
+    expectInvalid(rig.status(), "disagree");
+    std::cout << rig.status().message() << "\n";
+}
+
+TEST(CeresRigMismatch, AJointSolveFarWorseThanTheCamerasOwnIsRefused) {
+    std::mt19937 rng(41);
+    std::vector<Eigen::Isometry3d> T_ref_board;
+    std::vector<CameraViews> views = stereoViewsWithTruth(rng, T_ref_board);
+    mispair(views, T_ref_board, 6, 2, 0.01, rng);
+    mispair(views, T_ref_board, 9, 2, -0.01, rng);
+    RigOptions options = stereoOptions();
+    options.view_outlier_ratio = 0;  // keep every view: the RMS check is the last guard
+    const Result<RigCalibration> rig = calibrateRig(views, options);
+    ASSERT_FALSE(rig) << "joint RMS " << rig->rms_px << " px passed as a rig";
+    expectInvalid(rig.status(), "fits the joint solve at");
+    std::cout << rig.status().message() << "\n";
+}
+
+TEST(CeresRigRefuses, BadCheckOptionsNamingTheField) {
+    std::mt19937 rng(43);
+    const std::vector<CameraViews> views = stereoViews(rng);
+    RigOptions options = stereoOptions();
+    options.max_rms_ratio = 0.5;
+    expectInvalid(calibrateRig(views, options).status(), "max_rms_ratio");
+    options = stereoOptions();
+    options.view_outlier_ratio = 0.5;
+    expectInvalid(calibrateRig(views, options).status(), "view_outlier_ratio");
+    options = stereoOptions();
+    options.rms_floor_px = 0;
+    expectInvalid(calibrateRig(views, options).status(), "rms_floor_px");
+    options = stereoOptions();
+    options.max_dropped_fraction = 2;
+    expectInvalid(calibrateRig(views, options).status(), "max_dropped_fraction");
 }
 
 INSTANTIATE_TEST_SUITE_P(RefineIntrinsics, CeresRig, ::testing::Bool());

@@ -114,6 +114,46 @@ struct RigOptions {
     std::map<std::string, CameraCalibration> solved;
     bool refine_intrinsics = false;  // in the joint solve too (else fixed after their own)
     std::string reference;           // the camera whose frame is the rig's; empty: the first
+
+    // Checks of the joint solve against the cameras' own (docs/calibration.md#rigs): views of
+    // one instant that disagree (a corner order the detector numbered from another corner and
+    // no board symmetry explains, views paired at the wrong key, a camera that moved) must not
+    // pass as a rig.
+    //
+    // A view whose RMS in the joint solve exceeds view_outlier_ratio × its camera's own RMS is
+    // dropped (RigCalibration::changes) and the solve repeated, worst instant first; 0 keeps
+    // every view.
+    double view_outlier_ratio = 5.0;
+    // A camera whose RMS in the joint solve exceeds max_rms_ratio × its own RMS fails the solve
+    // (kInvalidArgument naming it and both RMS values).
+    double max_rms_ratio = 3.0;
+    // RMS values below this count as this much in both comparisons (noise-free corners).
+    double rms_floor_px = 0.25;
+    // A camera whose dropped views exceed this fraction of the views it shares with other
+    // cameras fails the solve (kInvalidArgument): what is left is not a consensus.
+    double max_dropped_fraction = 0.5;
+
+    // kInvalidArgument naming the field.
+    Status validate() const;
+};
+
+// A view the joint solve read differently from the camera's own solve.
+struct RigViewChange {
+    enum class Kind : uint8_t {
+        // A chessboard's corners, whose grid looks the same turned by 180° (90° on square
+        // boards), renumbered as the board turned by `rotation_deg`: the order that agrees with
+        // the other cameras' views of the same instant.
+        kReordered,
+        // Left out: no corner order agrees with the other cameras' views of that instant, or its
+        // residuals in the joint solve are outliers.
+        kDropped,
+    };
+    Kind kind = Kind::kReordered;
+    size_t camera = 0;  // index into RigCalibration::cameras
+    size_t view = 0;    // index into that camera's CameraViews::views
+    int64_t key = 0;
+    int rotation_deg = 0;  // kReordered
+    std::string message;   // one line for reports, naming the camera and the view's source
 };
 
 struct RigCalibration {
@@ -126,13 +166,20 @@ struct RigCalibration {
     // the reference). Without refine_intrinsics it is conditional on the intrinsics: their own
     // uncertainty is not in it.
     std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
-    double rms_px = 0;  // joint solve, all cameras
+    double rms_px = 0;                  // joint solve, all cameras
+    std::vector<double> camera_rms_px;  // joint solve, per camera (input order)
+    // Views renumbered or left out, in camera then view order. The cameras' own solves
+    // (`cameras`) keep the corner order they were solved in.
+    std::vector<RigViewChange> changes;
 };
 
 // Joint bundle adjustment (Ceres) of every camera's pose in the reference frame and the
 // target's pose at every key seen by any camera. Cameras that never see the target at the same
 // key as the reference are linked through chains of views; a camera linked to no other is
-// kInvalidArgument naming it.
+// kInvalidArgument naming it. Each camera's pose is seeded from the consensus of the keys it
+// shares, and a chessboard view whose corner order disagrees with the other cameras' views of
+// its key is renumbered; views that still disagree are dropped, and a joint solve that fits
+// far worse than the cameras' own (RigOptions) is kInvalidArgument, never a rig.
 Result<RigCalibration> calibrateRig(const std::vector<CameraViews>& views,
                                     const RigOptions& options = {});
 
