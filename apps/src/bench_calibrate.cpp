@@ -173,7 +173,7 @@ Result<calibration::CameraCalibration> timeMixray(const calibration::CameraViews
     solve_options.model = options.model;
     solve_options.solver = solver;
     // The other two keep every corner; so does mixray here, for the same problem.
-    solve_options.outlier_sigma = 1e9;
+    solve_options.outlier_sigma = 0;
     Result<calibration::CameraCalibration> result =
         Status(ErrorCode::kInternal, "calibrateCamera not run");
     bool ok = false;

@@ -22,6 +22,7 @@
 #include "mixray/calibration/depth_registration.h"
 #include "mixray/calibration/detect.h"
 #include "mixray/calibration/environment_alignment.h"
+#include "size_option.h"
 
 namespace mixray::cli {
 namespace {
@@ -37,6 +38,7 @@ struct CalibrateCommandOptions {
     bool fix_aspect_ratio = false;
     double outlier_sigma = 3.0;
     int min_views = 4;
+    std::string image_size;            // WxH of mrcal's corners caches; empty: from their images
     std::vector<std::string> cameras;  // empty: every camera that saw the target
     std::string pattern = "*";
     std::vector<std::string> rigs;  // "A,B[,C]": cameras rigidly mounted together
@@ -129,6 +131,7 @@ ProgressCallback stageProgress(StatusLine& status, const std::string& what) {
 }
 
 Result<Inputs> collectInputs(const CalibrateCommandOptions& o, const CalibrationTarget& target,
+                             const std::optional<ImageSize>& image_size,
                              const std::optional<WorldMarker>& marker, StatusLine& status) {
     Inputs inputs;
     DetectionOptions detection;
@@ -144,7 +147,7 @@ Result<Inputs> collectInputs(const CalibrateCommandOptions& o, const Calibration
                 return views.status();
             inputs.cameras.push_back(std::move(views).value());
         } else if (path.extension() == ".vnl") {
-            auto cameras = readCornersCache(path, target);
+            auto cameras = readCornersCache(path, target, image_size);
             if (!cameras)
                 return cameras.status();
             for (CameraViews& c : *cameras)
@@ -586,6 +589,13 @@ int runCalibrate(const CalibrateCommandOptions& o) {
                         {ErrorCode::kInvalidArgument,
                          "--export " + name + ": expected opencv, mrcal, kalibr or ros"});
     }
+    std::optional<ImageSize> image_size;
+    if (!o.image_size.empty()) {
+        auto size = parseSize("--image-size", o.image_size);
+        if (!size)
+            return fail("calibrate", size.status());
+        image_size = ImageSize{size->first, size->second};
+    }
     const fs::path dir(o.output);
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -594,7 +604,7 @@ int runCalibrate(const CalibrateCommandOptions& o) {
                     {ErrorCode::kIoError, "cannot create " + dir.string() + ": " + ec.message()});
 
     StatusLine status;
-    auto inputs = collectInputs(o, *target, marker, status);
+    auto inputs = collectInputs(o, *target, image_size, marker, status);
     if (!inputs) {
         status.finish();
         return fail("calibrate", inputs.status());
@@ -690,9 +700,14 @@ void registerCalibrateCommand(CLI::App& app, Commands& commands) {
         ->capture_default_str();
     sub->add_flag("--fix-aspect-ratio", o->fix_aspect_ratio, "fx = fy (Ceres)");
     sub->add_option("--outlier-sigma", o->outlier_sigma,
-                    "Drop corners beyond this many standard deviations and solve again")
-        ->check(CLI::Range(1.0, 100.0))
+                    "Drop corners beyond this many standard deviations and solve again; 0: keep "
+                    "every corner. The mrcal solver uses mrcal's own rejection (its fixed 4/5 "
+                    "sigma thresholds, as mrcal-calibrate-cameras) whenever this is not 0")
+        ->check(CLI::Range(0.0, 100.0))
         ->capture_default_str();
+    sub->add_option("--image-size", o->image_size,
+                    "WIDTHxHEIGHT of the images of mrcal's corners caches (.vnl), which do not "
+                    "say; default: read from the first image the cache names");
     sub->add_option("--min-views", o->min_views, "Fewer usable views is an error")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();

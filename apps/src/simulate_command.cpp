@@ -7,6 +7,7 @@
 #include "console.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/render/simulator.h"
+#include "size_option.h"
 
 namespace mixray::cli {
 namespace {
@@ -25,15 +26,6 @@ struct SimulateCommandOptions {
     std::string depth;  // registered | raw; empty: the scenario's default
 };
 
-Result<std::pair<int, int>> parseSize(const std::string& text) {
-    int w = 0, h = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X'))
-        return {ErrorCode::kInvalidArgument,
-                "--size " + text + ": expected WIDTHxHEIGHT, e.g. 320x240"};
-    return std::pair{w, h};
-}
-
 int runSimulate(const SimulateCommandOptions& o) {
     setFfmpegLogging(false);
     render::SimulatorOptions options;
@@ -43,7 +35,7 @@ int runSimulate(const SimulateCommandOptions& o) {
                     {ErrorCode::kInvalidArgument,
                      "--scenario " + o.scenario + ": expected tabletop or calibration"});
     options.scenario = *scenario;
-    auto size = parseSize(o.size);
+    auto size = parseSize("--size", o.size);
     if (!size)
         return fail("simulate", size.status());
     options.width = size->first;

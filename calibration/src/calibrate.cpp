@@ -437,7 +437,9 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
                 solved.push_back(fit.T_camera_target);
             MIXRAY_RETURN_IF_ERROR(checkTiltSpread(solved, options, camera));
         }
-        if (options.outlier_sigma <= 0 || round == kMaxOutlierRounds)
+        // The mrcal back end rejects outliers inside mrcal_optimize, as mrcal-calibrate-cameras
+        // does; a second rejection here would drop corners mrcal keeps.
+        if (options.outlier_sigma <= 0 || solver == Solver::kMrcal || round == kMaxOutlierRounds)
             break;
         // σ per coordinate over the inliers, each residual scaled by its corner's weight as
         // the solve saw it. Estimated from the median absolute residual (σ = 1.4826 MAD for

@@ -5,6 +5,8 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
 #include <system_error>
@@ -64,6 +66,81 @@ std::string rest(std::string_view line, size_t n) {
     while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])))
         ++i;
     return std::string(line.substr(i));
+}
+
+std::string sizeText(int width, int height) {
+    return std::to_string(width) + "x" + std::to_string(height);
+}
+
+// The image a view of a cache names, found as mrcal-calibrate-cameras finds it: an absolute
+// name or one that is there from the working directory as it is, else next to the cache.
+std::filesystem::path imageOfView(const std::filesystem::path& cache, const std::string& source) {
+    const std::filesystem::path name(source);
+    std::error_code ec;
+    if (name.is_absolute() || std::filesystem::is_regular_file(name, ec))
+        return name;
+    return cache.parent_path() / name;
+}
+
+// The size of the image the cache's first view with corners names (mrcal reads that one image
+// too); `camera` has views.
+Result<ImageSize> sizeFromImages(const std::filesystem::path& cache, const CameraViews& camera) {
+    const std::string why =
+        ": mrcal's corners caches have no image size; give it (mixray calibrate --image-size "
+        "WxH) or put the images where the cache names them";
+    // The first view with corners, as mrcal's first observation.
+    const auto first = std::find_if(camera.views.begin(), camera.views.end(),
+                                    [](const TargetView& view) { return !view.corners.empty(); });
+    const std::filesystem::path image =
+        imageOfView(cache, (first != camera.views.end() ? *first : camera.views.front()).source);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(image, ec))
+        return Status(ErrorCode::kInvalidArgument, cache.string() + ": the first view's image " +
+                                                       image.string() + " is not there" + why);
+    cv::Mat decoded;
+    try {
+        // The whole image is decoded for its size, as mrcal does: one image per cache.
+        decoded = cv::imread(image.string(), cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception& e) {
+        return Status(ErrorCode::kInvalidArgument,
+                      cache.string() + ": " + image.string() + ": " + e.what() + why);
+    }
+    if (decoded.empty())
+        return Status(ErrorCode::kInvalidArgument, cache.string() + ": the first view's image " +
+                                                       image.string() + " cannot be read" + why);
+    return ImageSize{decoded.cols, decoded.rows};
+}
+
+// Gives every camera of a read cache its image size (readCornersCache()).
+Status applyImageSize(const std::filesystem::path& path, bool mixray,
+                      const std::optional<ImageSize>& image_size,
+                      std::vector<CameraViews>& cameras) {
+    if (image_size && (image_size->width <= 0 || image_size->height <= 0))
+        return {ErrorCode::kInvalidArgument, path.string() + ": image size " +
+                                                 sizeText(image_size->width, image_size->height) +
+                                                 " must be positive"};
+    for (CameraViews& camera : cameras) {
+        const bool known = camera.width > 0 && camera.height > 0;
+        if (known && image_size &&
+            (camera.width != image_size->width || camera.height != image_size->height))
+            return {ErrorCode::kInvalidArgument,
+                    path.string() + ": camera '" + camera.camera + "' has images of " +
+                        sizeText(camera.width, camera.height) + ", not " +
+                        sizeText(image_size->width, image_size->height)};
+        if (known)
+            continue;
+        if (image_size) {
+            camera.width = image_size->width;
+            camera.height = image_size->height;
+        } else if (!mixray && !camera.views.empty()) {
+            auto size = sizeFromImages(path, camera);
+            if (!size)
+                return size.status();
+            camera.width = size->width;
+            camera.height = size->height;
+        }
+    }
+    return Status::ok();
 }
 
 }  // namespace
@@ -126,7 +203,8 @@ Status writeCornersCache(const std::filesystem::path& path,
 }
 
 Result<std::vector<CameraViews>> readCornersCache(const std::filesystem::path& path,
-                                                  const std::optional<CalibrationTarget>& target) {
+                                                  const std::optional<CalibrationTarget>& target,
+                                                  const std::optional<ImageSize>& image_size) {
     std::ifstream file(path, std::ios::binary);
     if (!file)
         return Status(ErrorCode::kNotFound, path.string() + ": cannot be opened");
@@ -199,7 +277,8 @@ Result<std::vector<CameraViews>> readCornersCache(const std::filesystem::path& p
                     return Status(ErrorCode::kInvalidArgument,
                                   where(line_no) + "a camera before the target");
                 CameraViews c;
-                if (!parseInt(w[2], c.width) || !parseInt(w[3], c.height))
+                if (!parseInt(w[2], c.width) || !parseInt(w[3], c.height) || c.width < 0 ||
+                    c.height < 0)
                     return Status(ErrorCode::kCorruptData, where(line_no) + "bad camera size");
                 c.camera = rest(line, 4);
                 c.target = *known;
@@ -273,6 +352,7 @@ Result<std::vector<CameraViews>> readCornersCache(const std::filesystem::path& p
                       path.string() + ": no target in the file; give the target");
     if (cameras.empty())
         camera();
+    MIXRAY_RETURN_IF_ERROR(applyImageSize(path, mixray, image_size, cameras));
     return cameras;
 }
 

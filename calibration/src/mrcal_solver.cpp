@@ -96,7 +96,8 @@ Eigen::Isometry3d isometryFromPose(const mrcal_pose_t& pose) {
     return T;
 }
 
-mrcal_problem_selections_t selections(bool core, bool distortions, bool regularization) {
+mrcal_problem_selections_t selections(bool core, bool distortions, bool regularization,
+                                      bool outlier_rejection) {
     mrcal_problem_selections_t s;
     std::memset(&s, 0, sizeof s);
     s.do_optimize_intrinsics_core = core;
@@ -105,9 +106,11 @@ mrcal_problem_selections_t selections(bool core, bool distortions, bool regulari
     s.do_optimize_frames = true;
     s.do_optimize_calobject_warp = false;  // mixray's boards are flat
     s.do_apply_regularization = regularization;
-    // calibrateCamera()'s front end rejects outliers itself (CalibrationOptions::outlier_sigma)
-    // and passes them in as negative weights, which mrcal respects.
-    s.do_apply_outlier_rejection = false;
+    // mrcal's own rejection (markOutliers in mrcal.c: re-solve while a weighted residual lies
+    // beyond 5σ, dropping those beyond 4σ, σ over the inliers), so the same corners give the
+    // same lens and the same outliers as mrcal-calibrate-cameras. Corners already out of the
+    // solve come in with negative weights, which mrcal keeps out.
+    s.do_apply_outlier_rejection = outlier_rejection;
     return s;
 }
 
@@ -347,7 +350,7 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
     if (splined && !seed_matches) {
         const mrcal_lensmodel_t stereographic = makeMrcalLensModel(MRCAL_LENSMODEL_STEREOGRAPHIC);
         const mrcal_stats_t stats =
-            problem.optimize(stereographic, intrinsics, selections(true, false, false));
+            problem.optimize(stereographic, intrinsics, selections(true, false, false, false));
         if (!converged(stats))
             return fail(kNotConverged, "the stereographic pre-solve failed");
     }
@@ -359,18 +362,23 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
     }
     if (!splined && nparams > 4) {
         const mrcal_stats_t stats =
-            problem.optimize(*lens, intrinsics, selections(true, false, false));
+            problem.optimize(*lens, intrinsics, selections(true, false, false, false));
         if (!converged(stats))
             return fail(kNotConverged, "the intrinsics-core pre-solve failed");
     }
 
     // Stage 2: the full model, regularised as mrcal does by default (the splined model's core
-    // stays fixed: the spline can absorb it, so it is not observable).
+    // stays fixed: the spline can absorb it, so it is not observable). With outlier rejection
+    // mrcal-calibrate-cameras solves it twice, the second time from the first one's optimum
+    // and outliers: σ, now over fewer corners, can put more of them past the threshold.
     progress(0.4, "mrcal: full model");
-    const mrcal_problem_selections_t full = selections(!splined, true, true);
-    const mrcal_stats_t stats = problem.optimize(*lens, intrinsics, full);
-    if (!converged(stats))
-        return fail(kNotConverged, "mrcal_optimize did not converge");
+    const bool reject = options.outlier_sigma > 0;
+    const mrcal_problem_selections_t full = selections(!splined, true, true, reject);
+    for (int pass = 0; pass < (reject ? 2 : 1); ++pass) {
+        const mrcal_stats_t stats = problem.optimize(*lens, intrinsics, full);
+        if (!converged(stats))
+            return fail(kNotConverged, "mrcal_optimize did not converge");
+    }
 
     progress(0.8, "mrcal: covariance");
     CameraCalibration result;
@@ -390,6 +398,17 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
         return covariance.status();
     result.covariance = std::move(*covariance);
 
+    // The corners mrcal rejected leave the inliers (their weights in the pool are negative).
+    SolveInput solved = input;
+    for (size_t f = 0; f < solved.used.size(); ++f) {
+        const TargetView& view = views.views[solved.used[f]];
+        for (size_t c = 0; c < view.corners.size(); ++c) {
+            const size_t slot = f * npoints + static_cast<size_t>(view.corners[c].id);
+            if (problem.pool[slot].z < 0)
+                solved.inlier[f][c] = false;
+        }
+    }
+
     // An inlier the solved model cannot project is left out of the RMS values, not refused:
     // mrcal judged the solve itself.
     std::vector<Eigen::Isometry3d> T_camera_target;
@@ -401,7 +420,7 @@ Result<CameraCalibration> solveWithMrcal(const SolveInput& input,
         points.emplace_back(grid->origin.x() + grid->spacing * (i % grid->width_n),
                             grid->origin.y() + grid->spacing * (i / grid->width_n), 0);
     }
-    fillResiduals(input, T_camera_target, points, result);
+    fillResiduals(solved, T_camera_target, points, result);
     progress(1.0, "mrcal: done");
     return result;
 }

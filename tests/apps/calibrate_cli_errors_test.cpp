@@ -156,6 +156,45 @@ TEST(CalibrateCli, OpenCvSamplePhotosAgreeWithOpenCvsPublishedCalibration) {
     EXPECT_NEAR(second->cameras.front().model.fx, c.model.fx, 1e-6);
     EXPECT_NEAR(second->cameras.front().model.cx, c.model.cx, 1e-6);
     EXPECT_FALSE(fs::exists(dir / "again" / "report.md"));
+
+    // mrcal's own form of that cache (no "##" rows, file names without folders) has no image
+    // size: without the images or --image-size the error says how to give it; with either the
+    // lens is the same.
+    const fs::path plain = dir / "mrcal";
+    fs::create_directories(plain);
+    {
+        std::ifstream in(dir / "corners.vnl");
+        std::ofstream out(plain / "corners.vnl");
+        for (std::string line; std::getline(in, line);) {
+            if (line.rfind("##", 0) == 0)
+                continue;
+            if (line[0] != '#')
+                line = line.substr(line.rfind('/', line.find(' ')) + 1);
+            out << line << "\n";
+        }
+    }
+    const std::string cache = "calibrate " + q(plain / "corners.vnl") + kChessboard +
+                              " --fix-aspect-ratio --no-report -o " + q(plain / "out");
+    CliRun no_size = mixray(cache);
+    EXPECT_EQ(no_size.exit_code, 2) << no_size.output;
+    EXPECT_TRUE(contains(no_size.output, "--image-size")) << no_size.output;
+    EXPECT_TRUE(contains(no_size.output, (plain / "left01.jpg").string())) << no_size.output;
+    CliRun bad_size = mixray(cache + " --image-size 640");
+    EXPECT_EQ(bad_size.exit_code, 2) << bad_size.output;
+    EXPECT_TRUE(contains(bad_size.output, "WIDTHxHEIGHT")) << bad_size.output;
+    for (const std::string& size_from : {std::string("--image-size"), std::string("images")}) {
+        SCOPED_TRACE(size_from);
+        if (size_from == "images")
+            fs::copy_file(kLeft / "left01.jpg", plain / "left01.jpg");
+        CliRun run_plain = mixray(cache + (size_from == "images" ? "" : " --image-size 640x480"));
+        ASSERT_EQ(run_plain.exit_code, 0) << run_plain.output;
+        auto solved = calibration::readCalibrationFile(plain / "out" / "calibration.yaml");
+        ASSERT_TRUE(solved) << solved.status().toString();
+        ASSERT_EQ(solved->cameras.size(), 1u);
+        EXPECT_EQ(solved->cameras.front().model.width, 640);
+        EXPECT_NEAR(solved->cameras.front().model.fx, c.model.fx, 1e-6);
+        EXPECT_NEAR(solved->cameras.front().model.cy, c.model.cy, 1e-6);
+    }
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <set>
+#include <utility>
 
 #include "mrcal_test_support.h"
 #include "solve_internal.h"
@@ -33,6 +35,38 @@ TEST(MrcalSolverTest, HasTheModelsMrcalHas) {
     EXPECT_FALSE(detail::mrcalHasModel("LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=16"));
     EXPECT_FALSE(
         detail::mrcalHasModel("LENSMODEL_SPLINED_STEREOGRAPHIC_order=7_Nx=16_Ny=12_fov_x_deg=120"));
+}
+
+// mrcal's own outlier rejection runs inside the back end: the corners moved far off are the
+// ones left out, the rest stay, and a corner the front end left out stays out.
+TEST(MrcalSolverTest, RejectsTheCornersMrcalRejects) {
+    const CameraModel truth = opencv8Truth();
+    test::SyntheticViews data = test::syntheticViews(truth, test::mrcalChessboard(), 20, 0.3, 5);
+    std::set<std::pair<size_t, int>> moved;
+    for (size_t v = 0; v < data.views.views.size(); v += 2) {
+        Corner& corner = data.views.views[v].corners[v % 7];
+        corner.pixel += Eigen::Vector2d(4.0, -3.0);  // 5 px: ~17σ of the 0.3 px noise
+        moved.insert({v, corner.id});
+    }
+    detail::SolveInput input = test::seededInput(data.views, pinholeSeed(truth));
+    input.inlier[1][3] = false;
+    CalibrationOptions options;
+    options.model = "opencv8";
+    auto result = solveWithMrcal(input, options);
+    ASSERT_TRUE(result.isOk()) << result.status().toString();
+    EXPECT_EQ(result->outliers, static_cast<int>(moved.size()) + 1);
+    for (const PointResidual& r : result->residuals) {
+        const bool expected = moved.count({r.view, r.id}) > 0 ||
+                              (r.view == 1 && r.id == input.views->views[1].corners[3].id);
+        EXPECT_EQ(r.outlier, expected) << "view " << r.view << " corner " << r.id;
+    }
+    EXPECT_NEAR(result->rms_px, 0.3 * std::sqrt(2.0), 0.03) << "the moved corners are out";
+
+    options.outlier_sigma = 0;  // no rejection: only the front end's own outlier
+    auto kept = solveWithMrcal(input, options);
+    ASSERT_TRUE(kept.isOk()) << kept.status().toString();
+    EXPECT_EQ(kept->outliers, 1);
+    EXPECT_GT(kept->rms_px, result->rms_px);
 }
 
 TEST(MrcalSolverTest, Opencv8RecoversTheLens) {

@@ -147,8 +147,9 @@ void writeCornersVnl(const std::filesystem::path& path, const CameraViews& views
             by_id[static_cast<size_t>(c.id)] = &c;
         for (const Corner* c : by_id) {
             if (c) {
-                std::snprintf(line, sizeof line, "%s %.12g %.12g 0\n", name.c_str(), c->pixel.x(),
-                              c->pixel.y());
+                const long level = c->weight >= 1 ? 0 : std::lround(-std::log2(c->weight));
+                std::snprintf(line, sizeof line, "%s %.12g %.12g %ld\n", name.c_str(), c->pixel.x(),
+                              c->pixel.y(), level);
             } else {
                 std::snprintf(line, sizeof line, "%s - - -\n", name.c_str());
             }
@@ -206,20 +207,32 @@ std::optional<std::string> runPython(const std::string& program, const std::file
     return readText(dir / "program.out");
 }
 
-double maxProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px) {
-    double worst = 0;
+std::vector<double> projectionDifferencesPx(const CameraModel& a, const CameraModel& b,
+                                            double step_px) {
+    std::vector<double> out;
     for (double y = 0; y <= a.height - 1; y += step_px) {
         for (double x = 0; x <= a.width - 1; x += step_px) {
             const std::optional<Eigen::Vector3d> ray = a.unproject({x, y});
-            if (!ray)
-                return INFINITY;
-            const std::optional<Eigen::Vector2d> qa = a.project(*ray), qb = b.project(*ray);
-            if (!qa || !qb)
-                return INFINITY;
-            worst = std::max(worst, (*qa - *qb).norm());
+            const std::optional<Eigen::Vector2d> qa = ray ? a.project(*ray) : std::nullopt;
+            const std::optional<Eigen::Vector2d> qb = ray ? b.project(*ray) : std::nullopt;
+            out.push_back(qa && qb ? (*qa - *qb).norm() : INFINITY);
         }
     }
-    return worst;
+    return out;
+}
+
+double maxProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px) {
+    const std::vector<double> d = projectionDifferencesPx(a, b, step_px);
+    return d.empty() ? 0 : *std::max_element(d.begin(), d.end());
+}
+
+double medianProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px) {
+    std::vector<double> d = projectionDifferencesPx(a, b, step_px);
+    if (d.empty())
+        return 0;
+    const auto middle = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+    std::nth_element(d.begin(), middle, d.end());
+    return *middle;
 }
 
 }  // namespace mixray::calibration::test

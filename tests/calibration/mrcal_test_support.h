@@ -31,7 +31,8 @@ SyntheticViews syntheticViews(const CameraModel& truth, const CalibrationTarget&
 // pinhole core is used to seed) and each pose from cv::solvePnP through that pinhole core.
 detail::SolveInput seededInput(const CameraViews& views, const CameraModel& seed);
 
-// mrcal's corners cache: "filename x y level" per corner, files "view%03d.png" in view order.
+// mrcal's corners cache: "filename x y level" per corner (level −log2 of the corner's weight),
+// files "view%03d.png" in view order.
 void writeCornersVnl(const std::filesystem::path& path, const CameraViews& views);
 
 // /usr/bin/python3 with mrcal importable and mrcal-calibrate-cameras present.
@@ -53,8 +54,12 @@ std::optional<CliResult> runMrcalCalibrateCameras(const std::filesystem::path& v
 // Runs a Python program with /usr/bin/python3; its stdout, or nullopt.
 std::optional<std::string> runPython(const std::string& program, const std::filesystem::path& dir);
 
-// The largest distance between the two models' projections of the rays through a grid of
-// `step_px` over the image (the first model unprojects, both project).
+// The distances between the two models' projections of the rays through a grid of `step_px`
+// over the image (the first model unprojects, both project; infinite where one cannot), and
+// their largest and median value.
+std::vector<double> projectionDifferencesPx(const CameraModel& a, const CameraModel& b,
+                                            double step_px);
 double maxProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px);
+double medianProjectionDifferencePx(const CameraModel& a, const CameraModel& b, double step_px);
 
 }  // namespace mixray::calibration::test

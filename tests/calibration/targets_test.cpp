@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/aruco/charuco.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 
 #include "mixray/calibration/corners_cache.h"
@@ -184,9 +185,11 @@ TEST(CornersCache, ReadsMrcalsOwnFilesAndRejectsShortViews) {
              "b.jpg - -\n";
     }
     EXPECT_FALSE(readCornersCache(dir / "mrgingham.vnl"));  // no target known
-    const auto got = readCornersCache(dir / "mrgingham.vnl", *target);
+    const auto got = readCornersCache(dir / "mrgingham.vnl", *target, ImageSize{640, 480});
     ASSERT_TRUE(got) << got.status().toString();
     ASSERT_EQ(got->size(), 1u);
+    EXPECT_EQ((*got)[0].width, 640);
+    EXPECT_EQ((*got)[0].height, 480);
     const auto& views = (*got)[0].views;
     ASSERT_EQ(views.size(), 2u);
     EXPECT_EQ(views[1].key, 1);
@@ -205,6 +208,57 @@ TEST(CornersCache, ReadsMrcalsOwnFilesAndRejectsShortViews) {
     EXPECT_NE(bad.status().message().find("short.vnl:2"), std::string::npos)
         << bad.status().message();
     EXPECT_EQ(readCornersCache(dir / "absent.vnl", *target).status().code(), ErrorCode::kNotFound);
+}
+
+// mrcal's caches carry no image size: it comes from the size given, else from the image the
+// first view with corners names (as mrcal-calibrate-cameras: from the working directory or
+// next to the cache), else the error says which file was looked for and how to give the size.
+TEST(CornersCache, MrcalCachesTakeTheImageSizeFromTheImagesOrSayWhich) {
+    const fs::path dir = test::tempDir();
+    const auto target = parseTarget("chessboard:3x2:0.02");
+    ASSERT_TRUE(target);
+    {
+        std::ofstream f(dir / "mrcal.vnl");
+        f << "# filename x y level\nnone.png - -\n";
+        for (int i = 0; i < 6; ++i)
+            f << "view0.png " << 10 + i << " " << 20 + i << " 0\n";
+    }
+    const auto absent = readCornersCache(dir / "mrcal.vnl", *target);
+    ASSERT_FALSE(absent);
+    EXPECT_EQ(absent.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(absent.status().message().find((dir / "view0.png").string()), std::string::npos)
+        << absent.status().message();
+    EXPECT_NE(absent.status().message().find("--image-size"), std::string::npos)
+        << absent.status().message();
+
+    std::ofstream(dir / "view0.png") << "not a PNG";
+    const auto unreadable = readCornersCache(dir / "mrcal.vnl", *target);
+    ASSERT_FALSE(unreadable);
+    EXPECT_NE(unreadable.status().message().find("cannot be read"), std::string::npos)
+        << unreadable.status().message();
+
+    ASSERT_TRUE(cv::imwrite((dir / "view0.png").string(), cv::Mat(123, 321, CV_8UC1, 7)));
+    const auto from_image = readCornersCache(dir / "mrcal.vnl", *target);
+    ASSERT_TRUE(from_image) << from_image.status().toString();
+    EXPECT_EQ((*from_image)[0].width, 321);
+    EXPECT_EQ((*from_image)[0].height, 123);
+
+    // The size given wins over the images, as mrcal's --imagersize does.
+    const auto given = readCornersCache(dir / "mrcal.vnl", *target, ImageSize{4000, 2200});
+    ASSERT_TRUE(given) << given.status().toString();
+    EXPECT_EQ((*given)[0].width, 4000);
+    EXPECT_EQ((*given)[0].height, 2200);
+    EXPECT_FALSE(readCornersCache(dir / "mrcal.vnl", *target, ImageSize{0, 2200}));
+
+    // A mixray cache names its sizes: a different one given is refused, not silently used.
+    CameraViews camera = (*given)[0];
+    camera.camera = "cam";
+    ASSERT_TRUE(writeCornersCache(dir / "mixray.vnl", {camera}));
+    EXPECT_EQ(readCornersCache(dir / "mixray.vnl", {}, ImageSize{4000, 2200})->front().width, 4000);
+    const auto differs = readCornersCache(dir / "mixray.vnl", {}, ImageSize{640, 480});
+    ASSERT_FALSE(differs);
+    EXPECT_NE(differs.status().message().find("4000x2200, not 640x480"), std::string::npos)
+        << differs.status().message();
 }
 
 TEST(CornersCache, MrcalCalibrateCamerasReadsWhatWeWrite) {

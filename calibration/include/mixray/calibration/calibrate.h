@@ -39,8 +39,12 @@ struct CalibrationOptions {
     std::string model = "opencv5";
     Solver solver = Solver::kAuto;
     bool fix_aspect_ratio = false;  // fx = fy, as OpenCV's CALIB_FIX_ASPECT_RATIO (Ceres only)
-    // Points whose residual exceeds this many standard deviations of all residuals are dropped
-    // and the solve repeated (mrcal's scheme), until none are.
+    // Outlier rejection; <= 0 turns it off. Ceres solver: points whose residual exceeds this
+    // many standard deviations of all residuals (σ from their median absolute value) are
+    // dropped and the solve repeated until none are. mrcal solver: any value > 0 turns on
+    // mrcal's own rejection with its fixed thresholds (re-solve while a weighted residual lies
+    // beyond 5σ, dropping those beyond 4σ, σ their RMS over the inliers), so the same corners
+    // give the same lens and outliers as mrcal-calibrate-cameras.
     double outlier_sigma = 3.0;
     int min_views = 4;  // fewer usable views: kInvalidArgument
     int min_corners_per_view = 8;

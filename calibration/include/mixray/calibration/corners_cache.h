@@ -31,13 +31,29 @@ namespace mixray::calibration {
 Status writeCornersCache(const std::filesystem::path& path,
                          const std::vector<CameraViews>& cameras);
 
+// An image's size in pixels.
+struct ImageSize {
+    int width = 0;
+    int height = 0;
+};
+
 // Reads a cache written by writeCornersCache (cameras, keys, rejections as written), or one
 // written by mrcal (mrgingham): then `target` must be given, every view goes to one camera
-// named after the file with size 0x0, and keys count views in file order. Views whose row
-// count is not the target's point count are kCorruptData naming the file and line.
+// named after the file, and keys count views in file order. Views whose row count is not the
+// target's point count are kCorruptData naming the file and line.
+//
+// mrcal's caches have no image size, and the solvers need it (mrcal's regularisation pulls the
+// principal point to the image centre). As mrcal-calibrate-cameras, the size is `image_size`
+// when given, else that of the image the cache's first view names (a relative name is found
+// from the working directory if it is there, else next to the cache); kInvalidArgument naming
+// that file when it is not there or not an image. A mixray cache's own sizes stand:
+// `image_size` fills only a camera of unknown size (0x0), and one that differs from a known
+// size is kInvalidArgument.
+//
 // kNotFound for a missing file; kInvalidArgument when no target is known or the file's differs
 // from `target`.
 Result<std::vector<CameraViews>> readCornersCache(
-    const std::filesystem::path& path, const std::optional<CalibrationTarget>& target = {});
+    const std::filesystem::path& path, const std::optional<CalibrationTarget>& target = {},
+    const std::optional<ImageSize>& image_size = {});
 
 }  // namespace mixray::calibration
