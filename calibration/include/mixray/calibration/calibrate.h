@@ -46,9 +46,10 @@ struct CalibrationOptions {
     int min_corners_per_view = 8;
     // Observability is judged after the solve, from its covariance (CameraCalibration::
     // observability): a core intrinsic (fx fy cx cy) whose 1σ exceeds this fraction of the
-    // focal length is weakly determined. 2 %: well spread views give 0.1–0.5 % (the 13 OpenCV
-    // sample photos 0.5 %), four views tilted alike 5–10 %; a 2 % focal error moves a point at
-    // the image border by several pixels.
+    // focal length is weakly determined. 2 %: well spread views give well under 1 % (the 13
+    // OpenCV sample photos 0.07–0.08 %), four ChArUco views tilted alike 5–8 %
+    // (tests/calibration/observability_test.cpp); a 2 % focal error moves a point at the
+    // image border by several pixels.
     double max_relative_stddev = 0.02;
     // The corner noise (1σ per coordinate, pixels) the judgement assumes at least: a real
     // corner detector reaches 0.1–0.3 px, so views that only pass on cleaner corners (renders,
