@@ -174,6 +174,9 @@ Result<calibration::CameraCalibration> timeMixray(const calibration::CameraViews
     solve_options.solver = solver;
     // The other two keep every corner; so does mixray here, for the same problem.
     solve_options.outlier_sigma = 0;
+    // And returns what it solved, as they do, however few the views or large the noise.
+    solve_options.accept_weak = true;
+    solve_options.max_rms_px = 0;
     Result<calibration::CameraCalibration> result =
         Status(ErrorCode::kInternal, "calibrateCamera not run");
     bool ok = false;

@@ -39,6 +39,8 @@ struct CalibrateCommandOptions {
     double outlier_sigma = 3.0;
     int min_views = 4;
     std::string image_size;            // WxH of mrcal's corners caches; empty: from their images
+    bool accept_weak = false;
+    double max_rms_px = 2.0;
     std::vector<std::string> cameras;  // empty: every camera that saw the target
     std::string pattern = "*";
     std::vector<std::string> rigs;  // "A,B[,C]": cameras rigidly mounted together
@@ -254,6 +256,7 @@ CalibratedCamera calibratedCamera(const CameraCalibration& c) {
     out.intrinsics_stddev.assign(stddev.data(), stddev.data() + stddev.size());
     out.rms_px = c.rms_px;
     out.views = static_cast<int>(c.views.size());
+    out.weak = c.observability.summary;
     return out;
 }
 
@@ -300,6 +303,8 @@ Outcome solve(const CalibrateCommandOptions& o, const Inputs& inputs,
     base.fix_aspect_ratio = o.fix_aspect_ratio;
     base.outlier_sigma = o.outlier_sigma;
     base.min_views = o.min_views;
+    base.accept_weak = o.accept_weak;
+    base.max_rms_px = o.max_rms_px;
 
     // Every camera on its own, unless its intrinsics are given.
     for (const CameraViews& views : inputs.cameras) {
@@ -661,10 +666,14 @@ int runCalibrate(const CalibrateCommandOptions& o) {
     }
     status.finish();
 
-    for (const auto& [name, c] : outcome.cameras)
+    for (const auto& [name, c] : outcome.cameras) {
         std::printf("%s: %s, %zu views, RMS %.3f px, %d outliers; %s\n", name.c_str(),
                     std::string(toString(c.model.lens)).c_str(), c.views.size(), c.rms_px,
                     c.outliers, intrinsicsLine(c).c_str());
+        if (!c.observability.summary.empty())
+            std::printf("%s: weakly determined, kept (--accept-weak): %s\n", name.c_str(),
+                        c.observability.summary.c_str());
+    }
     for (const std::string& n : outcome.notes)
         std::printf("%s\n", n.c_str());
     for (const std::string& f : outcome.failures)
@@ -710,6 +719,16 @@ void registerCalibrateCommand(CLI::App& app, Commands& commands) {
                     "say; default: read from the first image the cache names");
     sub->add_option("--min-views", o->min_views, "Fewer usable views is an error")
         ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    sub->add_flag("--accept-weak", o->accept_weak,
+                  "Keep a solve whose fx, fy, cx or cy is weakly determined (1σ above 2 % of "
+                  "the focal length: views tilted alike) instead of failing; the weakness and "
+                  "the uncertainty go into calibration.yaml (weak:, intrinsics_stddev:) and the "
+                  "report");
+    sub->add_option("--max-rms", o->max_rms_px,
+                    "A camera whose RMS reprojection error (px) is above this is not calibrated: "
+                    "its corners do not fit one camera and board (0: no limit)")
+        ->check(CLI::Range(0.0, 1000.0))
         ->capture_default_str();
     sub->add_option("--camera", o->cameras, "Calibrate only these cameras (repeatable)");
     sub->add_option("--pattern", o->pattern, "Image file names in folders (wildcards * and ?)")

@@ -448,6 +448,18 @@ std::string viewTable(const CameraCalibration& c, const calibration::CameraViews
     o << "## " << c.camera << "\n\n";
     o << "RMS " << fixed(c.rms_px, 3) << " px over " << c.views.size() << " views, " << c.outliers
       << " outliers.\n\n";
+    const calibration::Observability& seen = c.observability;
+    if (seen.noise_px > 0) {
+        o << "Intrinsics' 1σ as a share of the focal length, at " << fixed(seen.noise_px, 2)
+          << " px corner noise: fx " << fixed(100 * seen.relative_stddev[0], 2) << " %, fy "
+          << fixed(100 * seen.relative_stddev[1], 2) << " %, cx "
+          << fixed(100 * seen.relative_stddev[2], 2) << " %, cy "
+          << fixed(100 * seen.relative_stddev[3], 2) << " %; condition " << fixed(seen.condition, 0)
+          << "; board normals spread over " << fixed(seen.normal_spread_deg, 1) << "°.\n\n";
+    }
+    if (!seen.summary.empty())
+        o << "**Weakly determined, kept (--accept-weak):** " << markdownCell(seen.summary)
+          << "\n\n";
     o << "| view | source | key | corners | outliers | RMS (px) | note |\n";
     o << "|---:|---|---:|---:|---:|---:|---|\n";
     std::vector<bool> used(views ? views->views.size() : 0, false);

@@ -81,8 +81,10 @@ RigDiagramLayout rigDiagramLayout(const calibration::RigCalibration& rig);
 // kInvalidArgument when the rig has no cameras or its per-camera lists differ in length.
 Status writeRigDiagram(const std::filesystem::path& png, const calibration::RigCalibration& rig);
 
-// The per-view table in Markdown: view, source and key (from `views` when given: the
-// CameraViews the calibration was solved from), corners, outliers, RMS, and a note for views
+// The per-view table in Markdown, after the solve's RMS and observability (the intrinsics' 1σ
+// relative to the focal length, the condition, and what is weak when it was kept): view,
+// source and key (from `views` when given: the CameraViews the calibration was solved from),
+// corners, outliers, RMS, and a note for views
 // whose RMS exceeds twice the median; then the views the solve did not use with their
 // rejection and reason.
 std::string viewTable(const calibration::CameraCalibration& calibration,

@@ -1,9 +1,11 @@
-// calibrateCamera()'s front end: input checks naming the cause, seeding (intrinsics from a
-// focal-length search through per-view PnP, OpenCV's homography estimate among the
-// candidates), the degenerate-views check, the outlier loop and the dispatch to the Ceres or
-// mrcal back end.
+// calibrateCamera()'s front end: input checks naming the cause (a chessboard larger than
+// declared among them), seeding (intrinsics from a focal-length search through per-view PnP,
+// OpenCV's homography estimate among the candidates), the outlier loop, the dispatch to the
+// Ceres or mrcal back end, and the judgement of the result: its RMS against a corner
+// detector's accuracy, and the observability of the intrinsics from the solve's covariance.
 #include "mixray/calibration/calibrate.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -196,14 +198,17 @@ Status validateOptions(const CalibrationOptions& options, const std::string& cam
         return invalid(camera, "min_corners_per_view must be >= 4 (a pose needs 4 points)");
     if (!std::isfinite(options.outlier_sigma))
         return invalid(camera, "outlier_sigma must be finite (<= 0 disables outlier rejection)");
-    if (!(options.min_tilt_spread_deg >= 0))
-        return invalid(camera, "min_tilt_spread_deg must be >= 0");
+    if (!(options.max_relative_stddev > 0) || !std::isfinite(options.max_relative_stddev))
+        return invalid(camera, "max_relative_stddev must be > 0 and finite");
+    if (!(options.min_judged_noise_px >= 0) || !std::isfinite(options.min_judged_noise_px))
+        return invalid(camera, "min_judged_noise_px must be >= 0 and finite");
+    if (!(options.max_rms_px >= 0) || !std::isfinite(options.max_rms_px))
+        return invalid(camera, "max_rms_px must be >= 0 and finite (0: no limit)");
     return Status::ok();
 }
 
-// kInvalidArgument when the board normals of all views lie within min_tilt_spread_deg.
-Status checkTiltSpread(const std::vector<Eigen::Isometry3d>& T_camera_target,
-                       const CalibrationOptions& options, const std::string& camera) {
+// The largest angle between two views' board normals, degrees.
+double normalSpreadDeg(const std::vector<Eigen::Isometry3d>& T_camera_target) {
     double spread_rad = 0;
     for (size_t a = 0; a < T_camera_target.size(); ++a) {
         for (size_t b = a + 1; b < T_camera_target.size(); ++b) {
@@ -211,16 +216,203 @@ Status checkTiltSpread(const std::vector<Eigen::Isometry3d>& T_camera_target,
                                                            T_camera_target[b].linear().col(2)));
         }
     }
-    const double spread_deg = spread_rad * 180 / std::numbers::pi;
-    if (spread_deg >= options.min_tilt_spread_deg)
+    return spread_rad * 180 / std::numbers::pi;
+}
+
+std::string fixedText(double value, int decimals) {
+    std::ostringstream out;
+    out.setf(std::ios::fixed);
+    out.precision(decimals);
+    out << value;
+    return out.str();
+}
+
+// Below this spread of the board normals the views are nearly parallel planes, which give a
+// calibration the constraints of one view (Zhang 2000, section 3.3): the likely cause of a
+// weak solve.
+constexpr double kParallelViewsDeg = 10.0;
+
+// Why views leave the intrinsics weak, from their poses: nearly parallel boards, boards tilted
+// about one axis only, or else too few and too little varied views.
+std::string weakViewsCause(const std::vector<Eigen::Isometry3d>& T_camera_target) {
+    const double spread_deg = normalSpreadDeg(T_camera_target);
+    const std::string n = std::to_string(T_camera_target.size());
+    if (spread_deg < kParallelViewsDeg) {
+        return "the board normals of all " + n + " views lie within " + fixedText(spread_deg, 1) +
+               " deg of each other (nearly parallel boards constrain the intrinsics like one "
+               "view): tilt the board about different axes, 10–30 deg each way";
+    }
+    // The normals' spread across the image plane: one direction only is a tilt about one
+    // axis, which leaves the focal length along the other axis weak.
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const Eigen::Isometry3d& T : T_camera_target)
+        mean += T.linear().col(2).head<2>();
+    mean /= static_cast<double>(T_camera_target.size());
+    for (const Eigen::Isometry3d& T : T_camera_target) {
+        const Eigen::Vector2d d = T.linear().col(2).head<2>() - mean;
+        scatter += d * d.transpose();
+    }
+    scatter /= static_cast<double>(T_camera_target.size());
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+    const double minor_deg =
+        std::asin(std::min(1.0, std::sqrt(std::max(0.0, eigen.eigenvalues()[0])))) * 180 /
+        std::numbers::pi;
+    if (minor_deg < 0.5 * kParallelViewsDeg) {
+        return "the " + n + " views are tilted about one axis only (their normals vary by " +
+               fixedText(minor_deg, 1) + " deg across it): tilt the board about the other axis too";
+    }
+    return "the " + n +
+           " views are too few or too alike: add views tilted differently and reaching the "
+           "image's corners";
+}
+
+const char* const kCoreNames[4] = {"fx", "fy", "cx", "cy"};
+
+// The RMS length of the inliers' residuals, each scaled by its corner's weight as the solve saw
+// it (a corner found at mrcal's level l has 2^l times the noise).
+double weightedRmsPx(const CameraCalibration& calibration, const CameraViews& views) {
+    std::map<std::pair<size_t, int>, double> weight;
+    for (const ViewFit& fit : calibration.views)
+        for (const Corner& corner : views.views[fit.view].corners)
+            weight[{fit.view, corner.id}] = corner.weight;
+    double sum2 = 0;
+    size_t count = 0;
+    for (const PointResidual& point : calibration.residuals) {
+        if (point.outlier || !point.residual.allFinite())
+            continue;
+        sum2 += weight[{point.view, point.id}] * point.residual.squaredNorm();
+        ++count;
+    }
+    return count > 0 ? std::sqrt(sum2 / static_cast<double>(count)) : 0;
+}
+
+// Observability (calibrate.h) of a solve: the core intrinsics' covariance with the focal
+// lengths as unit, scaled to the noise the judgement assumes.
+Observability judgeObservability(const CameraCalibration& calibration, const CameraViews& views,
+                                 const CalibrationOptions& options) {
+    Observability out;
+    std::vector<Eigen::Isometry3d> poses;
+    for (const ViewFit& fit : calibration.views)
+        poses.push_back(fit.T_camera_target);
+    out.normal_spread_deg = normalSpreadDeg(poses);
+    if (calibration.covariance.rows() < 4 || calibration.covariance.cols() < 4)
+        return out;
+
+    // The residual noise per coordinate as the solve weighted it.
+    const double observed = weightedRmsPx(calibration, views) / std::sqrt(2.0);
+    out.noise_px = std::max(observed, options.min_judged_noise_px);
+    const double scale2 = observed > 0 ? (out.noise_px / observed) * (out.noise_px / observed) : 1;
+
+    const CameraModel& m = calibration.model;
+    const Eigen::Vector4d unit(m.fx, m.fy, m.fx, m.fy);
+    const Eigen::Matrix4d relative = unit.cwiseInverse().asDiagonal() *
+                                     calibration.covariance.topLeftCorner<4, 4>() *
+                                     unit.cwiseInverse().asDiagonal() * scale2;
+    out.relative_stddev = relative.diagonal().cwiseMax(0.0).cwiseSqrt();
+
+    // The condition over the parameters the solve moved independently: fx = fy (fixed aspect
+    // ratio) makes them one, a splined model's fixed core none.
+    std::vector<int> free;
+    for (int k = 0; k < 4; ++k) {
+        if (!(relative(k, k) > 0))
+            continue;
+        if (k == 1 && options.fix_aspect_ratio && !free.empty() && free.front() == 0)
+            continue;
+        free.push_back(k);
+    }
+    if (free.size() >= 2) {
+        Eigen::MatrixXd sub(free.size(), free.size());
+        for (size_t a = 0; a < free.size(); ++a)
+            for (size_t b = 0; b < free.size(); ++b)
+                sub(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) =
+                    relative(free[a], free[b]);
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(sub);
+        const Eigen::VectorXd& lambda = eigen.eigenvalues();
+        const Eigen::Index last = lambda.size() - 1;
+        out.condition =
+            lambda[0] > 0 ? lambda[last] / lambda[0] : std::numeric_limits<double>::infinity();
+        for (size_t a = 0; a < free.size(); ++a)
+            out.weakest[free[a]] = eigen.eigenvectors()(static_cast<Eigen::Index>(a), last);
+        // The sign of the largest component positive, for reading.
+        Eigen::Index largest = 0;
+        out.weakest.cwiseAbs().maxCoeff(&largest);
+        if (out.weakest[largest] < 0)
+            out.weakest = -out.weakest;
+    }
+
+    std::string names, values;
+    for (int k = 0; k < 4; ++k) {
+        if (!(out.relative_stddev[k] > options.max_relative_stddev))
+            continue;
+        out.weak.push_back(kCoreNames[k]);
+        names += (names.empty() ? "" : ", ") + std::string(kCoreNames[k]);
+        values += (values.empty() ? "" : ", ") + fixedText(100 * out.relative_stddev[k], 1) + " %";
+    }
+    if (out.weak.empty())
+        return out;
+    std::string direction;
+    for (int k = 0; k < 4; ++k) {
+        if (std::abs(out.weakest[k]) < 0.2)
+            continue;
+        direction += direction.empty() ? (out.weakest[k] < 0 ? "-" : "")
+                                       : (out.weakest[k] < 0 ? " - " : " + ");
+        direction += fixedText(std::abs(out.weakest[k]), 2) + " " + kCoreNames[k];
+    }
+    std::ostringstream condition;
+    condition.precision(2);
+    condition << out.condition;
+    out.summary = names + ": 1σ " + values + " of the focal length (limit " +
+                  fixedText(100 * options.max_relative_stddev, 1) + " %, at " +
+                  fixedText(out.noise_px, 2) + " px corner noise); worst determined: " + direction +
+                  " (condition " + condition.str() + "); " + weakViewsCause(poses);
+    return out;
+}
+
+// A calibration is refused when this share of the views the chessboard was found in show it
+// going on beyond the corners found: a few such views among many may be a larger board seen
+// nearby, most of them say the target was declared smaller than printed.
+constexpr int kLargerBoardShareDenominator = 4;
+
+// kInvalidArgument naming the likely size when enough views are kLargerBoard.
+Status checkLargerBoard(const CameraViews& views) {
+    int found = 0, larger = 0;
+    std::map<std::pair<int, int>, int> sizes;
+    std::string example;
+    for (const TargetView& view : views.views) {
+        if (view.corners.empty() && view.rejection != ViewRejection::kLargerBoard)
+            continue;
+        ++found;
+        if (view.rejection != ViewRejection::kLargerBoard)
+            continue;
+        ++larger;
+        if (example.empty())
+            example = view.source + ": " + view.why;
+        if (view.seen_cols > 0 && view.seen_rows > 0)
+            ++sizes[{view.seen_cols, view.seen_rows}];
+    }
+    if (larger == 0 || larger * kLargerBoardShareDenominator < found)
         return Status::ok();
-    std::ostringstream message;
-    message.precision(3);
-    message << "degenerate views: the board normals of all " << T_camera_target.size()
-            << " usable views lie within " << spread_deg << " deg of each other (need "
-            << options.min_tilt_spread_deg
-            << "): fronto-parallel views leave the focal length unobservable; tilt the board";
-    return invalid(camera, message.str());
+    const CalibrationTarget& target = views.target;
+    std::string message = "in " + std::to_string(larger) + " of " + std::to_string(found) +
+                          " views the chessboard's X-junctions go on beyond the " +
+                          std::to_string(target.cols) + "x" + std::to_string(target.rows) +
+                          " corners found";
+    if (!sizes.empty()) {
+        const auto likely =
+            std::max_element(sizes.begin(), sizes.end(),
+                             [](const auto& a, const auto& b) { return a.second < b.second; });
+        CalibrationTarget seen = target;
+        seen.cols = likely->first.first;
+        seen.rows = likely->first.second;
+        message += ": the board looks like " + std::to_string(seen.cols) + "x" +
+                   std::to_string(seen.rows) + " inner corners, not " +
+                   std::to_string(target.cols) + "x" + std::to_string(target.rows) + " (target " +
+                   seen.spec() + ", mixray calibrate --target " + seen.spec() + ")";
+    } else {
+        message += " (" + example + "): the board is larger than declared";
+    }
+    return invalid(views.camera, message);
 }
 
 }  // namespace
@@ -337,6 +529,7 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
         input.used.push_back(v);
         used_views.push_back(&view);
     }
+    MIXRAY_RETURN_IF_ERROR(checkLargerBoard(views));
     auto tooFew = [&](size_t usable) {
         std::string message = "too few usable views: " + std::to_string(usable) + " of " +
                               std::to_string(views.views.size()) + ", need " +
@@ -399,10 +592,6 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
     if (static_cast<int>(input.used.size()) < options.min_views)
         return tooFew(input.used.size());
 
-    // The focal length is observable only from views whose boards are tilted differently. The
-    // seed's poses ignore the distortion, so the check repeats on the solved poses.
-    MIXRAY_RETURN_IF_ERROR(checkTiltSpread(input.T_camera_target, options, camera));
-
     for (size_t v : input.used)
         input.inlier.emplace_back(views.views[v].corners.size(), true);
 
@@ -424,19 +613,16 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
         result = solver == Solver::kMrcal ? detail::solveWithMrcal(input, solve_options)
                                           : detail::solveWithCeres(input, solve_options);
         if (!result && round == 0) {
-            // A solve that fails on views that only look tilted through the undistorted seed:
-            // the poses a plain solve ends on say whether they were degenerate.
-            if (auto poses = detail::solvePosesWithCeres(input, options))
-                MIXRAY_RETURN_IF_ERROR(checkTiltSpread(*poses, options, camera));
+            // A solve that fails on degenerate views (a singular covariance): the poses a plain
+            // solve ends on say whether, and why, they were.
+            if (auto poses = detail::solvePosesWithCeres(input, options);
+                poses && normalSpreadDeg(*poses) < kParallelViewsDeg) {
+                return Status(ErrorCode::kInvalidArgument,
+                              result.status().message() + "; " + weakViewsCause(*poses));
+            }
         }
         if (!result)
             return result;
-        if (round == 0) {
-            std::vector<Eigen::Isometry3d> solved;
-            for (const ViewFit& fit : result->views)
-                solved.push_back(fit.T_camera_target);
-            MIXRAY_RETURN_IF_ERROR(checkTiltSpread(solved, options, camera));
-        }
         // The mrcal back end rejects outliers inside mrcal_optimize, as mrcal-calibrate-cameras
         // does; a second rejection here would drop corners mrcal keeps.
         if (options.outlier_sigma <= 0 || solver == Solver::kMrcal || round == kMaxOutlierRounds)
@@ -488,6 +674,32 @@ Result<CameraCalibration> calibrateCamera(const CameraViews& views,
                 input.T_camera_target[static_cast<size_t>(u - input.used.begin())] =
                     fit.T_camera_target;
         }
+    }
+
+    // A fit far worse than any corner detector's accuracy is a failure, not a result.
+    if (options.max_rms_px > 0) {
+        const double rms = weightedRmsPx(*result, views);
+        if (rms > options.max_rms_px) {
+            return invalid(camera,
+                           "RMS reprojection error " + fixedText(rms, 2) + " px over " +
+                               std::to_string(result->views.size()) +
+                               " views is far above a corner detector's 0.1–0.3 px (limit " +
+                               fixedText(options.max_rms_px, 2) +
+                               " px): the corners do not fit one camera and board (a board "
+                               "declared smaller than printed, found at a different place in "
+                               "each view; a lens model that cannot follow the lens; views of "
+                               "another camera); raise max_rms_px (mixray calibrate --max-rms) "
+                               "only if the corners are known to be this poor");
+        }
+    }
+
+    // Observability from the solve: the core intrinsics' uncertainty and the condition of
+    // their normal equations.
+    result->observability = judgeObservability(*result, views, options);
+    if (!result->observability.weak.empty() && !options.accept_weak) {
+        return invalid(camera, "weakly determined intrinsics: " + result->observability.summary +
+                                   "; or keep the result with its uncertainty (accept_weak, "
+                                   "mixray calibrate --accept-weak)");
     }
     report(options, 1.0, "done");
     return result;

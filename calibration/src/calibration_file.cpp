@@ -27,9 +27,9 @@ using yaml::Item;
 
 constexpr std::array<std::string_view, 5> kTopKeys = {"version", "created", "target", "cameras",
                                                       "depth"};
-constexpr std::array<std::string_view, 8> kCameraKeys = {
+constexpr std::array<std::string_view, 9> kCameraKeys = {
     "name",   "model", "parent", "T_parent_camera", "pose_covariance", "intrinsics_stddev",
-    "rms_px", "views"};
+    "rms_px", "views", "weak"};
 constexpr std::array<std::string_view, 4> kDepthKeys = {"stream", "depth_camera", "color_camera",
                                                         "correction"};
 constexpr std::array<std::string_view, 5> kCorrectionKeys = {"scale", "offset_m", "alpha0",
@@ -268,6 +268,12 @@ private:
             if (!v)
                 return v.status();
             c.views = static_cast<int>(*v);
+        }
+        if (const Item* weak = find(*fields, "weak")) {
+            auto v = r_.text(*weak);
+            if (!v)
+                return v.status();
+            c.weak = *v;
         }
         return c;
     }
@@ -794,6 +800,8 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
             o << "    rms_px: " << num(c.rms_px) << "\n";
         if (c.views > 0)
             o << "    views: " << c.views << "\n";
+        if (!c.weak.empty())
+            o << "    weak: " << detail::yamlQuoted(c.weak) << "\n";
     }
     if (!file.depth.empty()) {
         o << "depth:\n";

@@ -288,7 +288,7 @@ Result<std::vector<CameraViews>> readCornersCache(const std::filesystem::path& p
                 Pending p;
                 int rejection = 0;
                 if (!parseInt(w[2], p.key) || !parseInt(w[3], rejection) || rejection < 0 ||
-                    rejection > static_cast<int>(ViewRejection::kOutliers))
+                    rejection > static_cast<int>(ViewRejection::kLargerBoard))
                     return Status(ErrorCode::kCorruptData, where(line_no) + "bad view row");
                 p.rejection = static_cast<ViewRejection>(rejection);
                 p.why = rest(line, 4);

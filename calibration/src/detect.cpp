@@ -20,6 +20,7 @@
 #include <utility>
 
 #include "image_file.h"
+#include "detect_internal.h"
 #include "mixray/graph/mkv.h"
 
 namespace mixray::calibration {
@@ -241,28 +242,275 @@ int saddleRadius(const std::vector<Corner>& corners) {
     return std::clamp(static_cast<int>(0.12 * cornerSpacing(corners)), 2, 4);
 }
 
+// Whether a chessboard's grid of X-junctions goes on beyond the corners found: a board declared
+// smaller than printed is found as a sub-board, at a different place in each view, whose
+// corner ids are not the board's. One square beyond a board's outermost corners there is
+// its white margin (T-junctions, edges); on a larger board there are X-junctions again.
+class GridExtension {
+public:
+    // `corners`: the found cols × rows grid, row-major (findChessboard()).
+    GridExtension(const cv::Mat& grey, const std::vector<Corner>& corners, int cols, int rows) {
+        grey.convertTo(blurred_, CV_32F);
+        cv::GaussianBlur(blurred_, blurred_, cv::Size(0, 0), 1.0);
+        for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < cols; ++c)
+                grid_[{c, r}] = corners[static_cast<size_t>(r * cols + c)].pixel;
+        // The contrast of a true X-junction here, and which of its diagonals is bright at the
+        // first corner: the yardstick for the junctions looked for beyond the grid.
+        std::vector<double> contrast;
+        double sign_sum = 0;
+        for (const auto& [cell, pixel] : grid_) {
+            const auto H = localHomography(cell.first, cell.second);
+            const auto q = H ? quadrants(*H, cell.first, cell.second) : std::nullopt;
+            if (!q)
+                continue;
+            const double parity = (cell.first + cell.second) % 2 == 0 ? 1 : -1;
+            const double d = 0.5 * ((*q)[0] + (*q)[3] - (*q)[1] - (*q)[2]);
+            sign_sum += parity * d;
+            contrast.push_back(std::abs(d));
+        }
+        if (contrast.size() < 4)
+            return;
+        std::nth_element(contrast.begin(),
+                         contrast.begin() + static_cast<long>(contrast.size() / 2), contrast.end());
+        contrast_ = contrast[contrast.size() / 2];
+        sign_ = sign_sum >= 0 ? 1 : -1;
+    }
+
+    // Extends the grid outwards, one line at a time on each side, while a line of X-junctions
+    // continues it; the lines added per side (left, right, top, bottom).
+    std::array<int, 4> extend() {
+        std::array<int, 4> added{0, 0, 0, 0};
+        if (!(contrast_ > kMinContrast))
+            return added;
+        for (bool grew = true; grew;) {
+            grew = false;
+            for (int side = 0; side < 4; ++side) {
+                if (added[0] + added[1] + added[2] + added[3] >= kMaxLines)
+                    return added;
+                if (extendSide(side)) {
+                    ++added[static_cast<size_t>(side)];
+                    grew = true;
+                }
+            }
+        }
+        return added;
+    }
+
+private:
+    // Grey levels of a junction's diagonals must differ by this much to judge it at all.
+    static constexpr double kMinContrast = 20;
+    // A candidate is an X-junction when its weakest quadrant pair keeps this fraction of the
+    // found junctions' contrast: 1 for a junction like the found ones, 0 or less for the
+    // T-junctions and edges of a board's margin (whose two margin quadrants are alike).
+    static constexpr double kMinJunction = 0.5;
+    // This share of a line's candidates inside the image must be X-junctions, and at least
+    // half of the line (and 3 candidates) must be inside the image to judge it.
+    static constexpr double kMinLineShare = 0.8;
+    // Never more lines than this in all (a board of X-junctions filling the image).
+    static constexpr int kMaxLines = 40;
+
+    using Cell = std::pair<int, int>;  // (column, row) in the found grid's numbering
+
+    // The homography from grid coordinates to pixels fitted to the found corners within two
+    // lines of (c, r) (a local fit: the lens's distortion bends the grid).
+    std::optional<cv::Mat> localHomography(int c, int r) const {
+        std::vector<cv::Point2f> from, to;
+        for (const auto& [cell, pixel] : grid_) {
+            if (std::abs(cell.first - c) <= 2 && std::abs(cell.second - r) <= 2) {
+                from.emplace_back(static_cast<float>(cell.first), static_cast<float>(cell.second));
+                to.emplace_back(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()));
+            }
+        }
+        if (from.size() < 6)
+            return std::nullopt;
+        try {
+            cv::Mat H = cv::findHomography(from, to, 0);
+            if (H.empty())
+                return std::nullopt;
+            return H;
+        } catch (const cv::Exception&) {
+            return std::nullopt;
+        }
+    }
+
+    static std::optional<Vector2d> apply(const cv::Mat& H, double u, double v) {
+        const double x = H.at<double>(0, 0) * u + H.at<double>(0, 1) * v + H.at<double>(0, 2);
+        const double y = H.at<double>(1, 0) * u + H.at<double>(1, 1) * v + H.at<double>(1, 2);
+        const double w = H.at<double>(2, 0) * u + H.at<double>(2, 1) * v + H.at<double>(2, 2);
+        if (!(std::abs(w) > 1e-12))
+            return std::nullopt;
+        return Vector2d(x / w, y / w);
+    }
+
+    // The mean grey level in each quadrant around grid point (c, r), sampled through H between
+    // 0.15 and 0.35 of a square from the junction's lines: (+u +v), (+u −v), (−u +v), (−u −v).
+    // nullopt when a sample falls outside the image.
+    std::optional<std::array<double, 4>> quadrants(const cv::Mat& H, double c, double r) const {
+        std::array<double, 4> mean{0, 0, 0, 0};
+        constexpr std::array<double, 3> kOffsets = {0.15, 0.25, 0.35};
+        for (int q = 0; q < 4; ++q) {
+            const double su = q < 2 ? 1 : -1, sv = q % 2 == 0 ? 1 : -1;
+            for (double a : kOffsets)
+                for (double b : kOffsets) {
+                    const auto p = apply(H, c + su * a, r + sv * b);
+                    if (!p || p->x() < 0 || p->y() < 0 || p->x() > blurred_.cols - 2 ||
+                        p->y() > blurred_.rows - 2)
+                        return std::nullopt;
+                    const int x0 = static_cast<int>(p->x()), y0 = static_cast<int>(p->y());
+                    const double ax = p->x() - x0, ay = p->y() - y0;
+                    const float* r0 = blurred_.ptr<float>(y0);
+                    const float* r1 = blurred_.ptr<float>(y0 + 1);
+                    mean[static_cast<size_t>(q)] +=
+                        (1 - ay) * ((1 - ax) * r0[x0] + ax * r0[x0 + 1]) +
+                        ay * ((1 - ax) * r1[x0] + ax * r1[x0 + 1]);
+                }
+            mean[static_cast<size_t>(q)] /= static_cast<double>(kOffsets.size() * kOffsets.size());
+        }
+        return mean;
+    }
+
+    // How much (c, r) looks like the grid's X-junction there would be: the darker of the
+    // diagonal that should be bright less the brighter of the other, over the found contrast.
+    std::optional<double> junction(const cv::Mat& H, int c, int r) const {
+        const auto q = quadrants(H, c, r);
+        if (!q)
+            return std::nullopt;
+        const double parity = (c + r) % 2 == 0 ? 1 : -1;
+        const bool main_bright = sign_ * parity > 0;  // quadrants (+ +) and (− −)
+        const double bright = main_bright ? std::min((*q)[0], (*q)[3]) : std::min((*q)[1], (*q)[2]);
+        const double dark = main_bright ? std::max((*q)[1], (*q)[2]) : std::max((*q)[0], (*q)[3]);
+        return (bright - dark) / contrast_;
+    }
+
+    // Adds the line beyond side 0 left, 1 right, 2 top, 3 bottom when it is one of X-junctions.
+    bool extendSide(int side) {
+        int c0 = 0, c1 = 0, r0 = 0, r1 = 0;
+        for (const auto& [cell, pixel] : grid_) {
+            c0 = std::min(c0, cell.first);
+            c1 = std::max(c1, cell.first);
+            r0 = std::min(r0, cell.second);
+            r1 = std::max(r1, cell.second);
+        }
+        const bool vertical = side < 2;  // a new column
+        const int fixed = side == 0 ? c0 - 1 : side == 1 ? c1 + 1 : side == 2 ? r0 - 1 : r1 + 1;
+        const int from = vertical ? r0 : c0, to = vertical ? r1 : c1;
+        std::vector<std::pair<Cell, Vector2d>> found;
+        int inside = 0;
+        for (int k = from; k <= to; ++k) {
+            const Cell cell = vertical ? Cell{fixed, k} : Cell{k, fixed};
+            const Cell inner = vertical ? Cell{fixed + (side == 0 ? 1 : -1), k}
+                                        : Cell{k, fixed + (side == 2 ? 1 : -1)};
+            const auto H = localHomography(inner.first, inner.second);
+            if (!H)
+                continue;
+            const auto score = junction(*H, cell.first, cell.second);
+            if (!score)
+                continue;
+            ++inside;
+            if (*score > kMinJunction)
+                found.push_back({cell, *apply(*H, cell.first, cell.second)});
+        }
+        const int length = to - from + 1;
+        if (inside < 3 || 2 * inside < length ||
+            static_cast<double>(found.size()) < kMinLineShare * inside)
+            return false;
+        for (const auto& [cell, pixel] : found)
+            grid_[cell] = pixel;
+        return true;
+    }
+
+    cv::Mat blurred_;
+    std::map<Cell, Vector2d> grid_;
+    double contrast_ = 0;
+    double sign_ = 1;
+};
+
+// A view of a chessboard larger than `target` (detect.h, ViewRejection::kLargerBoard).
+void markLargerBoard(TargetView& view, const CalibrationTarget& target, int seen_cols,
+                     int seen_rows, const std::string& how) {
+    view.rejection = ViewRejection::kLargerBoard;
+    view.seen_cols = seen_cols;
+    view.seen_rows = seen_rows;
+    view.why = how + ": the board looks " + std::to_string(seen_cols) + "x" +
+               std::to_string(seen_rows) + ", not " + std::to_string(target.cols) + "x" +
+               std::to_string(target.rows);
+}
+
 // OpenCV's sector-based detector, or where it finds nothing (one of the 13 left*.jpg) the
 // classic one, then the saddle fit: on synthetic boards findChessboardCornersSB is off by up to
 // 0.47 px at 50° tilt, findChessboardCorners + cornerSubPix by up to 0.25 px at 20–35°, the saddle
-// fit by less than 0.11 px (tests/calibration/detect_test.cpp).
-std::vector<Corner> findChessboard(const cv::Mat& grey, const CalibrationTarget& target) {
+// fit by less than 0.11 px (tests/calibration/detect_test.cpp). The sector-based detector is
+// allowed a board larger than the target (CALIB_CB_LARGER): a board declared smaller than
+// printed is then found whole and the view is kLargerBoard with the size found, instead of no
+// target. A board found at the target's size is looked beyond (GridExtension) when
+// `check_larger` is set.
+std::vector<Corner> findChessboard(const cv::Mat& grey, const CalibrationTarget& target,
+                                   TargetView& view, bool check_larger) {
     std::vector<cv::Point2f> found;
     std::vector<Corner> out;
     const cv::Size size(target.cols, target.rows);
+    const size_t count = static_cast<size_t>(target.cols) * static_cast<size_t>(target.rows);
+    constexpr int kSectorFlags = cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY;
     try {
-        if (!cv::findChessboardCornersSB(grey, size, found,
-                                         cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY) &&
+        cv::Mat meta;
+        bool sector = cv::findChessboardCornersSB(
+            grey, size, found, kSectorFlags | (check_larger ? cv::CALIB_CB_LARGER : 0), meta);
+        // A larger board by the permissive search is believed only when the target's size is
+        // not found: on a board as declared it can take the print's edge for one more line
+        // (left12.jpg of the OpenCV sample), and the stricter look beyond decides then.
+        if (sector && found.size() > count) {
+            std::vector<cv::Point2f> exact;
+            if (cv::findChessboardCornersSB(grey, size, exact, kSectorFlags)) {
+                found = exact;
+                meta = cv::Mat();
+            }
+        }
+        if (sector && found.size() > count && meta.rows > 0 && meta.cols > 0) {
+            // OpenCV may give the larger board transposed; the size is told in the target's
+            // orientation.
+            int seen_cols = meta.cols, seen_rows = meta.rows;
+            if ((target.cols >= target.rows) != (seen_cols >= seen_rows))
+                std::swap(seen_cols, seen_rows);
+            markLargerBoard(view, target, seen_cols, seen_rows,
+                            "a " + std::to_string(seen_cols) + "x" + std::to_string(seen_rows) +
+                                " chessboard found where " + std::to_string(target.cols) + "x" +
+                                std::to_string(target.rows) + " was declared");
+            return out;  // its corners are not the target's points
+        }
+        if (sector && check_larger && !meta.empty() && meta.cols != target.cols) {
+            // The target's size, transposed: the plain search orders it as the target.
+            sector = cv::findChessboardCornersSB(grey, size, found, kSectorFlags);
+        }
+        if (!sector &&
             !cv::findChessboardCorners(grey, size, found,
                                        cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE))
             return out;
     } catch (const cv::Exception&) {
         return out;
     }
-    if (found.size() != static_cast<size_t>(target.cols * target.rows))
+    if (found.size() != count)
         return out;
     for (size_t i = 0; i < found.size(); ++i)
         out.push_back({static_cast<int>(i), Vector2d(found[i].x, found[i].y), 1.0});
     refineSaddles(grey, out, saddleRadius(out));
+    if (!check_larger)
+        return out;
+    const std::array<int, 4> added = detail::chessboardBeyond(grey, out, target.cols, target.rows);
+    if (added[0] + added[1] + added[2] + added[3] == 0)
+        return out;
+    static constexpr std::array<const char*, 4> kSide = {"left", "right", "above", "below"};
+    std::string where;
+    for (size_t side = 0; side < 4; ++side) {
+        if (added[side] == 0)
+            continue;
+        where += (where.empty() ? "" : ", ") + std::to_string(added[side]) +
+                 (side < 2 ? " column" : " row") + (added[side] > 1 ? "s " : " ") + kSide[side];
+    }
+    markLargerBoard(view, target, target.cols + added[0] + added[1],
+                    target.rows + added[2] + added[3],
+                    "X-junctions go on beyond the " + std::to_string(target.cols) + "x" +
+                        std::to_string(target.rows) + " corners found (" + where + ")");
     return out;
 }
 
@@ -462,7 +710,7 @@ Result<TargetView> detectTarget(const ImageView& image, const CalibrationTarget&
     size_t markers = 0;
     switch (target.kind) {
         case TargetKind::kChessboard:
-            view.corners = findChessboard(*grey, target);
+            view.corners = findChessboard(*grey, target, view, options.check_larger_board);
             break;
         case TargetKind::kCharuco: {
             auto found = findCharuco(*grey, target, options, markers);
@@ -479,6 +727,8 @@ Result<TargetView> detectTarget(const ImageView& image, const CalibrationTarget&
             break;
         }
     }
+    if (view.rejection != ViewRejection::kNone)
+        return view;  // kLargerBoard
     const int total = target.pointCount();
     if (view.corners.empty()) {
         view.rejection = ViewRejection::kNoTarget;
@@ -732,5 +982,16 @@ Result<RecordingDetection> detectInRecording(const std::filesystem::path& record
         return read;
     return detection;
 }
+
+namespace detail {
+
+std::array<int, 4> chessboardBeyond(const cv::Mat& grey, const std::vector<Corner>& corners,
+                                    int cols, int rows) {
+    if (corners.size() != static_cast<size_t>(cols) * static_cast<size_t>(rows))
+        return {0, 0, 0, 0};
+    return GridExtension(grey, corners, cols, rows).extend();
+}
+
+}  // namespace detail
 
 }  // namespace mixray::calibration

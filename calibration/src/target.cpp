@@ -83,6 +83,8 @@ std::string_view toString(ViewRejection rejection) {
             return "too oblique";
         case ViewRejection::kOutliers:
             return "outliers";
+        case ViewRejection::kLargerBoard:
+            return "on a larger board";
     }
     return "unknown";
 }

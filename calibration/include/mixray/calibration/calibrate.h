@@ -48,10 +48,50 @@ struct CalibrationOptions {
     double outlier_sigma = 3.0;
     int min_views = 4;  // fewer usable views: kInvalidArgument
     int min_corners_per_view = 8;
-    // All usable views within this angle of each other (board normals): kInvalidArgument, the
-    // focal length is not observable from fronto-parallel views alone.
-    double min_tilt_spread_deg = 5.0;
+    // Observability is judged after the solve, from its covariance (CameraCalibration::
+    // observability): a core intrinsic (fx fy cx cy) whose 1σ exceeds this fraction of the
+    // focal length is weakly determined. 2 %: well spread views give well under 1 % (the 13
+    // OpenCV sample photos 0.07–0.08 %), four ChArUco views tilted alike 5–8 %
+    // (tests/calibration/observability_test.cpp); a 2 % focal error moves a point at the
+    // image border by several pixels.
+    double max_relative_stddev = 0.02;
+    // The corner noise (1σ per coordinate, pixels) the judgement assumes at least: a real
+    // corner detector reaches 0.1–0.3 px, so views that only pass on cleaner corners (renders,
+    // generated data) would not pass on real ones taken from the same poses.
+    double min_judged_noise_px = 0.1;
+    // A weakly determined solve is returned with its observability (and its uncertainty in the
+    // covariance) instead of being kInvalidArgument.
+    bool accept_weak = false;
+    // An RMS reprojection error (inliers, each residual scaled by its corner's weight as the
+    // solve saw it) above this is kInvalidArgument, not a result: 2 px is ten times what a
+    // corner detector's 0.1–0.3 px per coordinate gives, so the corners do not fit one camera
+    // and board (a board declared smaller than printed and found at different places, a wrong
+    // lens model). 0: no limit.
+    double max_rms_px = 2.0;
     ProgressCallback progress;
+};
+
+// How well the views determine the core intrinsics, judged from the solve.
+struct Observability {
+    // 1σ of fx, fy, cx, cy as a fraction of the focal length (fx for fx and cx, fy for fy and
+    // cy), from the solve's covariance scaled to noise_px.
+    Eigen::Vector4d relative_stddev = Eigen::Vector4d::Zero();
+    // The corner noise the judgement assumes: the larger of the solve's residual noise (1σ per
+    // coordinate) and CalibrationOptions::min_judged_noise_px.
+    double noise_px = 0;
+    // The condition number of the core intrinsics' normal equations (JᵀJ with the views' poses
+    // and the distortion eliminated, focal lengths as the unit): how much worse the worst
+    // determined combination of fx fy cx cy is known than the best.
+    double condition = 0;
+    // That worst determined combination (unit length, in fx fy cx cy order).
+    Eigen::Vector4d weakest = Eigen::Vector4d::Zero();
+    // The largest angle between two used views' board normals, degrees.
+    double normal_spread_deg = 0;
+    // The parameters whose relative 1σ exceeds CalibrationOptions::max_relative_stddev.
+    std::vector<std::string> weak;
+    // What is weak, by how much, and the likely cause ("fx, fy: 1σ 8.3 % of the focal length
+    // ..."); empty when nothing is.
+    std::string summary;
 };
 
 // A corner's fit after the solve.
@@ -84,12 +124,15 @@ struct CameraCalibration {
     // [intrinsics (model order: fx fy cx cy then distortion), then 6 per used view (rotation
     // vector, translation of T_camera_target)]: what projectionUncertainty() propagates.
     Eigen::MatrixXd covariance;
+    Observability observability;
     Eigen::VectorXd intrinsicsStddev() const;  // square roots of the intrinsics' diagonal
 };
 
-// kInvalidArgument naming the cause: too few usable views, mismatched sizes, degenerate views
-// (all fronto-parallel), an unknown model or one the solver lacks; kInternal when the solve
-// does not converge.
+// kInvalidArgument naming the cause: too few usable views, mismatched sizes, a chessboard
+// larger than declared (views rejected as kLargerBoard: the message names the size seen), an
+// RMS above max_rms_px, weakly determined intrinsics without accept_weak (the message names
+// the weak parameters, their 1σ and the likely cause), an unknown model or one the solver
+// lacks; kInternal when the solve does not converge.
 Result<CameraCalibration> calibrateCamera(const CameraViews& views,
                                           const CalibrationOptions& options = {});
 

@@ -34,6 +34,9 @@ struct CalibratedCamera {
     std::vector<double> intrinsics_stddev;
     double rms_px = 0;  // 0: not known
     int views = 0;
+    // What the views left weakly determined, kept on purpose (Observability::summary of a
+    // solve accepted with CalibrationOptions::accept_weak); empty: nothing, or not known.
+    std::string weak;
 };
 
 // A depth stream and how it registers into a colour camera.

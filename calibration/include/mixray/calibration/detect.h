@@ -49,6 +49,10 @@ struct DetectionOptions {
     // 414 instead of 356 colour corners and 116 instead of 86 fish-eye corners, 16 or more in
     // all 6 instead of 3 views over it). Costs a second detection on partial views only.
     bool upsample_small_markers = true;
+    // A chessboard whose grid of X-junctions goes on beyond the corners found (a board
+    // declared smaller than printed, found as a sub-board) is kLargerBoard, with the size seen
+    // (TargetView::seen_cols/seen_rows). Off: such views are used as found.
+    bool check_larger_board = true;
     // Frames of different streams of a recording whose host stamps lie within this of each
     // other were taken at the same instant (one key). Keep it under half the frame period.
     int64_t max_skew_ns = 10'000'000;

@@ -84,6 +84,9 @@ enum class ViewRejection : uint8_t {
     kBlurred,        // too little sharpness at the corners
     kTooOblique,     // the board's normal is too far from the viewing direction
     kOutliers,       // the solve rejected too many of its corners
+    // A chessboard found as part of a larger one: its grid of X-junctions goes on beyond the
+    // found corners (TargetView::seen_cols/seen_rows), so their ids are not the board's.
+    kLargerBoard,
 };
 
 std::string_view toString(ViewRejection rejection);
@@ -107,6 +110,9 @@ struct TargetView {
     std::vector<Corner> corners;
     ViewRejection rejection = ViewRejection::kNone;
     std::string why;  // the rejection's details, for reports ("sharpness 3.1 < 8")
+    // kLargerBoard: the inner corners per row and column of the whole grid of X-junctions the
+    // found corners are part of (the board's likely size); 0 otherwise.
+    int seen_cols = 0, seen_rows = 0;
     // Markers of DetectionOptions::marker_dictionary in the image (also when the target was
     // not found), the target's own markers included when it uses that dictionary.
     std::vector<SeenMarker> markers;
