@@ -38,6 +38,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands);
 void registerCalibrateCommand(CLI::App& app, Commands& commands);
 void registerConvertCommand(CLI::App& app, Commands& commands);
 void registerDemoCommand(CLI::App& app, Commands& commands);
+void registerDetectCommand(CLI::App& app, Commands& commands);
 void registerDevicesCommand(CLI::App& app, Commands& commands);
 void registerInfoCommand(CLI::App& app, Commands& commands);
 void registerPlayCommand(CLI::App& app, Commands& commands);

@@ -4,12 +4,6 @@
 #include "backends.h"
 #include "cli.h"
 
-namespace mixray::cli {
-// Declared here, not in cli.h beside the others, until the parallel branches adding commands
-// are merged: every subcommand's file includes cli.h and would rebuild for it.
-void registerDetectCommand(CLI::App& app, Commands& commands);
-}  // namespace mixray::cli
-
 int main(int argc, char** argv) {
     using namespace mixray::cli;
     CLI::App app{
