@@ -1,4 +1,5 @@
 // mixray convert: copies a recording between formats (mkv, TUM RGB-D folder, PCL TIFF folder).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -23,6 +24,7 @@ struct ConvertOptions {
     std::string intrinsics;           // "fx,fy,cx,cy"; empty: from the recording
     std::string pcd_data = "binary";  // ascii | binary
     bool no_color = false;
+    bool drop_unsupported = false;
 };
 
 Result<std::unique_ptr<RecordingWriter>> createCloudWriter(const ConvertOptions& options,
@@ -42,11 +44,30 @@ Result<std::unique_ptr<RecordingWriter>> createCloudWriter(const ConvertOptions&
     return replay::createPointCloudWriter(options.output, header, cloud);
 }
 
+std::string targetFormat(const ConvertOptions& options) {
+    if (!options.to.empty())
+        return options.to;
+    return std::filesystem::path(options.output).extension() == ".mkv" ? "mkv" : "tum";
+}
+
+// What the target format would drop or change of the recording (mkv holds everything).
+Result<replay::WriteLosses> lossesOf(const ConvertOptions& options, const RecordingHeader& header) {
+    const std::string to = targetFormat(options);
+    if (to == "tum")
+        return replay::tumLosses(header);
+    if (to == "pcl-tiff")
+        return replay::pclTiffLosses(header);
+    if (to == "ply" || to == "pcd") {
+        replay::PointCloudWriterOptions cloud;
+        cloud.color = !options.no_color;
+        return replay::pointCloudLosses(header, cloud);
+    }
+    return replay::WriteLosses{};
+}
+
 Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& options,
                                                       const RecordingHeader& header) {
-    std::string to = options.to;
-    if (to.empty())
-        to = std::filesystem::path(options.output).extension() == ".mkv" ? "mkv" : "tum";
+    const std::string to = targetFormat(options);
     if (to == "mkv")
         return createMkvWriter(options.output, header);
     if (to == "tum")
@@ -74,7 +95,28 @@ int runConvert(const ConvertOptions& options) {
     auto reader = replay::openRecording(options.input);
     if (!reader)
         return fail("convert", reader.status());
-    auto writer = createWriter(options, replay::headerOf(**reader));
+    const RecordingHeader header = replay::headerOf(**reader);
+    auto losses = lossesOf(options, header);
+    if (!losses)
+        return fail("convert", losses.status().withContext(options.output));
+    // A point cloud is depth made into points by request: what else the recording holds is
+    // listed, not refused.
+    const bool cloud = targetFormat(options) == "ply" || targetFormat(options) == "pcd";
+    if (losses->dropsData() && !options.drop_unsupported && !cloud) {
+        std::string what;
+        for (const std::string& line : losses->dropped)
+            what += "\n  " + line;
+        return fail("convert",
+                    {ErrorCode::kUnsupported, options.output + " (" + targetFormat(options) +
+                                                  ") cannot hold all of " + options.input +
+                                                  "; nothing was written. Not writable:" + what +
+                                                  "\n(--drop-unsupported converts without them)"});
+    }
+    for (const std::string& line : losses->dropped)
+        std::fprintf(stderr, "convert: not written: %s\n", line.c_str());
+    for (const std::string& line : losses->changed)
+        std::fprintf(stderr, "convert: changed: %s\n", line.c_str());
+    auto writer = createWriter(options, header);
     if (!writer)
         return fail("convert", writer.status().withContext(options.output));
 
@@ -89,10 +131,25 @@ int runConvert(const ConvertOptions& options) {
     status.finish();
     if (!summary)
         return fail("convert", summary.status());
-    std::printf("%s (%s) -> %s: %llu frames, %s, %.2f s\n", options.input.c_str(),
+    // Frames of dropped streams went through the converter but not into the file.
+    uint64_t written = summary->frames;
+    for (StreamId id : losses->dropped_streams) {
+        if (id < summary->frames_per_stream.size())
+            written -= summary->frames_per_stream[id];
+    }
+    std::printf("%s (%s) -> %s: %llu of %llu frames written, %s, %.2f s\n", options.input.c_str(),
                 (*reader)->format().c_str(), options.output.c_str(),
+                static_cast<unsigned long long>(written),
                 static_cast<unsigned long long>(summary->frames),
                 formatBytes(summary->bytes_written).c_str(), summary->seconds);
+    for (size_t i = 0; i < header.streams.size() && i < summary->frames_per_stream.size(); ++i) {
+        const bool dropped =
+            std::find(losses->dropped_streams.begin(), losses->dropped_streams.end(),
+                      static_cast<StreamId>(i)) != losses->dropped_streams.end();
+        std::printf("  %-24s %8llu frames %s\n", header.streams[i].name.c_str(),
+                    static_cast<unsigned long long>(summary->frames_per_stream[i]),
+                    dropped ? "not written (the format cannot hold them)" : "written");
+    }
     return kExitOk;
 }
 
@@ -103,8 +160,11 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
         "convert",
         "Convert a recording: mkv <-> TUM RGB-D folder, PCL TIFF folder or Azure Kinect .mkv -> "
         "mkv. Frames, timestamps, attachments and tags are kept exactly where the target "
-        "format can hold them. Also reads NYU Depth V2 raw and SUN RGB-D folders and OpenNI "
-        ".oni files, and writes organized point clouds (--to ply|pcd, docs/rgbd-formats.md).");
+        "format can hold them; what it cannot hold is refused (or, with --drop-unsupported, "
+        "left out and listed), and what was written is printed per stream. Also reads NYU Depth "
+        "V2 raw and SUN RGB-D folders and OpenNI .oni files, and writes organized point clouds "
+        "(--to ply|pcd, docs/rgbd-formats.md), which hold the depth stream and its registered "
+        "colour: the other streams are listed as not written.");
     auto options = std::make_shared<ConvertOptions>();
     sub->add_option("INPUT", options->input, "Recording to read")->required();
     sub->add_option("OUTPUT", options->output,
@@ -124,6 +184,10 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
                   "With --to ply|pcd: points without colour even when the depth is registered "
                   "to a colour stream");
     sub->add_flag("--force", options->force, "Overwrite an existing output file");
+    sub->add_flag("--drop-unsupported", options->drop_unsupported,
+                  "Convert even when the target format cannot hold every stream or attachment "
+                  "(TUM and PCL TIFF keep one colour and one depth stream); what is left out is "
+                  "listed. Without it such a conversion is refused before anything is written");
     commands.push_back({sub, [options] { return runConvert(*options); }});
 }
 

@@ -68,6 +68,20 @@ std::string layoutOf(const StreamInfo& info) {
     return text;
 }
 
+// "at byte 123 (0.5 s into the recording, after the frame at ...): <what>; read on from byte 456".
+std::string describeDamage(const RecordingDamage& d, int64_t first_stamp_ns) {
+    std::string text = d.byte_offset >= 0 ? "at byte " + std::to_string(d.byte_offset)
+                                          : std::string("at an unknown byte");
+    if (d.after_stamp_ns >= 0 && d.after_stamp_ns >= first_stamp_ns) {
+        text += " (after the frame at " + formatDuration(d.after_stamp_ns - first_stamp_ns) +
+                " into the recording)";
+    }
+    text += ": " + d.what;
+    text += d.resumed_at >= 0 ? "; read on from byte " + std::to_string(d.resumed_at)
+                              : std::string("; nothing readable after it");
+    return text;
+}
+
 int runInfo(const std::string& path, bool as_json) {
     setFfmpegLogging(false);
     auto opened = replay::openRecording(path);
@@ -108,6 +122,8 @@ int runInfo(const std::string& path, bool as_json) {
         ++total;
     }
 
+    const std::vector<RecordingDamage> damage = reader.damage();
+
     int64_t first = INT64_MAX, last = INT64_MIN;
     for (const auto& s : summaries) {
         if (s.frames == 0)
@@ -128,7 +144,14 @@ int runInfo(const std::string& path, bool as_json) {
         j["frames"] = total;
         j["duration_ns"] = duration;
         j["first_stamp_ns"] = total ? first : 0;
-        j["complete"] = end_status.isOk();
+        j["complete"] = end_status.isOk() && damage.empty();
+        j["damage"] = nlohmann::json::array();
+        for (const RecordingDamage& d : damage) {
+            j["damage"].push_back({{"byte_offset", d.byte_offset},
+                                   {"resumed_at", d.resumed_at},
+                                   {"after_stamp_ns", d.after_stamp_ns},
+                                   {"what", d.what}});
+        }
         if (!end_status.isOk())
             j["error"] = end_status.toString();
         j["tags"] = reader.tags();
@@ -208,6 +231,20 @@ int runInfo(const std::string& path, bool as_json) {
             std::printf("  %-24s %-26s %s\n", a.name.c_str(), a.mime_type.c_str(),
                         formatBytes(a.data.size()).c_str());
         }
+    }
+    if (!as_json) {
+        for (const RecordingDamage& d : damage)
+            std::printf("damage: %s\n", describeDamage(d, total ? first : 0).c_str());
+    }
+    // A file that ends in damage says so with how far it reads (below); damage read past is
+    // the story otherwise.
+    if (!damage.empty() && end_status.isOk()) {
+        const RecordingDamage& d = damage.front();
+        return fail("info", {ErrorCode::kCorruptData,
+                             path + ": damaged: " + std::to_string(damage.size()) +
+                                 " stretch(es) could not be read and were skipped (frames in "
+                                 "them are lost), the first " +
+                                 describeDamage(d, total ? first : 0)});
     }
     if (!end_status.isOk()) {
         return fail("info", end_status.withContext(path + ": readable up to frame " +

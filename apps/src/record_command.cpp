@@ -1,9 +1,12 @@
 // mixray record: opens a rig's devices and records their streams into one Matroska file.
 #include <algorithm>
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <thread>
 
 #include "backends.h"
@@ -77,8 +80,41 @@ QueuePolicy policyOf(const RecordOptions& options, const RigDescription& rig) {
     return any ? QueuePolicy::kLive : QueuePolicy::kLossless;
 }
 
+// Why the recording loop stopped, said with the summary.
+enum class StopReason { kDuration, kStreamsEnded, kInterrupted, kRecorderError };
+
+std::string stopMessage(StopReason reason, int64_t elapsed_ns, double duration_s) {
+    char text[160];
+    switch (reason) {
+        case StopReason::kDuration:
+            std::snprintf(text, sizeof text, "stopped after --duration %g s", duration_s);
+            return text;
+        case StopReason::kStreamsEnded:
+            if (duration_s > 0) {
+                std::snprintf(text, sizeof text,
+                              "the rig's streams ended after %.1f s, before --duration %g s",
+                              static_cast<double>(elapsed_ns) / 1e9, duration_s);
+            } else {
+                std::snprintf(text, sizeof text, "the rig's streams ended after %.1f s",
+                              static_cast<double>(elapsed_ns) / 1e9);
+            }
+            return text;
+        case StopReason::kInterrupted:
+            std::snprintf(text, sizeof text, "stopped by a signal (Ctrl-C or SIGTERM) after %.1f s",
+                          static_cast<double>(elapsed_ns) / 1e9);
+            return text;
+        case StopReason::kRecorderError:
+            return "stopped by a recording error";
+    }
+    return {};
+}
+
 int runRecord(const RecordOptions& options) {
     setFfmpegLogging(false);
+    // Installed before the devices open: a signal during a slow open (OpenNI2, a GigE camera)
+    // then stops the recording as soon as it started, with a valid file, instead of killing
+    // the process with nothing written.
+    InterruptFlag interrupt;
     if (std::filesystem::exists(options.output) && !options.force) {
         return fail("record", {ErrorCode::kInvalidArgument,
                                options.output + " exists (use --force to overwrite it)"});
@@ -151,7 +187,6 @@ int runRecord(const RecordOptions& options) {
     if (!added)
         return fail("record", added);
 
-    InterruptFlag interrupt;
     StatusLine status;
     Status started = graph.start();
     if (!started)
@@ -160,6 +195,8 @@ int runRecord(const RecordOptions& options) {
     std::vector<uint64_t> last_published(graph.streamCount(), 0);
     int64_t last_tick = t0;
     std::string line;
+    StopReason reason = StopReason::kInterrupted;
+    int64_t stopped_at = t0;
     for (;;) {
         std::this_thread::sleep_for(std::chrono::milliseconds(250));
         for (auto& watch : watches) {
@@ -177,7 +214,10 @@ int runRecord(const RecordOptions& options) {
             for (StreamId id = 0; id < graph.streamCount(); ++id) {
                 const uint64_t published = graph.publishedCount(id);
                 char text[160];
-                const uint64_t dropped = id < stats.streams.size() ? stats.streams[id].dropped : 0;
+                // Frames the recorder dropped and frames the source never delivered.
+                const uint64_t dropped =
+                    (id < stats.streams.size() ? stats.streams[id].dropped : 0) +
+                    graph.lostCount(id);
                 std::snprintf(text, sizeof text, " | %s %.1f fps, %llu dropped",
                               graph.stream(id).name.c_str(),
                               static_cast<double>(published - last_published[id]) / dt,
@@ -197,18 +237,40 @@ int runRecord(const RecordOptions& options) {
             status.update(line);
             last_tick = now;
         }
-        if (!stats.error.isOk() || all_ended || timed_out || interrupt.raised())
+        stopped_at = now;
+        if (!stats.error.isOk()) {
+            reason = StopReason::kRecorderError;
             break;
+        }
+        if (interrupt.raised()) {
+            reason = StopReason::kInterrupted;
+            break;
+        }
+        if (all_ended) {
+            reason = StopReason::kStreamsEnded;
+            break;
+        }
+        if (timed_out) {
+            reason = StopReason::kDuration;
+            break;
+        }
     }
     graph.stop();
     status.finish();
 
     const RecorderStats stats = recorder->stats();
     std::printf("%s: %s\n", options.output.c_str(), stats.summary().c_str());
+    std::printf("  %s\n", stopMessage(reason, stopped_at - t0, options.duration_s).c_str());
     for (const auto& s : stats.streams) {
-        std::printf("  %-24s %8llu written  %6llu dropped\n", s.stream.c_str(),
+        // Frames the device never delivered never reached the recorder: said beside its drops.
+        const std::optional<StreamId> id = graph.findStream(s.stream);
+        const uint64_t lost = id ? graph.lostCount(*id) : 0;
+        std::printf("  %-24s %8llu written  %6llu dropped", s.stream.c_str(),
                     static_cast<unsigned long long>(s.written),
                     static_cast<unsigned long long>(s.dropped));
+        if (lost)
+            std::printf("  %6llu lost by the device", static_cast<unsigned long long>(lost));
+        std::printf("\n");
     }
     if (!stats.error.isOk()) {
         return fail("record", stats.error.withContext(options.output + " (readable up to frame " +
@@ -229,8 +291,21 @@ void registerRecordCommand(CLI::App& app, Commands& commands) {
     sub->add_option("RIG", options->rig_path, "Rig description (YAML, see docs/rig-format.md)")
         ->required();
     sub->add_option("-o,--output", options->output, "Recording to write (.mkv)")->required();
-    sub->add_option("--duration", options->duration_s, "Stop after this many seconds")
-        ->check(CLI::NonNegativeNumber);
+    sub->add_option("--duration", options->duration_s,
+                    "Stop after this many seconds (a finite number > 0; default: until every "
+                    "stream ends or Ctrl-C)")
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                double value = 0;
+                const char* end = text.data() + text.size();
+                const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+                if (ec != std::errc() || ptr != end)
+                    return "expected seconds such as 10 or 2.5, got '" + text + "'";
+                if (!std::isfinite(value) || value <= 0)
+                    return "must be a finite number of seconds > 0, got '" + text + "'";
+                return {};
+            },
+            "SECONDS > 0"));
     sub->add_option("--policy", options->policy,
                     "live: drivers never wait for the disk, drops are counted; lossless: drivers "
                     "wait (default: the rig's stream settings)")

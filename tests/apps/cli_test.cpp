@@ -127,10 +127,12 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
 
     // mkv -> TUM folder -> mkv keeps colour and depth frames and their stamps (to the
     // microsecond TUM names keep); mkv -> PCL TIFF folder works too.
-    CliRun to_tum = mixray("convert " + q(out) + " " + q(dir / "tum"));
+    // (The mono stream and the rig attachment do not fit those formats: left out on request.)
+    CliRun to_tum = mixray("convert --drop-unsupported " + q(out) + " " + q(dir / "tum"));
     ASSERT_EQ(to_tum.exit_code, 0) << to_tum.output;
     EXPECT_TRUE(fs::exists(dir / "tum" / "rgb.txt"));
-    CliRun to_pcl = mixray("convert --to pcl-tiff " + q(out) + " " + q(dir / "pcl"));
+    CliRun to_pcl =
+        mixray("convert --drop-unsupported --to pcl-tiff " + q(out) + " " + q(dir / "pcl"));
     ASSERT_EQ(to_pcl.exit_code, 0) << to_pcl.output;
     EXPECT_TRUE(fs::exists(dir / "pcl"));
     CliRun back = mixray("convert " + q(dir / "tum") + " " + q(dir / "back.mkv"));

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <thread>
 #include <vector>
 
 #include "mixray/graph/clock.h"
@@ -118,6 +119,16 @@ Status startSession(Session& session, const DeviceConfig& config) {
         session.queues[info.name] = *queue;
     }
     return session.graph.start();
+}
+
+// A private copy of `frame` (the test holds frames longer than the device's few buffers).
+FrameRef copyFrame(const FrameRef& frame) {
+    const ImageView view = frame.image();
+    auto pool = BufferPool::create({view.desc, view.size_bytes, 1, "copy"});
+    WritableFrame out = pool->acquire();
+    std::memcpy(out.image().data, view.data, view.size_bytes);
+    out.meta() = frame.meta();
+    return std::move(out).publish();
 }
 
 std::vector<FrameRef> drain(FrameQueue& queue, size_t at_most = 1000) {
@@ -297,6 +308,63 @@ TEST(OpenNI2Recording, DeviceStampsMapThroughTheClockModel) {
     const auto estimate = sync.estimate(defaultClockDomain("kinect"));
     ASSERT_TRUE(estimate);
     EXPECT_EQ(estimate->samples, depth.size());
+}
+
+// Both paces deliver every frame of the recording with its own stamps: host stamps keep the
+// recorded intervals (OpenNI2's timed playback used to replace frames not yet read, and 8 of
+// 12 depth frames reached the graph; fast playback stamped frames when they were read).
+TEST(OpenNI2Recording, EveryFrameReachesTheGraphWithItsOwnTimingAtEitherPace) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::kinectV1Oni());
+    for (const char* pace : {"original", "fast"}) {
+        SCOPED_TRACE(pace);
+        Session session;
+        ASSERT_TRUE(startSession(session, kinectConfig({{"pace", pace}, {"buffers", "4"}})));
+        const auto t0 = std::chrono::steady_clock::now();
+        // A slow consumer: frames wait in the pool and the queue.
+        std::vector<FrameRef> depth;
+        std::vector<FrameRef> color;
+        for (;;) {
+            auto d = session.queues.at("kinect/depth")->pop(seconds(10));
+            if (d) {
+                depth.push_back(copyFrame(*d));
+                std::this_thread::sleep_for(std::chrono::milliseconds(40));
+            }
+            auto c = session.queues.at("kinect/color")->pop(std::chrono::milliseconds(0));
+            while (c) {
+                color.push_back(copyFrame(*c));
+                c = session.queues.at("kinect/color")->pop(std::chrono::milliseconds(0));
+            }
+            if (!d)
+                break;
+        }
+        for (auto c = session.queues.at("kinect/color")->pop(seconds(1)); c;
+             c = session.queues.at("kinect/color")->pop(seconds(1))) {
+            color.push_back(copyFrame(*c));
+        }
+        const double wall_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        session.graph.stop();
+        EXPECT_TRUE(session.device->status()) << session.device->status().toString();
+        EXPECT_EQ(session.device->droppedFrames(), 0u);
+        for (StreamId id : session.device->streamIds())
+            EXPECT_EQ(session.graph.lostCount(id), 0u);
+        ASSERT_EQ(depth.size(), 12u);
+        ASSERT_EQ(color.size(), 12u);
+        for (const auto* frames : {&depth, &color}) {
+            for (size_t i = 0; i < frames->size(); ++i) {
+                EXPECT_EQ((*frames)[i].meta().sequence, i + 1);
+                // Host time between frames is the recorded device time between them.
+                EXPECT_EQ(
+                    (*frames)[i].meta().host_stamp_ns - depth.front().meta().host_stamp_ns,
+                    (*frames)[i].meta().device_stamp_ns - depth.front().meta().device_stamp_ns);
+            }
+        }
+        EXPECT_EQ(depth.back().meta().device_stamp_ns, 378'742'000);
+        // Original pace takes the recording's 0.379 s at least.
+        if (std::string(pace) == "original") {
+            EXPECT_GE(wall_s, 0.36);
+        }
+    }
 }
 
 TEST(OpenNI2Recording, RepeatContinuesSequenceAndTime) {

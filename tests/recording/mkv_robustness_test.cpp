@@ -2,6 +2,7 @@
 // Matroska at all. Every case ends in exact frames and a clear error, never a crash.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <random>
 #include <set>
@@ -54,6 +55,7 @@ struct ReadOutcome {
     bool opened = false;
     Status status;  // the open error, or how reading ended
     size_t frames = 0;
+    std::vector<RecordingDamage> damage;  // what the reader skipped
 };
 
 ReadOutcome readChecked(const std::filesystem::path& path, const std::vector<ExpectedFrame>& want,
@@ -101,6 +103,7 @@ ReadOutcome readChecked(const std::filesystem::path& path, const std::vector<Exp
         }
         ++outcome.frames;
     }
+    outcome.damage = (*reader)->damage();
     return outcome;
 }
 
@@ -180,12 +183,58 @@ TEST_F(MkvRobustness, FlippedBytesGiveExactFramesOrAnErrorNeverGarbage) {
             EXPECT_TRUE(outcome.status.code() == ErrorCode::kCorruptData ||
                         outcome.status.code() == ErrorCode::kEndOfStream)
                 << outcome.status.toString();
+            // Frames lost without an error must have been reported as damage.
+            if (outcome.frames < sample.frames.size() &&
+                outcome.status.code() == ErrorCode::kEndOfStream) {
+                EXPECT_FALSE(outcome.damage.empty())
+                    << outcome.frames << " of " << sample.frames.size() << " frames, no damage";
+            }
         } else {
             EXPECT_NE(outcome.status.message().find(damaged_path.string()), std::string::npos)
                 << outcome.status.toString();
         }
     }
     EXPECT_GT(errors, 0u) << "no damage was ever detected";
+}
+
+// 5000 bytes overwritten in the middle of a recording: FFmpeg skips to the next cluster it
+// finds; the frames before are exact, the skipped stretch is reported as damage with its byte
+// offset, and nothing after it is garbage.
+TEST_F(MkvRobustness, OverwrittenBytesInTheMiddleAreReportedAsDamageWithWhere) {
+    const auto dir = test::tempDir();
+    const auto path = dir / "long.mkv";
+    const RecordingHeader header =
+        test::makeHeader({test::makeStream("k/depth", PixelFormat::kDepth16, 64, 48),
+                          test::makeStream("k/rgb", PixelFormat::kRGB8, 64, 48)});
+    const auto frames = test::writeRecording(path, header, 60);
+    std::vector<uint8_t> bytes = readBytes(path);
+    // From the first cluster at or after the middle: the damage breaks the file's structure
+    // (damage inside a payload alone fails its CRC and ends reading, see above).
+    const uint8_t cluster[] = {0x1F, 0x43, 0xB6, 0x75};
+    const size_t at = static_cast<size_t>(
+        std::search(bytes.begin() + static_cast<std::ptrdiff_t>(bytes.size() / 2), bytes.end(),
+                    std::begin(cluster), std::end(cluster)) -
+        bytes.begin());
+    ASSERT_LT(at + 5000, bytes.size());
+    for (size_t i = 0; i < 5000; ++i)
+        bytes[at + i] = static_cast<uint8_t>(0x55 ^ (i * 7));
+    const auto damaged = dir / "damaged.mkv";
+    writeBytes(damaged, bytes, bytes.size());
+
+    const ReadOutcome outcome = readChecked(damaged, frames, false);
+    ASSERT_TRUE(outcome.opened) << outcome.status.toString();
+    EXPECT_LT(outcome.frames, frames.size());
+    ASSERT_FALSE(outcome.damage.empty())
+        << outcome.frames << " of " << frames.size() << " frames, " << outcome.status.toString();
+    const RecordingDamage& d = outcome.damage.front();
+    EXPECT_GE(d.byte_offset, static_cast<int64_t>(at) - 65536);
+    EXPECT_LE(d.byte_offset, static_cast<int64_t>(at + 5000) + 65536);
+    EXPECT_FALSE(d.what.empty());
+    EXPECT_GE(d.after_stamp_ns, frames.front().meta.host_stamp_ns);
+    if (outcome.status.code() == ErrorCode::kEndOfStream) {
+        // Reading went on after the damage, from a byte past it.
+        EXPECT_GT(d.resumed_at, static_cast<int64_t>(at));
+    }
 }
 
 TEST_F(MkvRobustness, RecordingCutOffByACrashReadsToItsLastFrame) {

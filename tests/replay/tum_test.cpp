@@ -357,6 +357,50 @@ TEST(TumFolder, RealFramePair) {
     test::expectSamePixels(test::realTumDepth(), out / "depth/1305031102.160407.png");
 }
 
+// What TUM cannot hold is known from the header, before anything is written: the streams
+// beyond one colour and one depth stream, attachments other than its side files, and (kept but
+// changed) stream names, tags and device stamps.
+TEST(TumFolder, LossesNameWhatTheFormatCannotHold) {
+    auto stream = [](const char* name, StreamKind kind, PixelFormat format) {
+        StreamInfo info;
+        info.name = name;
+        info.kind = kind;
+        info.format = ImageDesc::packed(format, 32, 24);
+        info.clock_domain = 7;
+        return info;
+    };
+    RecordingHeader header;
+    header.streams = {stream("cam/color", StreamKind::kColor, PixelFormat::kRGB8),
+                      stream("cam/depth", StreamKind::kDepth, PixelFormat::kDepth16),
+                      stream("mono/mono", StreamKind::kInfrared, PixelFormat::kMono8)};
+    header.attachments = {{"rig.yaml", "application/x-yaml", {'x'}},
+                          {"groundtruth.txt", "text/plain", {'y'}}};
+    header.tags = {{"rig", "r"}};
+    auto losses = tumLosses(header);
+    ASSERT_TRUE(losses) << losses.status().toString();
+    EXPECT_EQ(losses->dropped_streams, (std::vector<StreamId>{2}));
+    ASSERT_EQ(losses->dropped.size(), 2u);
+    EXPECT_NE(losses->dropped[0].find("mono/mono"), std::string::npos) << losses->dropped[0];
+    EXPECT_NE(losses->dropped[1].find("rig.yaml"), std::string::npos) << losses->dropped[1];
+    std::string changed;
+    for (const auto& line : losses->changed)
+        changed += line + "\n";
+    EXPECT_NE(changed.find("'cam/color' is read back as 'tum/color'"), std::string::npos)
+        << changed;
+    EXPECT_NE(changed.find("device stamps"), std::string::npos) << changed;
+    EXPECT_NE(changed.find("recording tags (rig)"), std::string::npos) << changed;
+
+    // A TUM folder's own header loses nothing.
+    const auto dir = test::tempDir();
+    test::writeSyntheticTum(dir / "tum", 2);
+    auto reader = openTum(dir / "tum");
+    ASSERT_TRUE(reader) << reader.status().toString();
+    auto none = tumLosses(headerOf(**reader));
+    ASSERT_TRUE(none) << none.status().toString();
+    EXPECT_FALSE(none->dropsData());
+    EXPECT_TRUE(none->changed.empty()) << none->changed.front();
+}
+
 TEST(DepthUnits, RescaleRoundsKeepsZeroAndNeverInventsNoMeasurement) {
     Image src(ImageDesc::packed(PixelFormat::kDepth16, 6, 1));
     const uint16_t raw[6] = {0, 1, 2, 3, 5000, 65535};

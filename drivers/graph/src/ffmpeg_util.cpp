@@ -3,10 +3,14 @@
 
 extern "C" {
 #include <libavutil/error.h>
+#include <libavutil/log.h>
 }
 
 #include <array>
 #include <cerrno>
+#include <cstdarg>
+#include <cstdio>
+#include <map>
 
 namespace mixray::ffmpeg {
 namespace {
@@ -34,7 +38,70 @@ constexpr CrcTables makeCrcTables() {
 
 constexpr CrcTables kCrcTables = makeCrcTables();
 
+// The contexts whose errors are collected, and the lock the log callback takes to find them.
+std::mutex& registryMutex() {
+    static std::mutex mutex;
+    return mutex;
+}
+std::map<const void*, DemuxerErrors*>& registry() {
+    static std::map<const void*, DemuxerErrors*> contexts;
+    return contexts;
+}
+
+extern "C" void logCallback(void* avcl, int level, const char* format, va_list args) {
+    DemuxerErrors* errors = nullptr;
+    if (avcl && level <= AV_LOG_ERROR) {
+        std::lock_guard lock(registryMutex());
+        auto it = registry().find(avcl);
+        if (it != registry().end())
+            errors = it->second;
+    }
+    if (!errors) {
+        av_log_default_callback(avcl, level, format, args);
+        return;
+    }
+    std::array<char, 512> text{};
+    va_list copy;
+    va_copy(copy, args);
+    std::vsnprintf(text.data(), text.size(), format, copy);
+    va_end(copy);
+    std::string message = text.data();
+    while (!message.empty() && (message.back() == '\n' || message.back() == ' '))
+        message.pop_back();
+    // The callback runs on the thread that drives the demuxer, so its position is stable.
+    const auto* context = static_cast<const AVFormatContext*>(avcl);
+    errors->add({context->pb ? avio_tell(context->pb) : -1, std::move(message)});
+}
+
 }  // namespace
+
+DemuxerErrors::DemuxerErrors(AVFormatContext* context) : context_(context) {
+    static std::once_flag installed;
+    std::call_once(installed, [] { av_log_set_callback(logCallback); });
+    std::lock_guard lock(registryMutex());
+    registry()[context_] = this;
+}
+
+DemuxerErrors::~DemuxerErrors() {
+    std::lock_guard lock(registryMutex());
+    auto it = registry().find(context_);
+    if (it != registry().end() && it->second == this)
+        registry().erase(it);
+}
+
+std::vector<DemuxerErrors::Entry> DemuxerErrors::take() {
+    std::lock_guard lock(mutex_);
+    std::vector<Entry> out;
+    out.swap(entries_);
+    return out;
+}
+
+void DemuxerErrors::add(Entry entry) {
+    std::lock_guard lock(mutex_);
+    // A resynchronising demuxer can log an error per byte it skips; the first ones tell where.
+    if (entries_.size() < 64)
+        entries_.push_back(std::move(entry));
+}
 
 std::string errorString(int av_error) {
     char text[AV_ERROR_MAX_STRING_SIZE] = {};

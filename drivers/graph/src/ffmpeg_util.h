@@ -11,8 +11,10 @@ extern "C" {
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "mixray/graph/result.h"
 
@@ -41,6 +43,34 @@ struct CodecContextDeleter {
 using PacketPtr = std::unique_ptr<AVPacket, PacketDeleter>;
 using FramePtr = std::unique_ptr<AVFrame, FrameDeleter>;
 using CodecContextPtr = std::unique_ptr<AVCodecContext, CodecContextDeleter>;
+
+// The errors FFmpeg logs about one demuxer context, collected while this object lives: the
+// Matroska demuxer reports damage it skips (and resynchronises after) only in its log. The
+// first instance installs a process-wide log callback that keeps the errors of registered
+// contexts and passes everything else to FFmpeg's default callback (which applies
+// av_log_set_level). Does not take ownership of `context`; destroy this before the context.
+// take() is thread-bound to the thread that uses the context.
+class DemuxerErrors {
+public:
+    struct Entry {
+        int64_t byte_offset = -1;  // the demuxer's read position when it logged, -1 unknown
+        std::string message;
+    };
+    explicit DemuxerErrors(AVFormatContext* context);
+    ~DemuxerErrors();
+    DemuxerErrors(const DemuxerErrors&) = delete;
+    DemuxerErrors& operator=(const DemuxerErrors&) = delete;
+
+    // The errors logged since the last call, oldest first.
+    std::vector<Entry> take();
+    // Called by the log callback (any thread that logs about the context).
+    void add(Entry entry);
+
+private:
+    AVFormatContext* context_;
+    std::mutex mutex_;
+    std::vector<Entry> entries_;
+};
 
 // The value of `key` in `dict`, or nullptr.
 const char* dictValue(const AVDictionary* dict, const char* key);

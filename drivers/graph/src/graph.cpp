@@ -167,6 +167,17 @@ uint64_t Graph::publishedCount(StreamId stream) const {
     return stream < streams_.size() ? streams_[stream]->published.load() : 0;
 }
 
+void Graph::countLost(StreamId stream, uint64_t frames) {
+    std::lock_guard lock(mutex_);
+    if (stream < streams_.size())
+        streams_[stream]->lost.fetch_add(frames);
+}
+
+uint64_t Graph::lostCount(StreamId stream) const {
+    std::lock_guard lock(mutex_);
+    return stream < streams_.size() ? streams_[stream]->lost.load() : 0;
+}
+
 std::vector<EdgeStats> Graph::edgeStats() const {
     std::lock_guard lock(mutex_);
     std::vector<EdgeStats> out;

@@ -110,6 +110,7 @@ public:
     const std::map<std::string, std::string>& tags() const override { return tags_; }
     Result<FrameRef> next() override;
     Status seek(int64_t host_stamp_ns) override;
+    std::vector<RecordingDamage> damage() const override { return damage_; }
 
 private:
     Status openInput();
@@ -118,6 +119,8 @@ private:
     Status addAttachment(const AVStream* st);
     Status openDecoder(Track& track, const AVStream* st);
     void fill();
+    // Turns the demuxer's logged errors into damage; `packet` is the packet read after them.
+    void noteDamage(const AVPacket* packet);
     Status demux(AVPacket* packet);
     Status demuxMixray(Track& track, size_t index, AVPacket* packet);
     Status demuxAzure(Track& track, size_t index, AVPacket* packet);
@@ -133,6 +136,8 @@ private:
     fs::path path_;
     MkvReaderOptions options_;
     FormatPtr fmt_;
+    // Declared after fmt_: unregistered before the context it watches is freed.
+    std::unique_ptr<ffmpeg::DemuxerErrors> errors_;
     PacketPtr packet_;
     std::string format_;
     bool azure_ = false;
@@ -154,9 +159,13 @@ private:
     int64_t max_pts_ms_ = std::numeric_limits<int64_t>::min();
     int64_t azure_offset_ns_ = 0;
     uint64_t frames_read_ = 0;
+    std::vector<RecordingDamage> damage_;
+    bool resync_pending_ = false;  // damage_.back() waits for the byte reading resumed at
+    int64_t last_stamp_ns_ = -1;   // host stamp of the last frame demuxed
 };
 
 Status MkvReader::openInput() {
+    errors_.reset();
     fmt_.reset();
     AVFormatContext* context = avformat_alloc_context();
     if (!context)
@@ -175,6 +184,7 @@ Status MkvReader::openInput() {
         return corrupt("not a readable Matroska file: " + ffmpeg::errorString(err));
     }
     fmt_.reset(context);
+    errors_ = std::make_unique<ffmpeg::DemuxerErrors>(context);
     for (unsigned i = 0; i < fmt_->nb_streams; ++i) {
         const bool used = i < track_of_.size() && track_of_[i] >= 0;
         fmt_->streams[i]->discard = used ? AVDISCARD_DEFAULT : AVDISCARD_ALL;
@@ -460,6 +470,7 @@ Status MkvReader::openAzure() {
 }
 
 void MkvReader::enqueue(Pending pending) {
+    last_stamp_ns_ = std::max(last_stamp_ns_, pending.meta.host_stamp_ns);
     // Stable: equal stamps keep file order.
     auto at = std::upper_bound(
         pending_.begin(), pending_.end(), pending.meta.host_stamp_ns,
@@ -608,6 +619,7 @@ void MkvReader::fill() {
     while (!demux_done_ && pending_.size() < window_) {
         av_packet_unref(packet);
         const int err = av_read_frame(fmt_.get(), packet);
+        noteDamage(err >= 0 ? packet : nullptr);
         if (err == AVERROR(EAGAIN))
             continue;
         if (err < 0) {
@@ -627,6 +639,28 @@ void MkvReader::fill() {
         }
     }
     av_packet_unref(packet);
+}
+
+void MkvReader::noteDamage(const AVPacket* packet) {
+    std::vector<ffmpeg::DemuxerErrors::Entry> errors =
+        errors_ ? errors_->take() : std::vector<ffmpeg::DemuxerErrors::Entry>{};
+    // A seek back over damage already found reads it again: it is reported once.
+    const bool known =
+        !errors.empty() && std::any_of(damage_.begin(), damage_.end(), [&](const auto& d) {
+            return d.byte_offset == errors.front().byte_offset;
+        });
+    if (!errors.empty() && !resync_pending_ && !known) {
+        RecordingDamage d;
+        d.byte_offset = errors.front().byte_offset;
+        d.after_stamp_ns = last_stamp_ns_;
+        d.what = errors.front().message;
+        damage_.push_back(std::move(d));
+        resync_pending_ = true;
+    }
+    if (resync_pending_ && packet) {
+        damage_.back().resumed_at = packet->pos;
+        resync_pending_ = false;
+    }
 }
 
 Status MkvReader::ensurePool(Track& track, size_t bytes) {
@@ -680,8 +714,9 @@ Result<FrameRef> MkvReader::materialize(const Pending& pending) {
             if (err >= 0)
                 err = avcodec_receive_frame(decoder, decoded);
             if (err < 0) {
-                return corrupt("frame of '" + track.info.name +
-                               "' does not decode: " + ffmpeg::errorString(err));
+                return corrupt("frame of '" + track.info.name + "' at byte " +
+                               std::to_string(pending.packet->pos) +
+                               " does not decode: " + ffmpeg::errorString(err));
             }
             const auto expected = mkv::storageFor(desc.format)->pixel;
             if (decoded->width != desc.width || decoded->height != desc.height ||
@@ -738,6 +773,7 @@ Result<FrameRef> MkvReader::next() {
 
 Status MkvReader::seek(int64_t host_stamp_ns) {
     pending_.clear();
+    resync_pending_ = false;
     demux_done_ = false;
     terminal_ = Status::ok();
     skip_before_ns_ = host_stamp_ns;

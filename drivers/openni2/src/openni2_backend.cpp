@@ -682,6 +682,12 @@ bool OpenNI2Device::reopen(std::vector<std::string>& known_uris) {
     return true;
 }
 
+void OpenNI2Device::countLost(size_t stream, uint64_t frames) {
+    dropped_.fetch_add(frames, std::memory_order_relaxed);
+    if (graph_ && stream < ids_.size())
+        graph_->countLost(ids_[stream], frames);
+}
+
 Status OpenNI2Device::connect(Graph& graph) {
     if (graph_)
         return {ErrorCode::kInvalidArgument, "openni2 device '" + name_ + "' connected twice"};
@@ -771,11 +777,17 @@ void OpenNI2Device::run() {
     std::vector<openni::VideoStream*> handles;
     for (auto& s : impl.streams)
         handles.push_back(&s->stream);
-    const bool waits_for_buffers = impl.is_file && options_.pace == OpenNI2Options::Pace::kFast;
-    // Seeking reads and drops frames (at the playback's pace): OpenNI2's own seek command
-    // never returns on recordings it cannot seek, and timed playback switched to manual
-    // mode and back delivered nothing more (see README.md).
+    // A recording waits for buffers: every frame of a file reaches the graph.
+    const bool waits_for_buffers = impl.is_file;
+    // Seeking reads and drops frames: OpenNI2's own seek command never returns on recordings
+    // it cannot seek (see README.md).
     bool seeking = impl.is_file && options_.seek > 1;
+    // Recordings: host stamps follow the frames' own timestamps from the first frame published
+    // (divided by the speed), and pace=original waits until each one is due.
+    bool clock_started = false;
+    int64_t host0_ns = 0;
+    int64_t device0_ns = 0;
+    const double speed = options_.pace == OpenNI2Options::Pace::kFast ? 1.0 : options_.speed;
     int timeouts_after_end = 0;
     for (auto& s : impl.streams)
         s->done = impl.is_file && s->recorded_frames <= 0;
@@ -828,9 +840,24 @@ void OpenNI2Device::run() {
         if (rc == openni::STATUS_TIME_OUT) {
             // A recording's player stops at its end; done streams already account for it.
             if (impl.is_file && !options_.loop && ++timeouts_after_end > 50) {
-                setError({ErrorCode::kCorruptData, "openni2 device '" + name_ +
-                                                       "': the recording stopped delivering "
-                                                       "frames before its recorded count"});
+                std::string missing;
+                for (size_t i = 0; i < n; ++i) {
+                    const Impl::Stream& st = *impl.streams[i];
+                    if (st.done || st.last_index >= st.recorded_frames)
+                        continue;
+                    countLost(i, static_cast<uint64_t>(st.recorded_frames - st.last_index));
+                    missing += (missing.empty() ? "" : ", ") +
+                               std::to_string(st.recorded_frames - st.last_index) + " of " +
+                               std::to_string(st.recorded_frames) + " " +
+                               std::string(toString(st.sensor)) + " frames";
+                }
+                setError({ErrorCode::kCorruptData,
+                          "openni2 device '" + name_ +
+                              "': the recording stopped delivering frames before its recorded "
+                              "count (" +
+                              (missing.empty() ? "none" : missing) + " never came)"});
+                for (StreamId id : ids_)
+                    graph_->endStream(id);
                 break;
             }
             continue;
@@ -858,7 +885,7 @@ void OpenNI2Device::run() {
                       "openni2 device '" + name_ + "': reading a frame: " + openniError()});
             break;
         }
-        const int64_t host_ns = hostNowNs();
+        int64_t host_ns = hostNowNs();
         const int frame_index = frame.getFrameIndex();
         int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
 
@@ -870,6 +897,10 @@ void OpenNI2Device::run() {
                     impl.pass_length_ns = impl.max_stamp_ns + std::llround(1e9 / fps);
                 }
                 ++s.pass;
+            } else if (frame_index > s.last_index + 1 && !seeking) {
+                // Frames OpenNI2 numbered but never handed over: counted and said.
+                countLost(static_cast<size_t>(index),
+                          static_cast<uint64_t>(frame_index - s.last_index - 1));
             }
             s.last_index = frame_index;
             if (s.pass == 0)
@@ -880,6 +911,20 @@ void OpenNI2Device::run() {
                 seeking = false;
             }
             device_ns += static_cast<int64_t>(s.pass) * impl.pass_length_ns;
+            if (!clock_started) {
+                clock_started = true;
+                host0_ns = host_ns;
+                device0_ns = device_ns;
+            }
+            host_ns = host0_ns + std::llround(static_cast<double>(device_ns - device0_ns) / speed);
+            if (options_.pace == OpenNI2Options::Pace::kOriginal) {
+                while (!stop_requested_ && hostNowNs() < host_ns) {
+                    std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(
+                        std::chrono::nanoseconds(host_ns - hostNowNs()), kLostSlice));
+                }
+                if (stop_requested_)
+                    break;
+            }
         }
         uint64_t sequence = static_cast<uint64_t>(frame_index) +
                             s.pass * static_cast<uint64_t>(std::max(s.recorded_frames, 0));
@@ -918,7 +963,7 @@ void OpenNI2Device::run() {
         if (!out) {
             if (stop_requested_)
                 break;
-            dropped_.fetch_add(1, std::memory_order_relaxed);
+            countLost(static_cast<size_t>(index), 1);
         } else {
             const auto* src = static_cast<const uint8_t*>(frame.getData());
             const int src_stride = frame.getStrideInBytes();
@@ -1190,11 +1235,12 @@ Result<std::unique_ptr<Device>> OpenNI2Backend::open(const DeviceConfig& config)
                         std::to_string(impl->streams.front()->recorded_frames) + " frames of the " +
                         std::string(toString(impl->streams.front()->sensor)) + " stream"};
         }
-        // Speed -1 is OpenNI2's manual playback: a frame is produced only when the previous one
-        // was read, so none is lost however slow the consumers.
-        const float speed =
-            o.pace == OpenNI2Options::Pace::kFast ? -1.0f : static_cast<float>(o.speed);
-        if (playback->setSpeed(speed) != openni::STATUS_OK ||
+        // Always OpenNI2's manual playback (speed -1): a frame is produced only when the previous
+        // one was read, so none is lost however slow the consumers. OpenNI2's timed playback
+        // replaces a frame not yet read by the next one without a word (8 of 12 depth frames
+        // of the Kinect recording reached a rig); pace=original is kept by the capture thread,
+        // which waits for each frame's own timestamp instead.
+        if (playback->setSpeed(-1.0f) != openni::STATUS_OK ||
             playback->setRepeatEnabled(o.loop) != openni::STATUS_OK) {
             return {ErrorCode::kInternal,
                     context + ": OpenNI2 refused the playback settings: " + openniError()};

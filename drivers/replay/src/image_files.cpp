@@ -233,6 +233,55 @@ Result<ColorAndDepth> pickColorAndDepth(const RecordingHeader& header, std::stri
     return ColorAndDepth{*c, *d};
 }
 
+WriteLosses folderWriterLosses(const RecordingHeader& header, const ColorAndDepth& picked,
+                               std::string_view format, std::string_view color_name,
+                               std::string_view depth_name,
+                               const std::function<bool(const std::string&)>& keeps,
+                               std::string_view kept_attachments) {
+    WriteLosses losses;
+    const std::string name(format);
+    for (size_t i = 0; i < header.streams.size(); ++i) {
+        const StreamInfo& s = header.streams[i];
+        const auto id = static_cast<StreamId>(i);
+        if (id == picked.color || id == picked.depth) {
+            const std::string_view back = id == picked.color ? color_name : depth_name;
+            if (s.name != back) {
+                losses.changed.push_back("stream '" + s.name + "' is read back as '" +
+                                         std::string(back) + "' (" + name +
+                                         " stores no stream names)");
+            }
+            if (s.clock_domain != kHostClockDomain) {
+                losses.changed.push_back("stream '" + s.name +
+                                         "': device stamps and sequence numbers are not kept (" +
+                                         name + " stores one host timestamp per frame)");
+            }
+            continue;
+        }
+        losses.dropped_streams.push_back(id);
+        losses.dropped.push_back("stream '" + s.name + "' (" + std::string(toString(s.kind)) +
+                                 ", " + std::string(toString(s.format.format)) + "): " + name +
+                                 " holds one colour stream (rgb8, bgr8, mjpeg) and one depth16 "
+                                 "stream");
+    }
+    for (const Attachment& a : header.attachments) {
+        if (!keeps(a.name)) {
+            losses.dropped.push_back("attachment '" + a.name + "': " + name + " keeps only " +
+                                     std::string(kept_attachments));
+        }
+    }
+    std::string keys;
+    for (const auto& [key, value] : header.tags) {
+        // What the folder readers set themselves (the format, the folder's name) is not lost.
+        if (key != "source_format" && key != "title")
+            keys += (keys.empty() ? "" : ", ") + key;
+    }
+    if (!keys.empty()) {
+        losses.changed.push_back("recording tags (" + keys + "): " + name +
+                                 " has no place for them");
+    }
+    return losses;
+}
+
 std::string_view shortStreamName(std::string_view name) {
     const size_t slash = name.rfind('/');
     return slash == std::string_view::npos ? name : name.substr(slash + 1);

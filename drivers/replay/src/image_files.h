@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "mixray/graph/recording.h"
+#include "mixray/replay/convert.h"
 
 namespace mixray::replay::detail {
 
@@ -67,6 +68,16 @@ struct ColorAndDepth {
 };
 Result<ColorAndDepth> pickColorAndDepth(const RecordingHeader& header, std::string_view color,
                                         std::string_view depth, std::string_view writer);
+
+// What a folder writer that stores `picked` as images named by host stamp loses of `header`.
+// `format` names it in messages ("TUM"); `color_name`/`depth_name` are the stream names its
+// reader gives back; `keeps` tells which attachments it writes back (`kept_attachments` says
+// which in words).
+WriteLosses folderWriterLosses(const RecordingHeader& header, const ColorAndDepth& picked,
+                               std::string_view format, std::string_view color_name,
+                               std::string_view depth_name,
+                               const std::function<bool(const std::string&)>& keeps,
+                               std::string_view kept_attachments);
 
 // Part of a stream name after its last '/': "kinect/depth" -> "depth".
 std::string_view shortStreamName(std::string_view name);

@@ -340,6 +340,19 @@ Result<std::unique_ptr<RecordingWriter>> createPclTiffWriter(const std::filesyst
     return PclTiffWriter::create(dir, header, options);
 }
 
+Result<WriteLosses> pclTiffLosses(const RecordingHeader& header,
+                                  const PclTiffWriterOptions& options) {
+    auto picked = detail::pickColorAndDepth(header, options.color_stream, options.depth_stream,
+                                            "PCL TIFF writer");
+    if (!picked)
+        return picked.status();
+    const auto keeps = [](const std::string& name) {
+        return endsWith(name, ".xml") && name.find('/') == std::string::npos;
+    };
+    return detail::folderWriterLosses(header, *picked, "PCL TIFF", "pcl/color", "pcl/depth", keeps,
+                                      "*.xml camera files");
+}
+
 Result<ConvertSummary> exportPclTiff(RecordingReader& reader, const std::filesystem::path& dir,
                                      const PclTiffWriterOptions& options) {
     auto writer = createPclTiffWriter(dir, headerOf(reader), options);

@@ -896,10 +896,17 @@ private:
 
 }  // namespace
 
-Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
-    const std::filesystem::path& dir, const RecordingHeader& header,
-    const PointCloudWriterOptions& options) {
-    MIXRAY_RETURN_IF_ERROR(options.validate());
+namespace {
+
+// The depth stream a writer with `options` deprojects and the colour stream its points take
+// colour from (kInvalidStream: none).
+struct CloudStreams {
+    StreamId depth = kInvalidStream;
+    StreamId color = kInvalidStream;
+};
+
+Result<CloudStreams> pickCloudStreams(const RecordingHeader& header,
+                                      const PointCloudWriterOptions& options) {
     auto depth =
         detail::pickStream(header, options.depth_stream, StreamKind::kDepth, "point clouds");
     if (!depth)
@@ -909,12 +916,6 @@ Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
                 "point clouds: the recording has no depth16 stream to deproject"};
     }
     const StreamInfo& depth_info = header.streams[*depth];
-    auto scale = depthScalePerMetre(depth_info);
-    if (!scale)
-        return scale.status();
-    auto k = depthIntrinsics(header, *depth, options);
-    if (!k)
-        return k.status();
     StreamId color = kInvalidStream;
     auto registered = depth_info.tags.find(kRegisteredToTag);
     if (options.color && registered != depth_info.tags.end()) {
@@ -937,6 +938,46 @@ Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
             color = static_cast<StreamId>(i);
         }
     }
+    return CloudStreams{*depth, color};
+}
+
+}  // namespace
+
+Result<WriteLosses> pointCloudLosses(const RecordingHeader& header,
+                                     const PointCloudWriterOptions& options) {
+    auto picked = pickCloudStreams(header, options);
+    if (!picked)
+        return picked.status();
+    WriteLosses losses;
+    for (size_t i = 0; i < header.streams.size(); ++i) {
+        const auto id = static_cast<StreamId>(i);
+        if (id == picked->depth || id == picked->color)
+            continue;
+        losses.dropped_streams.push_back(id);
+        losses.dropped.push_back("stream '" + header.streams[i].name +
+                                 "': point clouds hold one depth stream and the colour it is "
+                                 "registered to");
+    }
+    for (const auto& attachment : header.attachments)
+        losses.dropped.push_back("attachment '" + attachment.name + "'");
+    return losses;
+}
+
+Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
+    const std::filesystem::path& dir, const RecordingHeader& header,
+    const PointCloudWriterOptions& options) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    auto picked = pickCloudStreams(header, options);
+    if (!picked)
+        return picked.status();
+    const StreamId depth = picked->depth, color = picked->color;
+    const StreamInfo& depth_info = header.streams[depth];
+    auto scale = depthScalePerMetre(depth_info);
+    if (!scale)
+        return scale.status();
+    auto k = depthIntrinsics(header, depth, options);
+    if (!k)
+        return k.status();
     MIXRAY_RETURN_IF_ERROR(detail::prepareOutputDir(dir));
     std::ofstream list(dir / "clouds.txt", std::ios::binary | std::ios::trunc);
     if (!list)
@@ -945,7 +986,7 @@ Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
          << " (mixray convert); intrinsics fx,fy,cx,cy " << formatIntrinsics(*k) << "\n"
          << "# timestamp filename\n";
     return std::unique_ptr<RecordingWriter>(
-        new PointCloudWriter(dir, options, *depth, color, *scale, *k, std::move(list)));
+        new PointCloudWriter(dir, options, depth, color, *scale, *k, std::move(list)));
 }
 
 }  // namespace mixray::replay

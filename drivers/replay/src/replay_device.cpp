@@ -411,6 +411,17 @@ void ReplayDevice::run() {
                 }
                 if (code == ErrorCode::kEndOfStream) {
                     passes_.fetch_add(1);
+                    // The reader read past damage: the frames in it are lost, and said.
+                    const std::vector<RecordingDamage> damage = reader_->damage();
+                    if (!damage.empty()) {
+                        setError({ErrorCode::kCorruptData,
+                                  "replay " + descriptor_.id + ": " +
+                                      std::to_string(damage.size()) +
+                                      " damaged stretch(es) skipped, frames in them lost; the "
+                                      "first at byte " +
+                                      std::to_string(damage.front().byte_offset) + ": " +
+                                      damage.front().what});
+                    }
                     if (!options_.loop || !pass_seen)
                         break;
                     if (pass == 0) {

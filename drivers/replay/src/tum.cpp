@@ -469,6 +469,19 @@ Result<std::unique_ptr<RecordingWriter>> createTumWriter(const std::filesystem::
     return TumWriter::create(dir, header, options);
 }
 
+Result<WriteLosses> tumLosses(const RecordingHeader& header, const TumWriterOptions& options) {
+    auto picked =
+        detail::pickColorAndDepth(header, options.color_stream, options.depth_stream, "TUM writer");
+    if (!picked)
+        return picked.status();
+    const auto keeps = [](const std::string& name) {
+        return std::any_of(std::begin(kSideFiles), std::end(kSideFiles),
+                           [&](const char* side) { return name == side; });
+    };
+    return detail::folderWriterLosses(header, *picked, "TUM", "tum/color", "tum/depth", keeps,
+                                      "accelerometer.txt and groundtruth.txt");
+}
+
 Result<ConvertSummary> exportTum(RecordingReader& reader, const std::filesystem::path& dir,
                                  const TumWriterOptions& options) {
     auto writer = createTumWriter(dir, headerOf(reader), options);

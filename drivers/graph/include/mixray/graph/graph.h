@@ -83,6 +83,11 @@ public:
     bool running() const { return running_.load(); }
 
     uint64_t publishedCount(StreamId stream) const;
+    // Frames a source made or read but could not publish on `stream` (a full pool, a frame a
+    // player skipped): sources count them here so commands report them beside the consumers'
+    // drops (edgeStats). Unknown streams are ignored.
+    void countLost(StreamId stream, uint64_t frames = 1);
+    uint64_t lostCount(StreamId stream) const;
     std::vector<EdgeStats> edgeStats() const;
 
 private:
@@ -90,6 +95,7 @@ private:
         StreamInfo info;
         std::shared_ptr<const std::vector<std::shared_ptr<FrameQueue>>> subscribers;
         std::atomic<uint64_t> published{0};
+        std::atomic<uint64_t> lost{0};
     };
     std::shared_ptr<const std::vector<std::shared_ptr<FrameQueue>>> subscribersOf(
         StreamId stream) const;

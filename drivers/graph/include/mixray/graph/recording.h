@@ -24,6 +24,15 @@ struct Attachment {
     bool operator==(const Attachment&) const = default;
 };
 
+// A damaged stretch of a recording that a reader skipped to read on: where it is, and what
+// the reader saw there.
+struct RecordingDamage {
+    int64_t byte_offset = -1;     // where the reader found it in the file; -1 unknown
+    int64_t resumed_at = -1;      // the byte where it read frames again; -1 never
+    int64_t after_stamp_ns = -1;  // host stamp of the last frame read before it; -1 none
+    std::string what;             // the reader's description ("Invalid EBML number ...")
+};
+
 // Sequential reader of one recording. Frames come from pools the reader owns; StreamIds in
 // frame metadata index streams(). Thread-bound.
 class RecordingReader {
@@ -47,6 +56,10 @@ public:
     // Positions the reader so that next() returns, for every stream, the first frame whose
     // host_stamp_ns >= stamp_ns.
     virtual Status seek(int64_t host_stamp_ns) = 0;
+
+    // Damage found so far and read past (frames in it are lost). Readers that stop at the
+    // first damage (next() returns kCorruptData) report none here.
+    virtual std::vector<RecordingDamage> damage() const { return {}; }
 };
 
 // What a writer is asked to store besides frames.

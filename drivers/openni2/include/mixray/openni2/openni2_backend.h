@@ -44,8 +44,9 @@ struct SensorRequest {
 //                  devices that cannot register (recordings, drivers without it)
 //   sync           on | off: hardware depth/color frame sync on live devices (default on when
 //                  depth and color are both enabled)
-//   pace           original | fast: recordings only; fast = OpenNI2's manual playback, every
-//                  frame delivered, as fast as consumers allow (default original)
+//   pace           original | fast: recordings only; both play every frame (OpenNI2's manual
+//                  playback); original publishes each when its own timestamp (/ speed) is due,
+//                  fast as soon as consumers allow (default original)
 //   speed          > 0, recordings with pace=original (default 1)
 //   loop           true | false: recordings only, OpenNI2's repeat (default false)
 //   seek           frame number (OpenNI2 numbering, 1 = first) of the first enabled stream
@@ -87,11 +88,17 @@ ClockDomainId defaultClockDomain(std::string_view device_name);
 //                   continue the count)
 //   device_stamp_ns OpenNI2's timestamp (µs) in ns, in the device's clock domain (recordings:
 //                   rebased to 0 by OpenNI2; on loops later passes are shifted by one pass)
-//   host_stamp_ns   CLOCK_MONOTONIC when the capture thread read the frame
+//   host_stamp_ns   live devices: CLOCK_MONOTONIC when the capture thread read the frame;
+//                   recordings: the first frame's read time plus the frame's own device time
+//                   since the first frame (divided by speed), so a recording keeps its timing
+//                   whatever the pace
 // so that ClockSync maps device time onto host time. A recording without loop ends every
-// stream (Graph::endStream) after its last frame. A full pool drops the frame (counted),
-// except with pace=fast, which waits for a buffer. One recording can back one device at a
-// time in a process (OpenNI2 would share its player); a second open is kUnavailable.
+// stream (Graph::endStream) after its last frame. Recordings deliver every frame (they wait
+// for a pool buffer); on live devices a full pool drops the frame. Every frame that does not
+// reach the graph (a full pool, a frame number OpenNI2 skipped, frames a recording never
+// delivered) is counted in droppedFrames() and Graph::lostCount().
+// One recording can back one device at a time in a process (OpenNI2 would share its player);
+// a second open is kUnavailable.
 // A live device lost while streaming (OpenNI2's device-disconnected event for its URI, or a
 // failed wait or read) is released and error() is kUnavailable naming it; the graph keeps
 // running. With reconnect (the default) the capture thread looks for it again (its URI, else a
@@ -159,6 +166,9 @@ private:
     OpenNI2Device(std::string name, OpenNI2Options options, std::unique_ptr<Impl> impl);
     void run();
     void setError(Status status);
+    // Counts frames of stream `stream` (index into ids_) that never reached the graph, here and
+    // in the graph's lost count.
+    void countLost(size_t stream, uint64_t frames);
     // Sets the status whatever it was: a loss replaces ok, a reopen clears the loss.
     void resetError(Status status);
     // Stops and destroys the streams and closes the lost device.

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "mixray/graph/recording.h"
@@ -11,6 +12,18 @@ namespace mixray::replay {
 
 // The header a writer needs to reproduce `reader`: its streams, attachments and tags.
 RecordingHeader headerOf(const RecordingReader& reader);
+
+// What a target format cannot hold of a recording, found from its header before anything is
+// written, so a conversion can refuse or say it (never drop data without a word).
+struct WriteLosses {
+    // Streams whose frames the format does not store, indexed like header.streams.
+    std::vector<StreamId> dropped_streams;
+    // Data left out, one line each: streams (with why) and attachments.
+    std::vector<std::string> dropped;
+    // What is kept but changed: stream names read back differently, tags, device stamps.
+    std::vector<std::string> changed;
+    bool dropsData() const { return !dropped.empty(); }
+};
 
 // Where a conversion stands, passed to the progress callback after every frame.
 struct ConvertProgress {

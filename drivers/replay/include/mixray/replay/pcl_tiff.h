@@ -55,6 +55,12 @@ Result<std::unique_ptr<RecordingWriter>> createPclTiffWriter(
     const std::filesystem::path& dir, const RecordingHeader& header,
     const PclTiffWriterOptions& options = {});
 
+// What createPclTiffWriter(dir, header, options) would not store (streams other than the
+// chosen colour and depth, attachments other than *.xml) or would change (stream names, tags,
+// device stamps). Errors as createPclTiffWriter's for a header it cannot write at all.
+Result<WriteLosses> pclTiffLosses(const RecordingHeader& header,
+                                  const PclTiffWriterOptions& options = {});
+
 // Writes every frame `reader` has left into a new PCL TIFF folder.
 Result<ConvertSummary> exportPclTiff(RecordingReader& reader, const std::filesystem::path& dir,
                                      const PclTiffWriterOptions& options = {});

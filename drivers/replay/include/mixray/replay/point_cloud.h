@@ -114,6 +114,11 @@ Result<PinholeIntrinsics> depthIntrinsics(const RecordingHeader& header, StreamI
 // cloud_<n>.ply or .pcd (n counting from 000000), and clouds.txt listing "timestamp file" per
 // line as TUM's lists do (host stamps, 9 fractional digits), so every cloud keeps its time.
 // Other streams are ignored. Errors name the stream and the missing piece.
+// What point clouds of `header` leave out: every stream but the depth stream and its registered
+// colour, and the attachments (mixray convert lists them).
+Result<WriteLosses> pointCloudLosses(const RecordingHeader& header,
+                                     const PointCloudWriterOptions& options = {});
+
 Result<std::unique_ptr<RecordingWriter>> createPointCloudWriter(
     const std::filesystem::path& dir, const RecordingHeader& header,
     const PointCloudWriterOptions& options = {});

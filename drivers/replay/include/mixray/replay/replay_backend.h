@@ -65,7 +65,7 @@ struct ReplayOptions {
 // Thread-safety: connect/start/stop are called by the graph's owner thread; status(),
 // finished(), publishedFrames() and passes() may be called from any thread.
 class ReplayDevice : public Device {
-  public:
+public:
     ~ReplayDevice() override;
 
     std::string name() const override { return config_name_; }
@@ -74,7 +74,8 @@ class ReplayDevice : public Device {
     Status start() override;
     void stop() override;
 
-    // ok while playing and after a clean end; the reader's error when it failed midway.
+    // ok while playing and after a clean end; the reader's error when it failed midway;
+    // kCorruptData naming the first byte offset when it read past damage (RecordingDamage).
     Status status() const;
     // True once the playback thread has ended its streams (end of data, error or stop()).
     bool finished() const { return finished_.load(); }
@@ -83,7 +84,7 @@ class ReplayDevice : public Device {
     uint64_t passes() const { return passes_.load(); }
     const ReplayOptions& options() const { return options_; }
 
-  private:
+private:
     friend Result<std::unique_ptr<ReplayDevice>> openReplayDevice(
         std::unique_ptr<RecordingReader> reader, const DeviceConfig& config);
     ReplayDevice() = default;
@@ -121,7 +122,7 @@ Result<std::unique_ptr<ReplayDevice>> openReplayDevice(std::unique_ptr<Recording
 // understands). enumerate() lists nothing, without error: recordings are opened by path.
 // Thread-bound, like every DeviceBackend.
 class ReplayBackend : public DeviceBackend {
-  public:
+public:
     std::string_view name() const override { return "replay"; }
     Result<std::vector<DeviceDescriptor>> enumerate() override;
     Result<std::unique_ptr<Device>> open(const DeviceConfig& config) override;

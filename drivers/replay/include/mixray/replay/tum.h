@@ -87,6 +87,11 @@ Result<std::unique_ptr<RecordingWriter>> createTumWriter(const std::filesystem::
                                                          const RecordingHeader& header,
                                                          const TumWriterOptions& options = {});
 
+// What createTumWriter(dir, header, options) would not store (streams other than the chosen
+// colour and depth, attachments other than the side files) or would change (stream names,
+// tags, device stamps). Errors as createTumWriter's for a header it cannot write at all.
+Result<WriteLosses> tumLosses(const RecordingHeader& header, const TumWriterOptions& options = {});
+
 // Writes every frame `reader` has left (from its current position) into a new TUM folder.
 // Equivalent to createTumWriter(dir, headerOf(reader)) + convertRecording().
 Result<ConvertSummary> exportTum(RecordingReader& reader, const std::filesystem::path& dir,
