@@ -19,7 +19,9 @@
 // those modules so that LeakSanitizer still reports mixray's own leaks and nothing else.
 extern "C" const char* __lsan_default_suppressions() {
     return "leak:libOpenNI2.so\nleak:libOniFile.so\nleak:libDummyDevice.so\nleak:libPS1080.so\n"
-           "leak:libPSLink.so\nleak:libjpeg.so\n";
+           "leak:libPSLink.so\nleak:libjpeg.so\n"
+           // libdogleg under mrcal_optimize, when mrcal rejects outliers and optimises again.
+           "leak:libdogleg.so\n";
 }
 // The list of suppressions used would otherwise end every command's stderr (--json output too).
 extern "C" const char* __lsan_default_options() {
