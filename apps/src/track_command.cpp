@@ -9,6 +9,7 @@
 #include "console.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
+#include "mixray/graph/record_codec.h"
 #include "mixray/render/output.h"
 #include "mixray/replay/open_recording.h"
 #include "overlay.h"
@@ -187,6 +188,8 @@ public:
         } else {
             record.status = PoseStatus::kLost;
         }
+        if (record.status != PoseStatus::kValid)
+            record.reason = mixray::record::printableText(f.track.pose.reason, kPoseReasonMaxBytes);
         if (!f.track.targets.empty())
             record.error = static_cast<float>(f.track.targets.front().rms_px);
         auto bytes = encodePoseRecord(record);

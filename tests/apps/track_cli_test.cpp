@@ -14,6 +14,7 @@
 #include "cli_runner.h"
 #include "mixray/graph/frame.h"
 #include "mixray/graph/mkv.h"
+#include "mixray/graph/pose.h"
 #include "mixray/graph/rig.h"
 #include "mixray/tracking/sun.h"
 #include "test_data.h"
@@ -174,6 +175,28 @@ TEST(TrackCli, LostMarkerKeepsTheLastPoseStaleAndReacquires) {
     EXPECT_EQ(frames[10]["state"], "tracking");
     EXPECT_TRUE(frames[10]["reacquired"].get<bool>());
     EXPECT_FALSE(frames[10]["pose"]["stale"].get<bool>());
+
+    // The pose stream of the recording keeps the stale status and the reason.
+    auto tracked = openMkv(dir / "out" / "tracked.mkv");
+    ASSERT_TRUE(tracked) << tracked.status().toString();
+    std::vector<PoseRecord> poses;
+    while (true) {
+        auto frame = (*tracked)->next();
+        if (!frame)
+            break;
+        if ((*tracked)->streams()[frame->meta().stream].name != "tracking/pose")
+            continue;
+        auto record = decodePoseRecord(frame->image());
+        ASSERT_TRUE(record) << record.status().toString();
+        poses.push_back(*record);
+    }
+    ASSERT_EQ(poses.size(), 14u);
+    EXPECT_EQ(poses[5].status, PoseStatus::kValid);
+    EXPECT_TRUE(poses[5].reason.empty());
+    for (int i = 6; i <= 9; ++i) {
+        EXPECT_EQ(poses[i].status, PoseStatus::kStale) << i;
+        EXPECT_EQ(poses[i].reason, frames[i]["pose"]["reason"].get<std::string>()) << i;
+    }
 }
 
 TEST(TrackCli, BadInputIsAnErrorNotACrash) {

@@ -16,6 +16,7 @@ extern "C" {
 #include <string_view>
 #include <vector>
 
+#include "mixray/graph/record_codec.h"
 #include "mixray/graph/result.h"
 
 namespace mixray::ffmpeg {
@@ -75,17 +76,8 @@ private:
 // The value of `key` in `dict`, or nullptr.
 const char* dictValue(const AVDictionary* dict, const char* key);
 
-// Little-endian field access for the on-disk records (the file format is little-endian on
-// every host).
-inline void putLe(uint8_t* out, uint64_t value, int bytes) {
-    for (int i = 0; i < bytes; ++i)
-        out[i] = static_cast<uint8_t>(value >> (8 * i));
-}
-inline uint64_t getLe(const uint8_t* in, int bytes) {
-    uint64_t value = 0;
-    for (int i = 0; i < bytes; ++i)
-        value |= static_cast<uint64_t>(in[i]) << (8 * i);
-    return value;
-}
+// Little-endian field access for the on-disk records.
+using record::getLe;
+using record::putLe;
 
 }  // namespace mixray::ffmpeg

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "record_codec.h"
+#include "mixray/graph/record_codec.h"
 
 namespace mixray {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "record_codec.h"
+#include "mixray/graph/record_codec.h"
 
 namespace mixray {
 namespace {
@@ -19,11 +19,15 @@ using record::putF32;
 using record::putF64;
 using record::putLe;
 
-// Offsets in the record.
+// Offsets in the record; versions 1 and 2 agree up to the anchor. Version 1 ends with a
+// reserved u32 at 120, version 2 with the reason at 120 and a reserved u32 at 248.
 constexpr size_t kOffStatus = 6, kOffReserved0 = 7, kOffSequence = 8, kOffStamp = 16,
                  kOffMarker = 24, kOffError = 28, kOffTranslation = 32, kOffRotation = 56,
-                 kOffAnchor = 88, kOffReserved1 = 120;
-constexpr size_t kAnchorField = kOffReserved1 - kOffAnchor;  // 32 bytes, NUL-padded
+                 kOffAnchor = 88, kOffReason = 120, kOffV1Reserved = 120, kOffV2Reserved = 248;
+constexpr size_t kAnchorField = kOffReason - kOffAnchor;      // 32 bytes, NUL-padded
+constexpr size_t kReasonField = kOffV2Reserved - kOffReason;  // 128 bytes, NUL-padded
+static_assert(kReasonField == kPoseReasonMaxBytes + 1);
+static_assert(kOffV2Reserved + 8 == kPoseRecordBytes);
 
 }  // namespace
 
@@ -73,6 +77,13 @@ Status validate(const PoseRecord& r) {
                    std::to_string(r.rotation.norm()) + ")");
     if (!std::isfinite(r.error) || r.error < -1)
         return bad("error must be finite and >= -1");
+    if (r.reason.size() > kPoseReasonMaxBytes)
+        return bad("reason must have at most " + std::to_string(kPoseReasonMaxBytes) +
+                   " bytes, got " + std::to_string(r.reason.size()));
+    if (!record::isPrintableUtf8(r.reason))
+        return bad("reason holds bytes that are not printable UTF-8");
+    if (r.status == PoseStatus::kValid && !r.reason.empty())
+        return bad("a valid pose has no reason, got '" + r.reason + "'");
     return Status::ok();
 }
 
@@ -92,15 +103,22 @@ Result<std::array<uint8_t, kPoseRecordBytes>> encodePoseRecord(const PoseRecord&
     for (int i = 0; i < 4; ++i)
         putF64(out.data() + kOffRotation + 8 * i, q[i]);
     std::memcpy(out.data() + kOffAnchor, r.anchor.data(), r.anchor.size());
+    std::memcpy(out.data() + kOffReason, r.reason.data(), r.reason.size());
     record::putCrc(out.data(), out.size());
     return out;
 }
 
 Result<PoseRecord> decodePoseRecord(const uint8_t* data, size_t size) {
     const auto corrupt = [](const std::string& what) { return record::corrupt("pose", what); };
+    // The size says the version; the version field must then agree (checkFrame).
+    const bool v1 = size == kPoseRecordV1Bytes;
+    if (data == nullptr || (!v1 && size != kPoseRecordBytes))
+        return corrupt("expected " + std::to_string(kPoseRecordBytes) + " bytes (version 2) or " +
+                       std::to_string(kPoseRecordV1Bytes) + " (version 1), got " +
+                       std::to_string(data == nullptr ? 0 : size));
     MIXRAY_RETURN_IF_ERROR(
-        record::checkFrame(data, size, kPoseRecordBytes, kMagic, kPoseRecordVersion, "pose"));
-    if (data[kOffReserved0] != 0 || getLe(data + kOffReserved1, 4) != 0)
+        record::checkFrame(data, size, size, kMagic, v1 ? 1 : kPoseRecordVersion, "pose"));
+    if (data[kOffReserved0] != 0 || getLe(data + (v1 ? kOffV1Reserved : kOffV2Reserved), 4) != 0)
         return corrupt("reserved bytes are not zero");
     PoseRecord r;
     if (data[kOffStatus] > static_cast<uint8_t>(PoseStatus::kLost))
@@ -115,14 +133,12 @@ Result<PoseRecord> decodePoseRecord(const uint8_t* data, size_t size) {
     r.rotation =
         Eigen::Quaterniond(getF64(data + kOffRotation + 24), getF64(data + kOffRotation),
                            getF64(data + kOffRotation + 8), getF64(data + kOffRotation + 16));
-    const auto* anchor = reinterpret_cast<const char*>(data + kOffAnchor);
-    const size_t length = strnlen(anchor, kAnchorField);
-    if (length == kAnchorField)
-        return corrupt("anchor is not NUL-terminated");
-    for (size_t i = length; i < kAnchorField; ++i)
-        if (anchor[i] != 0)
-            return corrupt("anchor padding is not zero");
-    r.anchor.assign(anchor, length);
+    MIXRAY_RETURN_IF_ERROR(
+        record::getPaddedText(data + kOffAnchor, kAnchorField, "pose", "anchor", &r.anchor));
+    if (!v1) {
+        MIXRAY_RETURN_IF_ERROR(
+            record::getPaddedText(data + kOffReason, kReasonField, "pose", "reason", &r.reason));
+    }
     if (Status s = validate(r); !s)
         return Status(ErrorCode::kCorruptData, s.message());
     return r;
@@ -137,7 +153,7 @@ StreamInfo makePoseStreamInfo(const std::string& name, const std::string& pose_o
     info.format = ImageDesc::packed(PixelFormat::kBinary, static_cast<int>(kPoseRecordBytes), 1);
     info.nominal_fps = fps;
     info.tags["pose_of"] = pose_of;
-    info.tags["pose_record"] = "mixray-pose-1";
+    info.tags["pose_record"] = "mixray-pose-2";
     if (ground_truth)
         info.tags["ground_truth"] = "true";
     return info;
