@@ -10,6 +10,7 @@
 #include "console.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/replay/open_recording.h"
+#include "mixray/tracking/light_record.h"
 #include "recording_frames.h"
 
 namespace mixray::cli {
@@ -25,7 +26,36 @@ struct StreamSummary {
     std::vector<int64_t> intervals_ns;
     uint64_t sequence_gaps = 0;  // frames the device numbered but never delivered
     uint64_t last_sequence = 0;
+    // Pose, light and environment-map streams: their records decoded.
+    tracking::RecordStreamKind records = tracking::RecordStreamKind::kNone;
+    uint64_t stale = 0, lost = 0;
+    std::string first_reason;
+    struct Damaged {
+        uint64_t frame = 0;  // index in the stream
+        int64_t stamp_ns = 0;
+        std::string what;
+    };
+    std::vector<Damaged> damaged;
 };
+
+// Decodes one frame of a record stream into its summary.
+void addRecord(StreamSummary& s, const FrameRef& frame) {
+    auto digest = tracking::digestRecord(s.records, frame.image());
+    if (!digest) {
+        s.damaged.push_back({s.frames - 1, frame.meta().host_stamp_ns, digest.status().message()});
+        return;
+    }
+    s.stale += digest->stale;
+    s.lost += digest->lost;
+    if (s.first_reason.empty())
+        s.first_reason = digest->reason;
+}
+
+// "record 3 (0.1 s after start): light record: CRC mismatch (the record is damaged)".
+std::string describeDamagedRecord(const StreamSummary::Damaged& d, int64_t first_stamp_ns) {
+    return "record " + std::to_string(d.frame) + " (" +
+           formatDuration(d.stamp_ns - first_stamp_ns) + " after start): " + d.what;
+}
 
 // A gap is an interval longer than 1.5 nominal (or median) frame periods.
 struct GapReport {
@@ -90,6 +120,8 @@ int runInfo(const std::string& path, bool as_json) {
     RecordingReader& reader = **opened;
     const auto& streams = reader.streams();
     std::vector<StreamSummary> summaries(streams.size());
+    for (size_t i = 0; i < streams.size(); ++i)
+        summaries[i].records = tracking::recordStreamKind(streams[i]);
 
     Status end_status;
     uint64_t total = 0;
@@ -119,6 +151,8 @@ int runInfo(const std::string& path, bool as_json) {
         if (meta.status != FrameStatus::kOk)
             ++s.bad_frames;
         s.payload_bytes += frame.image().size_bytes;
+        if (s.records != tracking::RecordStreamKind::kNone)
+            addRecord(s, frame);
         ++total;
     }
 
@@ -159,22 +193,34 @@ int runInfo(const std::string& path, bool as_json) {
             const auto& info = streams[i];
             const auto& s = summaries[i];
             const GapReport gaps = gapsOf(s, info.nominal_fps);
-            j["streams"].push_back({{"name", info.name},
-                                    {"kind", std::string(toString(info.kind))},
-                                    {"format", std::string(toString(info.format.format))},
-                                    {"width", info.format.width},
-                                    {"height", info.format.height},
-                                    {"nominal_fps", info.nominal_fps},
-                                    {"measured_fps", gaps.measured_fps},
-                                    {"frames", s.frames},
-                                    {"bad_frames", s.bad_frames},
-                                    {"first_stamp_ns", s.first_ns},
-                                    {"last_stamp_ns", s.last_ns},
-                                    {"gaps", gaps.count},
-                                    {"longest_gap_ns", gaps.longest_ns},
-                                    {"sequence_gaps", s.sequence_gaps},
-                                    {"clock_domain", info.clock_domain},
-                                    {"tags", info.tags}});
+            nlohmann::json stream = {{"name", info.name},
+                                     {"kind", std::string(toString(info.kind))},
+                                     {"format", std::string(toString(info.format.format))},
+                                     {"width", info.format.width},
+                                     {"height", info.format.height},
+                                     {"nominal_fps", info.nominal_fps},
+                                     {"measured_fps", gaps.measured_fps},
+                                     {"frames", s.frames},
+                                     {"bad_frames", s.bad_frames},
+                                     {"first_stamp_ns", s.first_ns},
+                                     {"last_stamp_ns", s.last_ns},
+                                     {"gaps", gaps.count},
+                                     {"longest_gap_ns", gaps.longest_ns},
+                                     {"sequence_gaps", s.sequence_gaps},
+                                     {"clock_domain", info.clock_domain},
+                                     {"tags", info.tags}};
+            if (s.records != tracking::RecordStreamKind::kNone) {
+                nlohmann::json damaged = nlohmann::json::array();
+                for (const auto& d : s.damaged)
+                    damaged.push_back(
+                        {{"record", d.frame}, {"stamp_ns", d.stamp_ns}, {"what", d.what}});
+                stream["records"] = {{"decoded", s.frames - s.damaged.size()},
+                                     {"stale", s.stale},
+                                     {"lost", s.lost},
+                                     {"first_reason", s.first_reason},
+                                     {"damaged", damaged}};
+            }
+            j["streams"].push_back(std::move(stream));
         }
         j["attachments"] = nlohmann::json::array();
         for (const auto& a : reader.attachments()) {
@@ -224,6 +270,17 @@ int runInfo(const std::string& path, bool as_json) {
                 }
                 std::printf("\n");
             }
+            if (s.records != tracking::RecordStreamKind::kNone && s.frames > 0) {
+                std::printf("     records: %llu decoded, %llu stale, %llu lost, %zu damaged",
+                            static_cast<unsigned long long>(s.frames - s.damaged.size()),
+                            static_cast<unsigned long long>(s.stale),
+                            static_cast<unsigned long long>(s.lost), s.damaged.size());
+                if (!s.first_reason.empty())
+                    std::printf(" (first reason: %s)", s.first_reason.c_str());
+                std::printf("\n");
+                for (const auto& d : s.damaged)
+                    std::printf("     damaged %s\n", describeDamagedRecord(d, first).c_str());
+            }
         }
         if (!reader.attachments().empty())
             std::printf("attachments:\n");
@@ -246,6 +303,16 @@ int runInfo(const std::string& path, bool as_json) {
                                  "them are lost), the first " +
                                  describeDamage(d, total ? first : 0)});
     }
+    for (size_t i = 0; i < streams.size() && end_status.isOk(); ++i) {
+        const StreamSummary& s = summaries[i];
+        if (s.damaged.empty())
+            continue;
+        return fail("info",
+                    {ErrorCode::kCorruptData, path + ": stream '" + streams[i].name + "' holds " +
+                                                  std::to_string(s.damaged.size()) +
+                                                  " damaged record(s), the first " +
+                                                  describeDamagedRecord(s.damaged.front(), first)});
+    }
     if (!end_status.isOk()) {
         return fail("info", end_status.withContext(path + ": readable up to frame " +
                                                    std::to_string(total)));
@@ -259,7 +326,9 @@ void registerInfoCommand(CLI::App& app, Commands& commands) {
     auto* sub = app.add_subcommand(
         "info",
         "Describe a recording: streams, formats, frame counts, duration, timestamp gaps, "
-        "attachments. Reads every frame, so damage anywhere in the file is reported.");
+        "attachments. Reads every frame, so damage anywhere in the file is reported; the records "
+        "of pose, light and environment-map streams are decoded and their stale, lost and "
+        "damaged records counted.");
     struct Options {
         std::string path;
         bool json = false;

@@ -16,6 +16,7 @@
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
 #include "mixray/graph/rig.h"
+#include "mixray/tracking/light_record.h"
 #include "mixray/tracking/sun.h"
 #include "test_data.h"
 
@@ -197,6 +198,109 @@ TEST(TrackCli, LostMarkerKeepsTheLastPoseStaleAndReacquires) {
         EXPECT_EQ(poses[i].status, PoseStatus::kStale) << i;
         EXPECT_EQ(poses[i].reason, frames[i]["pose"]["reason"].get<std::string>()) << i;
     }
+}
+
+// mixray info decodes pose, light and environment-map streams: stale and lost records are
+// counted with the first reason, a damaged record is named with its place and makes info fail.
+TEST(InfoCli, SummarisesRecordStreamsAndNamesDamagedRecords) {
+    const fs::path dir = test::tempDir();
+    RecordingHeader header;
+    header.streams.push_back(makePoseStreamInfo("tracking/pose", "kinect/color", 30, false));
+    header.streams.push_back(tracking::makeLightStreamInfo("lights/estimate", "kinect/color", 30));
+    header.streams.push_back(
+        tracking::makeEnvironmentMapStreamInfo("lights/map", "env/fisheye", 8, 4));
+    const auto write = [&](const fs::path& path, bool damage) {
+        auto writer = createMkvWriter(path, header, {});
+        ASSERT_TRUE(writer) << writer.status().toString();
+        auto pool = BufferPool::create(
+            {ImageDesc::packed(PixelFormat::kBinary, 1 << 20, 1), 0, 4, "records"});
+        ASSERT_TRUE(pool);
+        const auto put = [&](StreamId stream, uint64_t i, const std::vector<uint8_t>& bytes) {
+            FrameMetadata meta;
+            meta.stream = stream;
+            meta.sequence = i;
+            meta.host_stamp_ns = meta.device_stamp_ns = 100000000 * static_cast<int64_t>(i + 1);
+            // One record per frame, its own size (the stream's width is the largest).
+            const ImageDesc desc =
+                ImageDesc::packed(PixelFormat::kBinary, static_cast<int>(bytes.size()), 1);
+            FrameRef frame = copyIntoPool(*pool, ImageView{desc, bytes.data(), bytes.size()}, meta);
+            ASSERT_TRUE(frame);
+            ASSERT_TRUE((*writer)->write(frame));
+        };
+        for (uint64_t i = 0; i < 4; ++i) {
+            PoseRecord pose;
+            pose.frame_sequence = i;
+            if (i >= 2) {
+                pose.status = i == 2 ? PoseStatus::kStale : PoseStatus::kLost;
+                pose.reason = "marker 23 not seen";
+            }
+            auto pose_bytes = encodePoseRecord(pose);
+            ASSERT_TRUE(pose_bytes);
+            put(0, i, {pose_bytes->begin(), pose_bytes->end()});
+
+            tracking::LightRecord lights;
+            lights.frame_sequence = i;
+            tracking::LightGroup group;
+            group.name = "environment";
+            group.stale = i == 1;
+            group.reason = i == 1 ? "environment image over-exposed" : "";
+            lights.groups.push_back(group);
+            auto light_bytes = tracking::encodeLightRecord(lights);
+            ASSERT_TRUE(light_bytes);
+            if (damage && i == 3)
+                (*light_bytes)[40] ^= 0x10;
+            put(1, i, *light_bytes);
+
+            FloatImage map;
+            map.width = 8;
+            map.height = 4;
+            map.pixels.assign(8 * 4 * 3, 0.5f);
+            tracking::EnvironmentMapHeader h;
+            h.stale = false;
+            std::vector<uint8_t> map_bytes(tracking::environmentMapRecordBytes(8, 4));
+            ASSERT_TRUE(
+                tracking::encodeEnvironmentMapRecord(map, h, map_bytes.data(), map_bytes.size()));
+            put(2, i, map_bytes);
+        }
+        ASSERT_TRUE((*writer)->close());
+    };
+    write(dir / "good.mkv", false);
+    write(dir / "damaged.mkv", true);
+
+    CliRun good = mixray("info " + q(dir / "good.mkv"));
+    ASSERT_EQ(good.exit_code, 0) << good.output;
+    EXPECT_NE(good.output.find("records: 4 decoded, 1 stale, 1 lost, 0 damaged (first reason: "
+                               "marker 23 not seen)"),
+              std::string::npos)
+        << good.output;
+    EXPECT_NE(good.output.find("records: 4 decoded, 1 stale, 0 lost, 0 damaged (first reason: "
+                               "environment: environment image over-exposed)"),
+              std::string::npos)
+        << good.output;
+    EXPECT_NE(good.output.find("records: 4 decoded, 0 stale, 0 lost, 0 damaged\n"),
+              std::string::npos)
+        << good.output;
+
+    CliRun damaged = mixray("info " + q(dir / "damaged.mkv"));
+    EXPECT_EQ(damaged.exit_code, 3) << damaged.output;
+    EXPECT_NE(damaged.output.find("damaged record 3 (300.0 ms after start): light record: CRC "
+                                  "mismatch"),
+              std::string::npos)
+        << damaged.output;
+    EXPECT_NE(damaged.output.find("stream 'lights/estimate' holds 1 damaged record(s)"),
+              std::string::npos)
+        << damaged.output;
+
+    CliRun as_json = mixray("info --json " + q(dir / "damaged.mkv"));
+    EXPECT_EQ(as_json.exit_code, 3) << as_json.output;
+    const json doc = json::parse(as_json.output.substr(
+        as_json.output.find('{'), as_json.output.rfind('}') - as_json.output.find('{') + 1));
+    const json& lights = doc["streams"][1]["records"];
+    EXPECT_EQ(lights["decoded"], 3);
+    EXPECT_EQ(lights["stale"], 1);
+    ASSERT_EQ(lights["damaged"].size(), 1u);
+    EXPECT_EQ(lights["damaged"][0]["record"], 3);
+    EXPECT_EQ(doc["streams"][0]["records"]["lost"], 1);
 }
 
 TEST(TrackCli, BadInputIsAnErrorNotACrash) {
