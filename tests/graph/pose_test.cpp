@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "mixray/graph/mkv.h"
+#include "reference_crc32.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -107,16 +108,7 @@ TEST(PoseRecord, EveryFlippedBitIsCaught) {
     }
 }
 
-// The IEEE CRC-32 (zlib's), bit by bit: the documented check value of a record.
-uint32_t referenceCrc32(const uint8_t* data, size_t size) {
-    uint32_t crc = 0xffffffffu;
-    for (size_t i = 0; i < size; ++i) {
-        crc ^= data[i];
-        for (int k = 0; k < 8; ++k)
-            crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
+using test::referenceCrc32;
 
 template <size_t N>
 void resealCrc(std::array<uint8_t, N>& b) {

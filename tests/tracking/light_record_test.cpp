@@ -12,6 +12,7 @@
 #include "mixray/graph/frame.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
+#include "reference_crc32.h"
 #include "test_data.h"
 
 namespace mixray::tracking {
@@ -86,16 +87,7 @@ void expectSameRecord(const LightRecord& a, const LightRecord& b) {
     }
 }
 
-// The IEEE CRC-32 (zlib's), bit by bit: the documented check value of a record.
-uint32_t referenceCrc32(const uint8_t* data, size_t size) {
-    uint32_t crc = 0xffffffffu;
-    for (size_t i = 0; i < size; ++i) {
-        crc ^= data[i];
-        for (int k = 0; k < 8; ++k)
-            crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
+using test::referenceCrc32;
 
 void resealCrc(std::vector<uint8_t>& b) {
     const uint32_t crc = referenceCrc32(b.data(), b.size() - 4);
