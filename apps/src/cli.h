@@ -45,6 +45,7 @@ void registerPlayCommand(CLI::App& app, Commands& commands);
 void registerTrackCommand(CLI::App& app, Commands& commands);
 void registerRecordCommand(CLI::App& app, Commands& commands);
 void registerRenderCommand(CLI::App& app, Commands& commands);
+void registerRunCommand(CLI::App& app, Commands& commands);
 void registerSimulateCommand(CLI::App& app, Commands& commands);
 
 }  // namespace mixray::cli

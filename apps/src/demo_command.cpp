@@ -2,27 +2,31 @@
 // the real light, composite virtual objects by ray-traced differential rendering — and, for a
 // simulated session, how close poses, lights and the composite come to the ground truth.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
 #include <thread>
 
+#include "backends.h"
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/mkv.h"
+#include "mixray/render/ar_pipeline.h"
 #include "mixray/render/output.h"
 #include "mixray/render/renderer.h"
 #include "mixray/render/scene_file.h"
 #include "mixray/render/simulator.h"
 #include "mixray/replay/open_recording.h"
-#include "recording_frames.h"
+#include "mixray/tracking/pipeline.h"
 #include "test_data_paths.h"
-#include "tracking_pipeline.h"
 
 namespace mixray::cli {
 namespace {
@@ -31,6 +35,7 @@ namespace fs = std::filesystem;
 using Eigen::Isometry3d;
 using Eigen::Vector3d;
 using nlohmann::json;
+using tracking::TrackedFrame;
 
 struct DemoOptions {
     std::string session = (sourceDir() / "fixtures/sessions/sim_tabletop.mkv").string();
@@ -206,33 +211,24 @@ json statsJson(const std::vector<double>& v) {
 int runDemo(const DemoOptions& options) {
     setFfmpegLogging(false);
     const auto started = std::chrono::steady_clock::now();
+    registerRecordingFormats();
     auto reader = replay::openRecording(options.session);
     if (!reader)
         return fail("demo", reader.status());
-    auto setup = findTrackingSetup(options.session, **reader, options.setup);
+    auto setup = tracking::findTrackingSetup(options.session, **reader, options.setup);
     if (!setup)
         return fail("demo", setup.status());
-    PipelineOptions pipeline_options;
-    auto site = findRigSite(**reader, "");
+    render::ArPipelineOptions ar;
+    auto site = tracking::findRigSite(**reader, "");
     if (!site)
         return fail("demo", site.status());
-    pipeline_options.site = *site;
-    auto utc_offset = recordingUtcOffset(**reader);
+    ar.tracking.site = *site;
+    auto utc_offset = tracking::recordingUtcOffset(**reader);
     if (!utc_offset)
         return fail("demo", utc_offset.status());
-    pipeline_options.utc_minus_host_ns = *utc_offset;
-    auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams(), pipeline_options);
-    if (!pipeline)
-        return fail("demo", pipeline.status().withContext(options.session));
-    const StreamInfo color_info = (*reader)->streams()[(*pipeline)->colorStream()];
-    StreamId depth_stream = kInvalidStream;
-    for (StreamId i = 0; i < (*reader)->streams().size(); ++i) {
-        const StreamInfo& s = (*reader)->streams()[i];
-        if (options.depth && s.kind == StreamKind::kDepth &&
-            s.format.format == PixelFormat::kDepth16 && s.format.width == color_info.format.width &&
-            s.format.height == color_info.format.height)
-            depth_stream = i;
-    }
+    ar.tracking.utc_minus_host_ns = *utc_offset;
+    ar.setup = *setup;
+    ar.use_depth = options.depth;
 
     fs::path real_scene = options.real_scene;
     if (real_scene.empty()) {
@@ -243,15 +239,12 @@ int runDemo(const DemoOptions& options) {
     auto scene = demoScene(real_scene.string(), options.objects, inserted);
     if (!scene)
         return fail("demo", scene.status());
-    render::RenderOptions ro;
-    ro.samples_per_pixel = options.samples;
-    ro.max_depth = 3;
-    ro.soft_shadows = render::SoftShadowMethod::kAdaptive;
-    ro.depth_secondary = render::DepthSecondaryRays::kNone;
-    ro.threads = options.threads;
-    auto renderer = render::Renderer::create(*scene, ro);
-    if (!renderer)
-        return fail("demo", renderer.status());
+    ar.scene = std::move(scene).value();
+    ar.render.samples_per_pixel = options.samples;
+    ar.render.max_depth = 3;
+    ar.render.soft_shadows = render::SoftShadowMethod::kAdaptive;
+    ar.render.depth_secondary = render::DepthSecondaryRays::kNone;
+    ar.render.threads = options.threads;
 
     // Ground truth: the simulator renders the session again with the virtual objects real.
     std::unique_ptr<render::Simulator> truth_sim;
@@ -276,62 +269,52 @@ int runDemo(const DemoOptions& options) {
                          "summary, only the composite\n",
                          options.session.c_str());
     }
+    const StreamInfo* color_info = nullptr;
+    for (const StreamInfo& s : (*reader)->streams())
+        if (s.name == setup->camera.stream)
+            color_info = &s;
+    if (!color_info)
+        return fail("demo", {ErrorCode::kNotFound, options.session + " has no stream " +
+                                                       setup->camera.stream + " to track"});
+    const int width = color_info->format.width, height = color_info->format.height;
+    const double fps = color_info->nominal_fps > 0 ? color_info->nominal_fps : 30;
 
     const fs::path out = options.output;
     std::error_code ec;
     fs::create_directories(out / "frames", ec);
     if (ec)
         return fail("demo", {ErrorCode::kIoError, "cannot create " + out.string()});
-    const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30;
     // From here on a signal stops the work and the video is closed with the frames done.
     InterruptFlag interrupt;
-    auto video = render::VideoWriter::create(out / "composite.mp4", color_info.format.width,
-                                             color_info.format.height, fps);
+    auto video = render::VideoWriter::create(out / "composite.mp4", width, height, fps);
     if (!video)
         return fail("demo", video.status());
 
     std::vector<double> t_err_mm, r_err_deg, marker_t_err_mm, psnr_full, psnr_region;
-    std::vector<double> track_ms, light_ms, render_ms, truth_ms;
+    std::vector<double> track_ms, light_ms, render_ms, truth_ms, latency_ms;
     std::map<std::string, LightErrors> light_errors;
     std::vector<double> key_irradiance_ratio;
     uint64_t frames = 0, stale_frames = 0, no_pose = 0;
-    std::string last_lights_key;
-    render::RenderLayers layers;
     StatusLine status;
-    Status result;
-    FrameRef depth;  // the newest depth map
 
-    const auto process = [&](const TrackedFrame& f) -> Status {
-        const auto light_start = std::chrono::steady_clock::now();
-        const std::vector<render::Light> lights = (*pipeline)->lights(f);
-        // The renderer rebuilds light data only when the estimates changed.
-        const std::string key = std::to_string(f.environment.good_stamp_ns) + "/" +
-                                std::to_string(f.intensities.good_stamp_ns) + "/" +
-                                std::to_string(lights.size());
-        if (key != last_lights_key) {
-            MIXRAY_RETURN_IF_ERROR((*renderer)->setLights(lights));
-            last_lights_key = key;
-        }
-        light_ms.push_back(f.probe_ms + std::chrono::duration<double, std::milli>(
-                                            std::chrono::steady_clock::now() - light_start)
-                                            .count());
+    // Tracked frames wait here (by colour sequence) for their composite.
+    std::mutex tracked_mutex;
+    std::map<uint64_t, TrackedFrame> tracked;
+    ar.on_tracked = [&](const TrackedFrame& f) {
+        std::lock_guard lock(tracked_mutex);
+        tracked[f.color.meta().sequence] = f;
+    };
+
+    const auto process = [&](const TrackedFrame& f, const render::CompositeFrame& c) -> Status {
+        light_ms.push_back(f.probe_ms);
         track_ms.push_back(f.track_ms);
+        latency_ms.push_back(c.latency_ms);
         const ImageView camera_image = f.color.image();
-        ImageView composite = camera_image;
-        if (f.track.pose.value) {
+        const ImageView composite = c.composite.image();
+        if (c.rendered) {
             if (f.track.pose.stale)
                 ++stale_frames;
-            render::RenderInputs in;
-            in.camera_image = camera_image;
-            in.camera = setup->camera.model;
-            in.T_world_cam = *f.track.pose.value;
-            if (depth && depth.meta().host_stamp_ns == f.color.meta().host_stamp_ns)
-                in.depth_mm = depth.image();
-            in.stop = interrupt.token();  // a signal drops this frame within a tile
-            render::RenderStats stats;
-            MIXRAY_RETURN_IF_ERROR((*renderer)->render(in, layers, &stats));
-            render_ms.push_back(stats.seconds * 1e3);
-            composite = layers.composite.view();
+            render_ms.push_back(c.stats.seconds * 1e3);
         } else {
             ++no_pose;
         }
@@ -342,7 +325,6 @@ int runDemo(const DemoOptions& options) {
         if (png)
             MIXRAY_RETURN_IF_ERROR(
                 render::writePng(composite, out / "frames" / (std::string(name) + ".png")));
-
         if (truth_sim) {
             const int index = static_cast<int>(f.color.meta().sequence);
             const render::SimTruth& t = truth_sim->truth();
@@ -421,48 +403,55 @@ int runDemo(const DemoOptions& options) {
         return Status::ok();
     };
 
-    // A colour frame is tracked and rendered when the next one arrives: by then every frame of
-    // its instant (its depth map and environment frame, stored a few ms later) has been read.
-    FrameRef pending;
-    const auto processPending = [&]() -> Status {
-        auto pushed = (*pipeline)->push(pending);
-        pending = FrameRef();
-        if (!pushed)
-            return pushed.status();
-        return *pushed ? process(**pushed) : Status::ok();
+    Status result;
+    std::atomic<bool> enough{false};
+    std::atomic<bool> failed{false};  // `result` holds an error (written by the callback)
+    ar.on_composite = [&](const render::CompositeFrame& c) {
+        if (!result || enough)
+            return;
+        std::optional<TrackedFrame> f;
+        {
+            std::lock_guard lock(tracked_mutex);
+            auto found = tracked.find(c.color.meta().sequence);
+            if (found != tracked.end()) {
+                f = std::move(found->second);
+                tracked.erase(tracked.begin(), std::next(found));
+            }
+        }
+        if (!f) {
+            result = Status(ErrorCode::kInternal, "composite of colour frame " +
+                                                      std::to_string(c.color.meta().sequence) +
+                                                      " without its tracked frame");
+            failed = true;
+            return;
+        }
+        result = process(*f, c);
+        failed = !result;
+        if (options.max_frames > 0 && frames >= options.max_frames)
+            enough = true;
     };
-    const StreamId color_stream = (*pipeline)->colorStream();
-    while (!interrupt.raised() && (options.max_frames == 0 || frames < options.max_frames)) {
-        auto next = nextFrame(**reader);
-        if (!next || !*next) {
-            if (!next)
-                result = next.status();
+
+    render::ArSource source;
+    source.recording = options.session;
+    source.pace = render::ArSource::Pace::kFast;
+    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    if (!pipeline)
+        return fail("demo", pipeline.status().withContext(options.session));
+    if (Status s = (*pipeline)->start(); !s)
+        return fail("demo", s);
+    while (!(*pipeline)->waitDone(std::chrono::milliseconds(50)))
+        if (interrupt.raised() || enough || failed)
             break;
-        }
-        const FrameRef& frame = **next;
-        if (frame.meta().stream == depth_stream) {
-            depth = frame;
-        } else if (frame.meta().stream == color_stream) {
-            if (pending && !(result = processPending()))
-                break;
-            pending = frame;
-        } else if (auto pushed = (*pipeline)->push(frame); !pushed) {
-            result = pushed.status();
-            break;
-        }
-    }
-    if (result && pending && !interrupt.raised() &&
-        (options.max_frames == 0 || frames < options.max_frames))
-        result = processPending();
+    (*pipeline)->stop();
     status.finish();
+    if (result)
+        result = (*pipeline)->status();
     Status closed = (*video)->close();
-    // A signal also ends the frame in progress (kCancelled): the frames done are summarised.
-    if (interrupt.raised() && result.code() == ErrorCode::kCancelled)
-        result = Status::ok();
     if (result)
         result = closed;
     if (!result)
         return fail("demo", result);
+    const render::ArPipelineStats pipeline_stats = (*pipeline)->stats();
 
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
@@ -476,13 +465,30 @@ int runDemo(const DemoOptions& options) {
                       {"light_estimation", statsJson(light_ms)},
                       {"render", statsJson(render_ms)}}},
                     {"seconds", seconds}};
+    // Latency from each colour frame's entry into the graph to its composite's publication:
+    // at this (fast) pace it includes the wait behind frames ahead of it.
+    summary["latency_ms"] = statsJson(latency_ms);
+    summary["pipeline"] = json::parse(pipeline_stats.json());
     std::printf("\n== mixray demo: %llu frames of %s\n", static_cast<unsigned long long>(frames),
                 options.session.c_str());
     std::printf(
         "   per frame: tracking %.1f ms, light estimation %.1f ms, rendering %.1f ms "
         "(median; %d samples/pixel, %dx%d)\n",
-        median(track_ms), median(light_ms), median(render_ms), options.samples,
-        color_info.format.width, color_info.format.height);
+        median(track_ms), median(light_ms), median(render_ms), options.samples, width, height);
+    {
+        std::vector<double> sorted = latency_ms;
+        std::sort(sorted.begin(), sorted.end());
+        const auto at = [&](double p) {
+            return sorted.empty() ? std::nan("")
+                                  : sorted[std::min(sorted.size() - 1,
+                                                    static_cast<size_t>(p * sorted.size()))];
+        };
+        summary["latency_ms"]["p50"] = at(0.5);
+        summary["latency_ms"]["p95"] = at(0.95);
+        summary["latency_ms"]["p99"] = at(0.99);
+        std::printf("   latency capture -> composite: p50 %.0f ms, p95 %.0f ms, p99 %.0f ms\n",
+                    at(0.5), at(0.95), at(0.99));
+    }
     if (stale_frames || no_pose)
         std::printf("   %llu frames used a stale pose, %llu had none (see overlay/track)\n",
                     static_cast<unsigned long long>(stale_frames),

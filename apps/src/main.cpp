@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     registerPlayCommand(app, commands);
     registerConvertCommand(app, commands);
     registerRenderCommand(app, commands);
+    registerRunCommand(app, commands);
     registerCalibrateCommand(app, commands);
     registerDetectCommand(app, commands);
     registerTrackCommand(app, commands);

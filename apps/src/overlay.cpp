@@ -40,7 +40,8 @@ void text(cv::Mat& m, const std::string& s, cv::Point at, const cv::Scalar& colo
 
 }  // namespace
 
-Image drawTrackingOverlay(const TrackedFrame& frame, const tracking::TrackingSetup& setup) {
+Image drawTrackingOverlay(const tracking::TrackedFrame& frame,
+                          const tracking::TrackingSetup& setup) {
     const ImageView in = frame.color.image();
     Image out(ImageDesc::packed(PixelFormat::kRGB8, in.desc.width, in.desc.height));
     cv::Mat m(in.desc.height, in.desc.width, CV_8UC3, out.mutableView().data,

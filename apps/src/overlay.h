@@ -4,11 +4,12 @@
 #pragma once
 
 #include "mixray/graph/image.h"
-#include "tracking_pipeline.h"
+#include "mixray/tracking/pipeline.h"
 
 namespace mixray::cli {
 
 // An rgb8 copy of the frame's colour image with the overlay drawn in. Reentrant.
-Image drawTrackingOverlay(const TrackedFrame& frame, const tracking::TrackingSetup& setup);
+Image drawTrackingOverlay(const tracking::TrackedFrame& frame,
+                          const tracking::TrackingSetup& setup);
 
 }  // namespace mixray::cli

@@ -1,26 +1,29 @@
 // mixray track: the camera's pose and the real lights, frame by frame, from a recording.
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "backends.h"
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
 #include "mixray/graph/record_codec.h"
+#include "mixray/render/ar_pipeline.h"
 #include "mixray/render/output.h"
 #include "mixray/replay/open_recording.h"
+#include "mixray/tracking/pipeline.h"
 #include "overlay.h"
-#include "recording_frames.h"
-#include "tracking_pipeline.h"
 
 namespace mixray::cli {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using tracking::TrackedFrame;
 
 struct TrackCommandOptions {
     std::string session;
@@ -144,75 +147,6 @@ json frameJson(const TrackedFrame& f, const tracking::TrackingSetup& setup) {
     return j;
 }
 
-// The recording again, with the camera's pose as a stream of its own (tracking/pose).
-class PoseRecorder {
-public:
-    static Result<std::unique_ptr<PoseRecorder>> create(const fs::path& path,
-                                                        const RecordingReader& reader,
-                                                        const std::string& camera_stream) {
-        auto r = std::unique_ptr<PoseRecorder>(new PoseRecorder);
-        RecordingHeader header;
-        header.streams = reader.streams();
-        header.attachments = reader.attachments();
-        header.tags = reader.tags();
-        double fps = 30;
-        for (const StreamInfo& s : header.streams)
-            if (s.name == camera_stream && s.nominal_fps > 0)
-                fps = s.nominal_fps;
-        r->pose_stream_ = static_cast<StreamId>(header.streams.size());
-        header.streams.push_back(makePoseStreamInfo("tracking/pose", camera_stream, fps, false));
-        BufferPoolOptions po;
-        po.desc = header.streams.back().format;
-        po.buffer_count = 2;
-        po.name = "tracking/pose";
-        r->pool_ = BufferPool::create(po);
-        auto writer = createMkvWriter(path, header, {});
-        if (!writer)
-            return writer.status();
-        r->writer_ = std::move(writer).value();
-        r->desc_ = header.streams.back().format;
-        return r;
-    }
-
-    Status copy(const FrameRef& frame) { return writer_->write(frame); }
-
-    Status pose(const TrackedFrame& f) {
-        PoseRecord record;
-        record.frame_sequence = f.color.meta().sequence;
-        record.frame_device_stamp_ns = f.color.meta().device_stamp_ns;
-        record.anchor = "world";
-        if (f.track.pose.value) {
-            record.setTransform(*f.track.pose.value);
-            record.status = f.track.state == tracking::TrackState::kTracking ? PoseStatus::kValid
-                                                                             : PoseStatus::kStale;
-        } else {
-            record.status = PoseStatus::kLost;
-        }
-        if (record.status != PoseStatus::kValid)
-            record.reason = mixray::record::printableText(f.track.pose.reason, kPoseReasonMaxBytes);
-        if (!f.track.targets.empty())
-            record.error = static_cast<float>(f.track.targets.front().rms_px);
-        auto bytes = encodePoseRecord(record);
-        if (!bytes)
-            return bytes.status();
-        FrameMetadata meta = f.color.meta();
-        meta.stream = pose_stream_;
-        FrameRef frame = copyIntoPool(*pool_, ImageView{desc_, bytes->data(), bytes->size()}, meta);
-        if (!frame)
-            return Status(ErrorCode::kInternal, "no buffer for tracking/pose");
-        return writer_->write(frame);
-    }
-
-    Status close() { return writer_->close(); }
-
-private:
-    PoseRecorder() = default;
-    std::unique_ptr<RecordingWriter> writer_;
-    std::shared_ptr<BufferPool> pool_;
-    StreamId pose_stream_ = kInvalidStream;
-    ImageDesc desc_;
-};
-
 Status writeText(const fs::path& path, const std::string& text) {
     std::ofstream out(path, std::ios::binary);
     out << text;
@@ -224,34 +158,44 @@ Status writeText(const fs::path& path, const std::string& text) {
 
 int runTrack(const TrackCommandOptions& options) {
     setFfmpegLogging(false);
+    registerRecordingFormats();
     auto reader = replay::openRecording(options.session);
     if (!reader)
         return fail("track", reader.status());
-    auto setup = findTrackingSetup(options.session, **reader, options.setup);
+    auto setup = tracking::findTrackingSetup(options.session, **reader, options.setup);
     if (!setup)
         return fail("track", setup.status());
-    PipelineOptions pipeline_options;
-    pipeline_options.probes = options.probes;
-    pipeline_options.environment = options.environment;
-    auto site = findRigSite(**reader, options.rig);
+    render::ArPipelineOptions ar;
+    ar.setup = *setup;
+    ar.tracking.probes = options.probes;
+    ar.tracking.environment = options.environment;
+    auto site = tracking::findRigSite(**reader, options.rig);
     if (!site)
         return fail("track", site.status());
-    pipeline_options.site = *site;
+    ar.tracking.site = *site;
     if (!options.utc.empty()) {
-        auto utc = parseUtc(options.utc);
+        auto utc = tracking::parseUtc(options.utc);
         if (!utc)
             return fail("track", utc.status());
-        pipeline_options.utc_first_frame_ns = *utc;
+        ar.tracking.utc_first_frame_ns = *utc;
     } else {
-        auto offset = recordingUtcOffset(**reader);
+        auto offset = tracking::recordingUtcOffset(**reader);
         if (!offset)
             return fail("track", offset.status());
-        pipeline_options.utc_minus_host_ns = *offset;
+        ar.tracking.utc_minus_host_ns = *offset;
     }
-    auto pipeline = TrackingPipeline::create(*setup, (*reader)->streams(), pipeline_options);
-    if (!pipeline)
-        return fail("track", pipeline.status().withContext(options.session));
-    const StreamInfo& color = (*reader)->streams()[(*pipeline)->colorStream()];
+    const StreamInfo* color = nullptr;
+    for (const StreamInfo& s : (*reader)->streams())
+        if (s.name == setup->camera.stream)
+            color = &s;
+    if (!color) {
+        std::string names;
+        for (const StreamInfo& s : (*reader)->streams())
+            names += (names.empty() ? "" : ", ") + s.name;
+        return fail("track", {ErrorCode::kNotFound,
+                              options.session + ": the recording has no stream " +
+                                  setup->camera.stream + " to track (it has: " + names + ")"});
+    }
 
     const fs::path out_dir = options.output;
     std::error_code ec;
@@ -261,20 +205,21 @@ int runTrack(const TrackCommandOptions& options) {
                               "cannot create " + out_dir.string() + ": " + ec.message()});
     std::unique_ptr<render::VideoWriter> video;
     if (options.video) {
-        auto v = render::VideoWriter::create(out_dir / "overlay.mp4", color.format.width,
-                                             color.format.height,
-                                             color.nominal_fps > 0 ? color.nominal_fps : 30);
+        auto v = render::VideoWriter::create(out_dir / "overlay.mp4", color->format.width,
+                                             color->format.height,
+                                             color->nominal_fps > 0 ? color->nominal_fps : 30);
         if (!v)
             return fail("track", v.status());
         video = std::move(v).value();
     }
-    std::unique_ptr<PoseRecorder> recorder;
+    // The recording again, with the camera's pose, the lights and the environment maps as
+    // streams of their own.
     if (options.record) {
-        auto r = PoseRecorder::create(out_dir / "tracked.mkv", **reader, setup->camera.stream);
-        if (!r)
-            return fail("track", r.status());
-        recorder = std::move(r).value();
+        ar.record = out_dir / "tracked.mkv";
+        ar.record_attachments = (*reader)->attachments();
+        ar.record_tags = (*reader)->tags();
     }
+    reader->reset();
 
     std::string poses_csv =
         "frame,stamp_ns,state,stale,reacquired,targets,markers,rms_px,tx,ty,tz,qw,qx,qy,qz\n";
@@ -335,8 +280,6 @@ int runTrack(const TrackCommandOptions& options) {
             addLights(setup->environment->stream, f.environment.stale, f.environment.value->lights);
         if (f.sun.value)
             addLights("sun", f.sun.stale, {*f.sun.value});
-        if (recorder && !(result = recorder->pose(f)))
-            return false;
         if (video) {
             const Image overlay = drawTrackingOverlay(f, *setup);
             if (!(result = video->write(overlay.view(), stamp)))
@@ -350,52 +293,35 @@ int runTrack(const TrackCommandOptions& options) {
         status.update(line);
         return true;
     };
-    // A colour frame is tracked when the next one arrives: by then every frame of its instant
-    // (its environment frame, stored a few ms later) has been read, so its estimate is current.
-    FrameRef pending;
-    const auto trackPending = [&]() -> bool {
-        auto pushed = (*pipeline)->push(pending);
-        pending = FrameRef();
-        if (!pushed) {
-            result = pushed.status();
-            return false;
+    std::atomic<bool> enough{false};
+    std::atomic<bool> failed{false};  // `result` holds an error (written by the callback)
+    ar.on_tracked = [&](const TrackedFrame& f) {
+        if (!result || enough)
+            return;
+        if (!handle(f)) {
+            failed = true;
+            return;
         }
-        return !*pushed || handle(**pushed);
+        if (options.max_frames > 0 && frames.size() >= options.max_frames)
+            enough = true;
     };
-    const StreamId color_stream = (*pipeline)->colorStream();
-    while (!interrupt.raised() && (options.max_frames == 0 || frames.size() < options.max_frames)) {
-        auto next = nextFrame(**reader);
-        if (!next || !*next) {
-            if (!next)
-                result = next.status();
+    render::ArSource source;
+    source.recording = options.session;
+    source.pace = render::ArSource::Pace::kFast;
+    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    if (!pipeline)
+        return fail("track", pipeline.status().withContext(options.session));
+    if (Status s = (*pipeline)->start(); !s)
+        return fail("track", s);
+    while (!(*pipeline)->waitDone(std::chrono::milliseconds(50)))
+        if (interrupt.raised() || enough || failed)
             break;
-        }
-        const FrameRef& frame = **next;
-        if (recorder && !(result = recorder->copy(frame)))
-            break;
-        if (frame.meta().stream != color_stream) {
-            auto pushed = (*pipeline)->push(frame);
-            if (!pushed) {
-                result = pushed.status();
-                break;
-            }
-            continue;
-        }
-        if (pending && !trackPending())
-            break;
-        pending = frame;
-    }
-    if (result && pending && !interrupt.raised() &&
-        (options.max_frames == 0 || frames.size() < options.max_frames))
-        trackPending();
+    (*pipeline)->stop();
     status.finish();
+    if (result)
+        result = (*pipeline)->status();
     if (video) {
         Status closed = video->close();
-        if (result)
-            result = closed;
-    }
-    if (recorder) {
-        Status closed = recorder->close();
         if (result)
             result = closed;
     }
@@ -418,7 +344,8 @@ int runTrack(const TrackCommandOptions& options) {
         options.session.c_str(), frames.size(), static_cast<unsigned long long>(tracked),
         static_cast<unsigned long long>(lost), n > 0 ? track_ms / n : 0, n > 0 ? probe_ms / n : 0);
     std::printf("wrote %s/{poses.csv, lights.csv, track.json%s%s}\n", out_dir.string().c_str(),
-                video ? ", overlay.mp4" : "", recorder ? ", tracked.mkv (+ tracking/pose)" : "");
+                video ? ", overlay.mp4" : "",
+                options.record ? ", tracked.mkv (+ tracking/pose, tracking/lights)" : "");
     return interrupt.raised() ? kExitInterrupted : kExitOk;
 }
 

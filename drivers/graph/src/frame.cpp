@@ -2,8 +2,10 @@
 #include "mixray/graph/frame.h"
 
 #include <cassert>
+#include <chrono>
 #include <cstring>
 #include <new>
+#include <thread>
 
 namespace mixray {
 namespace {
@@ -177,6 +179,15 @@ void BufferPool::recycle(detail::FrameSlot* slot) {
     {
         std::lock_guard lock(pool->mutex_);
         pool->free_.push_back(slot);
+    }
+}
+
+WritableFrame acquireWaiting(BufferPool& pool, const std::function<bool()>& give_up) {
+    while (true) {
+        WritableFrame frame = pool.acquire();
+        if (frame || give_up())
+            return frame;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
 }
 

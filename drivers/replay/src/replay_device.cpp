@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <thread>
 
 #include "image_files.h"
@@ -20,7 +21,8 @@ constexpr auto kBufferWait = std::chrono::milliseconds(1);
 // recording has a single timestamp and no nominal rate.
 constexpr int64_t kFallbackIntervalNs = 33'333'333;
 
-constexpr const char* kKnownOptions = "pace, speed, loop, start, depth_units, buffers";
+constexpr const char* kKnownOptions =
+    "pace, speed, loop, start, depth_units, buffers, names, stamps";
 
 Status badValue(const std::string& key, const std::string& value, const char* expected) {
     return {ErrorCode::kInvalidArgument,
@@ -130,6 +132,22 @@ Result<ReplayOptions> ReplayOptions::fromConfig(const std::map<std::string, std:
             } else {
                 return badValue(key, value, "mm or recorded");
             }
+        } else if (key == "names") {
+            if (value == "device") {
+                out.recorded_names = false;
+            } else if (value == "recorded") {
+                out.recorded_names = true;
+            } else {
+                return badValue(key, value, "device or recorded");
+            }
+        } else if (key == "stamps") {
+            if (value == "recorded") {
+                out.arrival_stamps = false;
+            } else if (value == "arrival") {
+                out.arrival_stamps = true;
+            } else {
+                return badValue(key, value, "recorded or arrival");
+            }
         } else if (key == "buffers") {
             size_t n = 0;
             auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), n);
@@ -141,6 +159,11 @@ Result<ReplayOptions> ReplayOptions::fromConfig(const std::map<std::string, std:
             return Status(ErrorCode::kInvalidArgument,
                           "unknown replay option '" + key + "' (known: " + kKnownOptions + ")");
         }
+    }
+    if (out.arrival_stamps && out.pace == Pace::kFast) {
+        return Status(ErrorCode::kInvalidArgument,
+                      "replay option stamps=arrival applies only with pace=original (as fast as "
+                      "consumers allow, arrival times say nothing about the recording)");
     }
     if (speed_given && out.pace == Pace::kFast) {
         return Status(ErrorCode::kInvalidArgument,
@@ -194,7 +217,8 @@ Result<std::unique_ptr<ReplayDevice>> openReplayDevice(std::unique_ptr<Recording
         std::string local = unique ? std::string(short_name) : streams[i].name;
         std::replace(local.begin(), local.end(), '/', '_');
         device->routes_[i].local_name = local;
-        device->routes_[i].graph_name = config.name + "/" + local;
+        device->routes_[i].graph_name =
+            options->recorded_names ? streams[i].name : config.name + "/" + local;
     }
 
     // Stream filter: recording names, short names or graph names.
@@ -322,7 +346,8 @@ Status ReplayDevice::connect(Graph& graph) {
             continue;
         StreamInfo info = streams[i];
         info.name = route.graph_name;
-        info.device = config_name_;
+        if (!options_.recorded_names)
+            info.device = config_name_;
         if (route.convert_from_per_m)
             info.tags.erase(kDepthScaleTag);
         auto id = graph.addStream(std::move(info));
@@ -497,7 +522,14 @@ void ReplayDevice::run() {
             std::unique_lock lock(mutex_);
             if (wake_.wait_until(lock, target, [this] { return stop_requested_; }))
                 break;
+            lock.unlock();
         }
+        timespec now{};
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        out_meta.graph_stamp_ns = static_cast<int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+        // As a live device delivers it: stamped on the host when it "arrives" (now).
+        if (options_.arrival_stamps)
+            out_meta.host_stamp_ns = out_meta.graph_stamp_ns;
 
         // Forward the reader's buffer itself when this is its only handle; otherwise (or to
         // convert depth units) fill one of our own.

@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -28,6 +29,10 @@ struct FrameMetadata {
     uint64_t sequence = 0;        // per stream, from the device when it counts, else by the driver
     int64_t device_stamp_ns = 0;  // in the device clock `clock_domain`
     int64_t host_stamp_ns = 0;    // host CLOCK_MONOTONIC when the frame arrived
+    // Host CLOCK_MONOTONIC when a replayed frame entered this graph (its recorded
+    // host_stamp_ns is another session's clock); 0 for live devices, whose host_stamp_ns is it.
+    // Pipeline latency counts from here. Not recorded.
+    int64_t graph_stamp_ns = 0;
     ClockDomainId clock_domain = kHostClockDomain;
     int64_t exposure_us = -1;  // -1 when unknown
     FrameStatus status = FrameStatus::kOk;
@@ -160,6 +165,11 @@ private:
     std::atomic<uint64_t> exhausted_{0};
     std::atomic<uint64_t> acquired_{0};
 };
+
+// A free buffer of `pool` for a producer that must not drop (a lossless pipeline stage): while
+// consumers hold every buffer it waits, polling each millisecond, until one comes back or
+// `give_up` says to stop (then the frame is empty).
+WritableFrame acquireWaiting(BufferPool& pool, const std::function<bool()>& give_up);
 
 // Copies `view` into a fresh frame from `pool` with the given metadata (for producers whose
 // source memory cannot be handed over: files, libraries with their own buffers). Returns an

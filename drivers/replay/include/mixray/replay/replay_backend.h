@@ -25,6 +25,12 @@ namespace mixray::replay {
 //   start        seconds from the recording's first frame, >= 0 (default 0)
 //   depth_units  mm | recorded     (default mm)
 //   buffers      frames of one stream consumers may hold at once, >= 1 (default 8)
+//   names        device | recorded (default device): graph stream names "<device>/<short>",
+//                or the recorded names themselves ("kinect/color"), as the rig that made the
+//                recording published them: a recording standing in for its rig
+//   stamps       recorded | arrival (default recorded; arrival only with pace=original): host
+//                stamps as recorded, or the host time each frame is published, as a live
+//                device stamps its frames (latency measured from capture is then real)
 // A rig file's per-stream mode requests ("depth.width", ".height", ".fps", ".format") are
 // accepted when they describe what was recorded (a recording cannot change its mode); they are
 // checked by openReplayDevice(), which knows the recording.
@@ -48,6 +54,8 @@ struct ReplayOptions {
     // recording's values pass through bit-exactly, tag kept.
     bool depth_in_mm = true;
     size_t buffers_per_stream = 8;
+    bool recorded_names = false;
+    bool arrival_stamps = false;
 
     // kInvalidArgument naming the option for unknown keys and bad values.
     static Result<ReplayOptions> fromConfig(const std::map<std::string, std::string>& options);

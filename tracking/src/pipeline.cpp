@@ -1,5 +1,5 @@
-// The tracking half of the AR pipeline (tracking_pipeline.h).
-#include "tracking_pipeline.h"
+// The tracking half of the AR pipeline (mixray/tracking/pipeline.h).
+#include "mixray/tracking/pipeline.h"
 
 #include <charconv>
 #include <chrono>
@@ -8,11 +8,10 @@
 #include <iomanip>
 #include <sstream>
 
-namespace mixray::cli {
+namespace mixray::tracking {
 namespace {
 
 namespace fs = std::filesystem;
-using tracking::EstimatedLight;
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -35,22 +34,21 @@ std::string streamList(const std::vector<StreamInfo>& streams) {
 
 }  // namespace
 
-Result<tracking::TrackingSetup> findTrackingSetup(const fs::path& recording,
-                                                  const RecordingReader& reader,
-                                                  const std::string& explicit_path) {
+Result<TrackingSetup> findTrackingSetup(const fs::path& recording, const RecordingReader& reader,
+                                        const std::string& explicit_path) {
     if (!explicit_path.empty())
-        return tracking::loadTrackingSetup(explicit_path);
+        return loadTrackingSetup(explicit_path);
     for (const Attachment& a : reader.attachments()) {
         if (a.name == "tracking.yaml") {
             const std::string text(a.data.begin(), a.data.end());
-            return tracking::parseTrackingSetup(text, recording.string() + ":tracking.yaml");
+            return parseTrackingSetup(text, recording.string() + ":tracking.yaml");
         }
     }
     fs::path beside = recording;
     beside.replace_extension(".tracking.yaml");
     std::error_code ec;
     if (fs::exists(beside, ec))
-        return tracking::loadTrackingSetup(beside);
+        return loadTrackingSetup(beside);
     return Status(ErrorCode::kNotFound,
                   "no tracking setup: give --setup FILE (docs/tracking.md#setup-files); the "
                   "recording has no tracking.yaml attachment and " +
@@ -118,8 +116,7 @@ Result<std::optional<int64_t>> recordingUtcOffset(const RecordingReader& reader)
 TrackingPipeline::~TrackingPipeline() = default;
 
 Result<std::unique_ptr<TrackingPipeline>> TrackingPipeline::create(
-    tracking::TrackingSetup setup, const std::vector<StreamInfo>& streams,
-    const PipelineOptions& options) {
+    TrackingSetup setup, const std::vector<StreamInfo>& streams, const PipelineOptions& options) {
     MIXRAY_RETURN_IF_ERROR(setup.validate());
     std::unique_ptr<TrackingPipeline> p(new TrackingPipeline);
     p->options_ = options;
@@ -135,15 +132,14 @@ Result<std::unique_ptr<TrackingPipeline>> TrackingPipeline::create(
                           std::to_string(setup.camera.model.width) + "x" +
                           std::to_string(setup.camera.model.height));
     }
-    auto tracker =
-        tracking::MarkerTracker::create(setup.camera.model, setup.targets, setup.tracker);
+    auto tracker = MarkerTracker::create(setup.camera.model, setup.targets, setup.tracker);
     if (!tracker)
         return tracker.status();
     p->tracker_ = std::move(tracker).value();
     if (options.environment && setup.environment) {
         p->environment_ = findStream(streams, setup.environment->stream);
         if (p->environment_ != kInvalidStream) {
-            p->environment_estimator_ = std::make_unique<tracking::AsyncEnvironmentEstimator>(
+            p->environment_estimator_ = std::make_unique<AsyncEnvironmentEstimator>(
                 setup.environment->camera, setup.environment->lights, setup.environment->map_width);
         }
     }
@@ -176,16 +172,16 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
     out.track_ms = millisecondsSince(start);
 
     const bool fresh_pose =
-        out.track.state == tracking::TrackState::kTracking && out.track.pose.value.has_value();
+        out.track.state == TrackState::kTracking && out.track.pose.value.has_value();
     start = std::chrono::steady_clock::now();
     for (size_t i = 0; i < probes_.size(); ++i) {
-        const tracking::LightProbe& probe = setup_.probes[i];
+        const LightProbe& probe = setup_.probes[i];
         if (!fresh_pose) {
             probes_[i].keep("no fresh camera pose (" + out.track.pose.reason + ")", stamp);
             continue;
         }
-        auto lights = tracking::estimateProbeLights(
-            frame.image(), setup_.camera.model, *out.track.pose.value, probe, setup_.probe_options);
+        auto lights = estimateProbeLights(frame.image(), setup_.camera.model, *out.track.pose.value,
+                                          probe, setup_.probe_options);
         if (lights)
             probes_[i].update(std::move(lights).value(), stamp);
         else
@@ -201,15 +197,14 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
                           std::string(kUtcMinusHostTag) + " tag (give --utc)",
                       stamp);
         } else {
-            auto to_sun =
-                tracking::sunDirectionWorld(*options_.site, stamp + *options_.utc_minus_host_ns);
+            auto to_sun = sunDirectionWorld(*options_.site, stamp + *options_.utc_minus_host_ns);
             if (!to_sun) {
                 sun_.keep(to_sun.status().message(), stamp);
             } else if (to_sun->z() <= 0) {
                 sun_.keep("the sun is below the horizon", stamp);
             } else {
                 EstimatedLight sun;
-                sun.source = tracking::LightSource::kSun;
+                sun.source = LightSource::kSun;
                 sun.to_light_world = *to_sun;
                 sun.angular_radius_rad = 0.2666 * M_PI / 180;  // the sun's mean apparent radius
                 sun_.update(sun, stamp);
@@ -224,19 +219,18 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
 
     // Strengths of the lights whose directions are known, from a diffuse probe.
     const std::vector<EstimatedLight> directions = lightDirections(out);
-    const tracking::LightProbe* diffuse = nullptr;
+    const LightProbe* diffuse = nullptr;
     for (size_t i = 0; i < probes_.size(); ++i)
-        if (setup_.probes[i].material == tracking::ProbeMaterial::kDiffuse)
+        if (setup_.probes[i].material == ProbeMaterial::kDiffuse)
             diffuse = &setup_.probes[i];
     if (diffuse && fresh_pose && !directions.empty()) {
         std::vector<Eigen::Vector3d> to_light;
         for (const EstimatedLight& l : directions)
             to_light.push_back(l.to_light_world);
-        tracking::IntensityFitOptions fit_options;
+        IntensityFitOptions fit_options;
         fit_options.albedo = diffuse->albedo;
-        auto fit =
-            tracking::fitLightIntensities(frame.image(), setup_.camera.model, *out.track.pose.value,
-                                          *diffuse, to_light, fit_options);
+        auto fit = fitLightIntensities(frame.image(), setup_.camera.model, *out.track.pose.value,
+                                       *diffuse, to_light, fit_options);
         if (fit)
             intensities_.update(std::move(fit).value(), stamp);
         else
@@ -254,8 +248,7 @@ std::vector<EstimatedLight> TrackingPipeline::lightDirections(const TrackedFrame
     if (frame.sun.value && !frame.sun.stale)
         return {*frame.sun.value};
     // Without the fish-eye: a mirror probe's highlights (sharp), else a diffuse probe's.
-    for (tracking::ProbeMaterial material :
-         {tracking::ProbeMaterial::kMirror, tracking::ProbeMaterial::kDiffuse}) {
+    for (ProbeMaterial material : {ProbeMaterial::kMirror, ProbeMaterial::kDiffuse}) {
         for (size_t i = 0; i < frame.probes.size(); ++i)
             if (setup_.probes[i].material == material && frame.probes[i].value &&
                 !frame.probes[i].value->lights.empty())
@@ -264,46 +257,15 @@ std::vector<EstimatedLight> TrackingPipeline::lightDirections(const TrackedFrame
     return {};
 }
 
-std::vector<render::Light> TrackingPipeline::lights(const TrackedFrame& frame) const {
-    std::vector<render::Light> out;
-    const std::vector<EstimatedLight> directions = lightDirections(frame);
+std::vector<EstimatedLight> TrackingPipeline::renderLights(const TrackedFrame& frame) const {
+    std::vector<EstimatedLight> out = lightDirections(frame);
     const bool fitted =
-        frame.intensities.value && frame.intensities.value->irradiance.size() == directions.size();
-    for (size_t i = 0; i < directions.size(); ++i) {
-        const EstimatedLight& e = directions[i];
-        const Eigen::Vector3d irradiance =
-            fitted ? frame.intensities.value->irradiance[i] : e.intensity;
-        if (irradiance.maxCoeff() <= 0)
-            continue;
-        render::Light l;
-        l.name = "estimated_" + std::to_string(i);
-        const auto rgb = [](const Eigen::Vector3d& v) {
-            return render::Rgb(static_cast<float>(v.x()), static_cast<float>(v.y()),
-                               static_cast<float>(v.z()));
-        };
-        if (e.position_world && e.angular_radius_rad > 0) {
-            // A sphere the light's apparent size at its distance: soft shadows as the real
-            // light casts them; intensity I = E·d² gives the same irradiance at the scene.
-            const double d = e.position_world->norm();
-            l.type = render::LightType::kSphere;
-            l.position = *e.position_world;
-            l.radius = static_cast<float>(d * std::tan(e.angular_radius_rad));
-            l.intensity = rgb(irradiance * d * d);
-        } else {
-            l.type = render::LightType::kDirectional;
-            l.direction = -e.to_light_world.normalized();
-            l.intensity = rgb(irradiance);
-        }
-        out.push_back(std::move(l));
-    }
-    if (frame.environment.value && frame.environment.value->environment_map) {
-        render::Light env;
-        env.name = "estimated_environment";
-        env.type = render::LightType::kEnvironment;
-        env.environment_image = frame.environment.value->environment_map;
-        out.push_back(std::move(env));
-    }
+        frame.intensities.value && frame.intensities.value->irradiance.size() == out.size();
+    if (fitted)
+        for (size_t i = 0; i < out.size(); ++i)
+            out[i].intensity = frame.intensities.value->irradiance[i];
+    std::erase_if(out, [](const EstimatedLight& l) { return l.intensity.maxCoeff() <= 0; });
     return out;
 }
 
-}  // namespace mixray::cli
+}  // namespace mixray::tracking

@@ -1,7 +1,7 @@
-// The tracking half of the AR pipeline, shared by mixray track, demo and bench: a recording's
-// colour frames give the camera's pose (markers) and the probes' lights, its environment
-// frames the fish-eye lights and environment map; every estimate keeps its last good value
-// and says when it is stale.
+// The tracking half of the AR pipeline, frame by frame: colour frames give the camera's pose
+// (markers) and the probes' lights, environment frames the fish-eye lights and environment map;
+// every estimate keeps its last good value and says when it is stale. TrackingNode
+// (tracking_node.h) runs it in the device graph.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -16,7 +16,6 @@
 #include "mixray/graph/recording.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/rig.h"
-#include "mixray/render/scene.h"
 #include "mixray/tracking/estimate.h"
 #include "mixray/tracking/light_intensity.h"
 #include "mixray/tracking/lights.h"
@@ -24,27 +23,27 @@
 #include "mixray/tracking/setup.h"
 #include "mixray/tracking/sun.h"
 
-namespace mixray::cli {
+namespace mixray::tracking {
 
 // The setup to track `recording` with: `explicit_path` when given, else the recording's
 // `tracking.yaml` attachment, else NAME.tracking.yaml beside it. kNotFound saying where it
 // looked.
-Result<tracking::TrackingSetup> findTrackingSetup(const std::filesystem::path& recording,
-                                                  const RecordingReader& reader,
-                                                  const std::string& explicit_path);
+Result<TrackingSetup> findTrackingSetup(const std::filesystem::path& recording,
+                                        const RecordingReader& reader,
+                                        const std::string& explicit_path);
 
 // Everything known after one colour frame. Plain value.
 struct TrackedFrame {
     uint64_t index = 0;  // colour frames so far, from 0
     FrameRef color;
-    tracking::CameraTrack track;
+    CameraTrack track;
     // One per setup probe, in its order.
-    std::vector<tracking::Estimate<tracking::ProbeResult>> probes;
-    tracking::Estimate<tracking::EnvironmentEstimate> environment;
+    std::vector<Estimate<ProbeResult>> probes;
+    Estimate<EnvironmentEstimate> environment;
     // The sun (when the rig's site and the frame's UTC are known), for outdoor rigs.
-    tracking::Estimate<tracking::EstimatedLight> sun;
+    Estimate<EstimatedLight> sun;
     // Irradiance of the lights (directions from lights()) fitted to a diffuse probe.
-    tracking::Estimate<tracking::IntensityFit> intensities;
+    Estimate<IntensityFit> intensities;
     double track_ms = 0;  // marker tracking of this frame
     double probe_ms = 0;  // probe light estimation of this frame
 };
@@ -74,7 +73,7 @@ Result<int64_t> parseUtc(const std::string& text);
 // Pulls frames through tracking. Thread-bound.
 class TrackingPipeline {
 public:
-    static Result<std::unique_ptr<TrackingPipeline>> create(tracking::TrackingSetup setup,
+    static Result<std::unique_ptr<TrackingPipeline>> create(TrackingSetup setup,
                                                             const std::vector<StreamInfo>& streams,
                                                             const PipelineOptions& options = {});
     ~TrackingPipeline();
@@ -82,30 +81,30 @@ public:
     // Takes one frame of any stream; returns the tracked colour frame when it was one.
     Result<std::optional<TrackedFrame>> push(const FrameRef& frame);
 
-    const tracking::TrackingSetup& setup() const { return setup_; }
+    const TrackingSetup& setup() const { return setup_; }
     StreamId colorStream() const { return color_; }
     StreamId environmentStream() const { return environment_; }
 
     // The lights to render with: directions from the fish-eye (else the sun, else the
-    // probes), strengths
-    // from the diffuse probe's fit (else the estimates' own), as scene lights in the world
-    // frame, plus the estimated environment map. Empty when nothing was estimated yet.
-    std::vector<render::Light> lights(const TrackedFrame& frame) const;
+    // probes), strengths from the diffuse probe's fit (else the estimates' own), in the world
+    // frame; lights with no strength are left out. Empty when nothing was estimated yet.
+    // render::lightsFromEstimates() turns them, and the environment map, into scene lights.
+    std::vector<EstimatedLight> renderLights(const TrackedFrame& frame) const;
 
 private:
     TrackingPipeline() = default;
-    std::vector<tracking::EstimatedLight> lightDirections(const TrackedFrame& frame) const;
+    std::vector<EstimatedLight> lightDirections(const TrackedFrame& frame) const;
 
-    tracking::TrackingSetup setup_;
+    TrackingSetup setup_;
     PipelineOptions options_;
     StreamId color_ = kInvalidStream;
     StreamId environment_ = kInvalidStream;
-    std::unique_ptr<tracking::MarkerTracker> tracker_;
-    std::unique_ptr<tracking::AsyncEnvironmentEstimator> environment_estimator_;
-    std::vector<tracking::Estimate<tracking::ProbeResult>> probes_;
-    tracking::Estimate<tracking::IntensityFit> intensities_;
-    tracking::Estimate<tracking::EstimatedLight> sun_;
+    std::unique_ptr<MarkerTracker> tracker_;
+    std::unique_ptr<AsyncEnvironmentEstimator> environment_estimator_;
+    std::vector<Estimate<ProbeResult>> probes_;
+    Estimate<IntensityFit> intensities_;
+    Estimate<EstimatedLight> sun_;
     uint64_t frames_ = 0;
 };
 
-}  // namespace mixray::cli
+}  // namespace mixray::tracking

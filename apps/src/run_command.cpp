@@ -1,0 +1,267 @@
+// mixray run: the AR pipeline live — a rig's devices, or a recording replayed as its rig, through
+// tracking, light estimation and the compositor; or, without a scene, a monitor of the rig.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "backends.h"
+#include "cli.h"
+#include "console.h"
+#include "mixray/calibration/calibration_file.h"
+#include "mixray/graph/mkv.h"
+#include "mixray/graph/rig.h"
+#include "mixray/render/ar_pipeline.h"
+#include "mixray/render/scene_file.h"
+#include "mixray/replay/open_recording.h"
+#include "mixray/tracking/pipeline.h"
+
+namespace mixray::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct RunOptions {
+    std::string source;  // RIG.yaml or a recording
+    std::string scene;
+    std::string setup;
+    std::string calibration;
+    std::string record;
+    std::string output = "out/run";
+    std::string pace = "real";
+    bool loop = false;
+    double target_fps = -1;  // -1: the colour stream's rate at real pace, 0: no ladder
+    double duration_s = 0;   // 0: until the source ends (or a signal)
+    int samples = 1;
+    int shadow_samples = 8;
+    int max_depth = 2;
+    int threads = 0;
+};
+
+bool isRigFile(const fs::path& path) {
+    const std::string ext = path.extension().string();
+    return ext == ".yaml" || ext == ".yml";
+}
+
+std::string statusText(const render::ArPipelineStats& s, const std::string& color,
+                       const std::string& composite) {
+    char line[400];
+    double color_fps = 0, composite_fps = 0;
+    for (const auto& st : s.streams) {
+        if (st.name == color)
+            color_fps = st.fps;
+        if (st.name == composite)
+            composite_fps = st.fps;
+    }
+    std::string devices;
+    for (const auto& d : s.devices)
+        if (d.state != "streaming")
+            devices += ", " + d.name + " " + d.state;
+    if (s.compositor) {
+        const auto& c = *s.compositor;
+        std::snprintf(line, sizeof line,
+                      "%.1f s: %s %.1f fps, composite %.1f fps, latency p50 %.0f / p95 %.0f / "
+                      "p99 %.0f ms, quality %d/%d (%s), skipped %llu%s",
+                      s.seconds, color.c_str(), color_fps, composite_fps, c.latency.p50_ms,
+                      c.latency.p95_ms, c.latency.p99_ms, c.quality_step + 1, c.quality_steps,
+                      c.quality_label.c_str(),
+                      static_cast<unsigned long long>(c.skipped_superseded), devices.c_str());
+    } else {
+        std::string rates;
+        for (const auto& st : s.streams)
+            if (st.fps > 0)
+                rates += (rates.empty() ? "" : ", ") + st.name + " " +
+                         std::to_string(static_cast<int>(std::lround(st.fps))) + " fps";
+        std::snprintf(line, sizeof line, "%.1f s: %s; %llu dropped at edges%s", s.seconds,
+                      rates.empty() ? "no frames yet" : rates.c_str(),
+                      static_cast<unsigned long long>(s.edge_drops), devices.c_str());
+    }
+    return line;
+}
+
+int runRun(const RunOptions& options) {
+    setFfmpegLogging(false);
+    registerRecordingFormats();
+    render::ArSource source;
+    render::ArPipelineOptions ar;
+    source.pace =
+        options.pace == "fast" ? render::ArSource::Pace::kFast : render::ArSource::Pace::kReal;
+    source.loop = options.loop;
+    const fs::path path = options.source;
+    std::unique_ptr<RecordingReader> reader;
+    if (isRigFile(path)) {
+        auto rig = loadRig(path);
+        if (!rig)
+            return fail("run", rig.status());
+        if (source.pace == render::ArSource::Pace::kFast)
+            return fail("run", {ErrorCode::kInvalidArgument,
+                                "--pace fast replays recordings; a rig's devices run at their own "
+                                "pace"});
+        ar.tracking.site = rig->site;
+        source.rig = std::move(rig).value();
+    } else {
+        auto opened = replay::openRecording(options.source);
+        if (!opened)
+            return fail("run", opened.status());
+        reader = std::move(opened).value();
+        source.recording = path;
+        auto offset = tracking::recordingUtcOffset(*reader);
+        if (!offset)
+            return fail("run", offset.status());
+        ar.tracking.utc_minus_host_ns = *offset;
+        auto site = tracking::findRigSite(*reader, "");
+        if (!site)
+            return fail("run", site.status());
+        ar.tracking.site = *site;
+        ar.record_attachments = reader->attachments();
+        ar.record_tags = reader->tags();
+    }
+
+    if (!options.scene.empty()) {
+        auto scene = render::loadScene(options.scene);
+        if (!scene)
+            return fail("run", scene.status());
+        ar.scene = std::move(scene).value();
+    }
+    // Tracking: the setup given, else (with a scene) the recording's own.
+    if (!options.setup.empty() || (ar.scene && reader)) {
+        if (reader) {
+            auto setup = tracking::findTrackingSetup(path, *reader, options.setup);
+            if (setup)
+                ar.setup = std::move(setup).value();
+            else if (!options.setup.empty() || !(ar.scene->camera && ar.scene->camera->has_pose))
+                return fail("run", setup.status());
+        } else {
+            auto setup = tracking::loadTrackingSetup(options.setup);
+            if (!setup)
+                return fail("run", setup.status());
+            ar.setup = std::move(setup).value();
+        }
+    }
+    if (ar.scene && !ar.setup && source.rig && !(ar.scene->camera && ar.scene->camera->has_pose))
+        return fail("run", {ErrorCode::kInvalidArgument,
+                            "a live rig needs --setup to track the camera (or a scene with a "
+                            "fixed camera pose)"});
+    if (!options.calibration.empty()) {
+        auto calibration = calibration::readCalibrationFile(options.calibration);
+        if (!calibration)
+            return fail("run", calibration.status());
+        ar.calibration = std::move(calibration).value();
+    }
+    reader.reset();
+    ar.render.samples_per_pixel = options.samples;
+    ar.render.shadow_samples = options.shadow_samples;
+    ar.render.max_depth = options.max_depth;
+    ar.render.threads = options.threads;
+    ar.render.depth_secondary = render::DepthSecondaryRays::kNone;
+    ar.record = options.record;
+    ar.target_fps = options.target_fps;
+
+    InterruptFlag interrupt;
+    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    if (!pipeline)
+        return fail("run", pipeline.status().withContext(options.source));
+    render::ArPipeline& p = **pipeline;
+    const std::string color = p.colorStream();
+    const std::string composite = p.compositeStream();
+    if (Status s = p.start(); !s)
+        return fail("run", s);
+    StatusLine status;
+    const auto started = std::chrono::steady_clock::now();
+    bool timed_out = false;
+    while (!p.waitDone(std::chrono::milliseconds(250))) {
+        status.update(statusText(p.stats(), color, composite));
+        if (interrupt.raised() || !p.status())
+            break;
+        if (options.duration_s > 0 && std::chrono::steady_clock::now() - started >=
+                                          std::chrono::duration<double>(options.duration_s)) {
+            timed_out = true;
+            break;
+        }
+    }
+    p.stop();
+    const render::ArPipelineStats stats = p.stats();
+    status.update(statusText(stats, color, composite));
+    status.finish();
+    if (Status s = p.status(); !s)
+        return fail("run", s);
+
+    std::error_code ec;
+    fs::create_directories(options.output, ec);
+    json summary = json::parse(stats.json());
+    summary["source"] = options.source;
+    summary["pace"] = options.pace;
+    summary["stopped_by"] = interrupt.raised() ? interrupt.signalName()
+                            : timed_out        ? "--duration"
+                                               : "the end of the source";
+    const fs::path summary_path = fs::path(options.output) / "summary.json";
+    std::ofstream(summary_path) << summary.dump(2) << "\n";
+    if (stats.compositor) {
+        const auto& c = *stats.compositor;
+        std::printf(
+            "%llu composites (%llu rendered) in %.1f s; latency p50 %.1f ms, p95 %.1f ms, p99 "
+            "%.1f ms; %llu sets skipped for newer ones; quality %d/%d (%s)\n",
+            static_cast<unsigned long long>(c.composites),
+            static_cast<unsigned long long>(c.rendered), stats.seconds, c.latency.p50_ms,
+            c.latency.p95_ms, c.latency.p99_ms,
+            static_cast<unsigned long long>(c.skipped_superseded), c.quality_step + 1,
+            c.quality_steps, c.quality_label.c_str());
+    }
+    if (stats.recorder)
+        std::printf("%s: %s\n", options.record.c_str(), stats.recorder->summary().c_str());
+    std::printf("wrote %s\n", summary_path.string().c_str());
+    return interrupt.raised() ? interrupt.exitCode() : kExitOk;
+}
+
+}  // namespace
+
+void registerRunCommand(CLI::App& app, Commands& commands) {
+    auto* sub = app.add_subcommand(
+        "run",
+        "Run AR live: a rig's devices (RIG.yaml) or a recording replayed as its rig, through "
+        "marker tracking, light estimation and the ray-traced compositor, in one device graph; "
+        "without --scene, a monitor of the rig's streams");
+    sub->footer(signalHelp("the recording (--record) and summary.json"));
+    auto o = std::make_shared<RunOptions>();
+    sub->add_option("SOURCE", o->source, "A rig file (.yaml) or a recording")->required();
+    sub->add_option("--scene", o->scene, "Scene with the virtual objects (docs/scene-format.md)");
+    sub->add_option("--setup", o->setup,
+                    "Tracking setup (docs/tracking.md#setup-files); default for a recording: its "
+                    "tracking.yaml attachment");
+    sub->add_option("--calibration", o->calibration,
+                    "Calibration file: the colour camera's model and depth registration");
+    sub->add_option("--record", o->record,
+                    "Record raw streams, poses, lights and the composite into this .mkv");
+    sub->add_option("-o,--output", o->output, "Folder for summary.json")->capture_default_str();
+    sub->add_option("--pace", o->pace,
+                    "real: devices, or the recording at its own pace as its rig delivered it "
+                    "(live edges, newest set wins); fast: the recording as fast as the pipeline "
+                    "takes it, every frame (lossless)")
+        ->check(CLI::IsMember({"real", "fast"}))
+        ->capture_default_str();
+    sub->add_flag("--loop", o->loop, "Play the recording again at its end (long live runs)");
+    sub->add_option("--target-fps", o->target_fps,
+                    "Frame rate the quality ladder holds at real pace (default: the colour "
+                    "stream's; 0: never lower quality)");
+    sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: at the end)")
+        ->check(CLI::Range(0.0, 1e9));
+    sub->add_option("--samples", o->samples, "Samples per pixel at full quality")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    sub->add_option("--shadow-samples", o->shadow_samples, "Rays per spherical light")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    sub->add_option("--max-depth", o->max_depth, "Secondary bounces at full quality")
+        ->check(CLI::Range(0, 16))
+        ->capture_default_str();
+    sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
+        ->check(CLI::Range(0, 1024));
+    commands.push_back({sub, [o] { return runRun(*o); }});
+}
+
+}  // namespace mixray::cli

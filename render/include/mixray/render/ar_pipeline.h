@@ -1,0 +1,142 @@
+// The whole AR pipeline as one device graph: devices (a rig, or a recording replayed as its
+// rig) → tracking and light estimation → compositor → composite stream, recorder and observers.
+// mixray run, demo, track and render are configurations of it.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mixray/calibration/calibration_file.h"
+#include "mixray/graph/device.h"
+#include "mixray/graph/graph.h"
+#include "mixray/graph/recorder.h"
+#include "mixray/graph/rig.h"
+#include "mixray/render/compositor_node.h"
+#include "mixray/render/scene.h"
+#include "mixray/tracking/tracking_node.h"
+
+namespace mixray::render {
+
+// Where frames come from.
+struct ArSource {
+    enum class Pace {
+        kReal,  // live devices, or a recording at its own pace, stamped as it is published
+        kFast,  // a recording as fast as the pipeline takes it; every frame processed
+    };
+    // Exactly one of: a rig's devices, or a recording (any format the "replay" backend opens),
+    // replayed with its recorded stream names so that setups written for the rig apply.
+    std::optional<RigDescription> rig;
+    std::filesystem::path recording;
+    Pace pace = Pace::kReal;
+    bool loop = false;  // recordings: play again from the start at the end
+};
+
+struct ArPipelineOptions {
+    // Track markers and estimate lights with this setup; none: poses come from pose_stream
+    // (or the scene's fixed camera) and lights from the scene.
+    std::optional<tracking::TrackingSetup> setup;
+    tracking::PipelineOptions tracking;
+    // Composite this scene's virtual objects; none: no compositor (tracking only, or a monitor
+    // of the devices).
+    std::optional<SceneDescription> scene;
+    // The colour camera's model (wins over the scene's and the setup's) and depth registration.
+    std::optional<calibration::CalibrationFile> calibration;
+    RenderOptions render;
+    // Which streams: empty picks as described at ArPipeline.
+    std::string color_stream;
+    std::string pose_stream;  // a recorded pose stream placing the camera, instead of tracking
+    bool use_depth = true;    // let the depth stream hide virtual objects
+    // Real pace only: the quality ladder holds this rate (0: full quality always; below 0: the
+    // colour stream's nominal rate).
+    double target_fps = 0;
+    bool skip_without_pose = false;
+    // Record raw streams, poses, lights and the composite into one recording.
+    std::filesystem::path record;
+    std::vector<Attachment> record_attachments;
+    std::map<std::string, std::string> record_tags;
+    std::map<std::string, Eigen::Isometry3d> T_world_anchor;
+    tracking::TrackedFrameCallback on_tracked;
+    CompositeCallback on_composite;
+};
+
+// What the pipeline has done so far, for status lines, the live view and summary.json.
+struct ArPipelineStats {
+    struct Stream {
+        std::string name;
+        std::string device;
+        uint64_t published = 0;
+        uint64_t lost = 0;  // lost by the source (full pool, dropped by the device)
+        double fps = 0;     // over the last second
+    };
+    struct Device {
+        std::string name;
+        std::string state;  // "streaming", "waiting" (nothing yet), "lost" (silent > 1 s), "ended"
+    };
+    std::vector<Stream> streams;
+    std::vector<Device> devices;
+    uint64_t edge_drops = 0;  // frames live edges dropped because a consumer was behind
+    std::optional<tracking::TrackingNodeStats> tracking;
+    std::optional<CompositorStats> compositor;
+    std::optional<RecorderStats> recorder;
+    double seconds = 0;  // since start()
+
+    // The live view's status object (docs/live-view.md): devices, streams, latency, sync,
+    // ladder, messages.
+    std::string json() const;
+};
+
+// Builds and runs the graph. Stream choice: the colour stream is the setup's camera stream,
+// else `color_stream`, else the first rgb8 colour stream; the depth stream is one the
+// calibration registers into it, else the first depth16 stream of its size that is not tagged
+// aligned_with an IR camera; the pose stream is the tracking node's, else `pose_stream`, else
+// the only recorded pose stream when the scene's camera has no pose.
+// Thread-safety: start/stop/wait from one thread; stats() from any.
+class ArPipeline {
+public:
+    // Opens the source's devices through `backends` (a recording needs the "replay" backend)
+    // and connects every node. Errors name the device, stream or file.
+    static Result<std::unique_ptr<ArPipeline>> create(const BackendRegistry& backends,
+                                                      const ArSource& source,
+                                                      ArPipelineOptions options);
+    ~ArPipeline();
+
+    Status start();
+    // Until the source ended and everything downstream finished (recordings without loop);
+    // false on timeout.
+    bool waitDone(std::chrono::nanoseconds timeout) const;
+    // Stops every node (the recording is closed with what reached it). Idempotent.
+    void stop();
+    // The first error of a node (tracking, compositor, recorder, a replayed file), else ok.
+    Status status() const;
+    ArPipelineStats stats() const;
+
+    Graph& graph() { return *graph_; }
+    const tracking::TrackingNode* tracking() const { return tracking_; }
+    const CompositorNode* compositor() const { return compositor_; }
+    const std::string& colorStream() const { return color_stream_; }
+    // The composite stream's name, empty without a scene.
+    std::string compositeStream() const;
+    // The camera model the compositor renders with (valid with a scene).
+    const calibration::CameraModel& camera() const { return camera_; }
+
+private:
+    ArPipeline() = default;
+
+    std::unique_ptr<Graph> graph_;
+    std::vector<Device*> devices_;
+    tracking::TrackingNode* tracking_ = nullptr;
+    CompositorNode* compositor_ = nullptr;
+    Recorder* recorder_ = nullptr;
+    std::string color_stream_;
+    calibration::CameraModel camera_;
+    std::chrono::steady_clock::time_point started_;
+    struct RateWindow;
+    std::unique_ptr<RateWindow> rates_;
+};
+
+}  // namespace mixray::render

@@ -1,0 +1,206 @@
+// The compositor as a graph node: a synchronized set of colour, depth, pose and lights in, the
+// composite out as an ordinary rgb8 stream, so the recorder, the live view and remote hosts
+// consume it like any camera's.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stop_token>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mixray/calibration/depth_registration.h"
+#include "mixray/graph/graph.h"
+#include "mixray/graph/pose.h"
+#include "mixray/graph/synchronizer.h"
+#include "mixray/render/renderer.h"
+#include "mixray/render/scene.h"
+#include "mixray/tracking/light_record.h"
+
+namespace mixray::render {
+
+// Scene lights from estimated ones (a light record's "render" group): a light with a position
+// and an apparent size becomes a sphere of that size (soft shadows as the real light casts
+// them, intensity E·d² for the same irradiance at the scene), else a directional light; plus
+// the environment map, when there is one, as an environment light.
+std::vector<Light> lightsFromEstimates(const std::vector<tracking::EstimatedLight>& estimates,
+                                       std::shared_ptr<const FloatImage> environment_map);
+
+// One rung of the quality ladder: what the renderer may give up to hold a frame rate.
+struct QualityStep {
+    int samples_per_pixel = 1;
+    int shadow_samples = 20;
+    int max_depth = 3;
+    SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
+    std::string label() const;  // "spp 4, shadows adaptive/20, depth 3"
+};
+
+// The ladder from `best` (rung 0, what was asked for) down to one sample, few shadow rays and
+// no bounces; rungs that would change nothing are left out.
+std::vector<QualityStep> qualityLadder(const RenderOptions& best);
+
+struct CompositorOptions {
+    std::string name = "compositor";
+    std::string color_stream;            // rgb8 or bgr8; required
+    std::string depth_stream;            // depth16 that occludes; empty: none
+    std::string pose_stream;             // pose records placing the camera; empty: fixed pose
+    std::string light_stream;            // light records; empty: the scene's own lights
+    std::string environment_map_stream;  // environment-map records; empty: none
+    std::string output_stream = "composite/color";
+
+    calibration::CameraModel camera;                                      // the colour camera
+    Eigen::Isometry3d fixed_T_world_cam = Eigen::Isometry3d::Identity();  // without poses
+    // Depth in the depth camera's own image, registered into the colour camera per frame.
+    std::optional<calibration::DepthRegistration> depth_registration;
+    // Poses of anchors that tracking does not give ("marker:3" -> T_world_marker).
+    std::map<std::string, Eigen::Isometry3d> T_world_anchor;
+    RenderOptions render;
+
+    // Offline: lossless edges and every set rendered, so a run gives the same composites each
+    // time. Live: live edges, and the compositor takes the newest complete set; the sets it
+    // had no time for are counted (superseded).
+    bool lossless = true;
+    // Live only: lower quality along qualityLadder() to hold this rate; 0: never lower it.
+    double target_fps = 0;
+    // A frame without a valid or stale pose: false passes the camera image through (the
+    // composite stream has a frame for every colour frame), true publishes nothing for it.
+    bool skip_without_pose = false;
+    // How colour and depth are matched (kHost for recordings replayed as fast as possible,
+    // kCommon for live devices); pose and light records carry their colour frame's stamps.
+    SyncTimeBase time_base = SyncTimeBase::kHost;
+    size_t queue_capacity = 8;  // per input edge
+    size_t output_buffers = 6;
+
+    Status validate() const;
+};
+
+// What a composite observer sees: everything the frame was made from, and how it went.
+struct CompositeFrame {
+    uint64_t index = 0;  // composites so far, from 0
+    FrameRef color;
+    FrameRef depth;      // empty without a depth stream
+    FrameRef composite;  // the published frame (the colour frame itself when passed through)
+    std::optional<PoseRecord> pose;
+    std::optional<tracking::LightRecord> lights;
+    bool rendered = false;  // false: the camera image passed through (no pose)
+    // The renderer's layers of a rendered frame (I_m, I_r, M with RenderOptions::keep_layers);
+    // valid during the callback only.
+    const RenderLayers* layers = nullptr;
+    RenderStats stats;
+    int quality_step = 0;
+    // From the colour frame's capture (host stamp; for a replayed frame, when it entered the
+    // graph: FrameMetadata::graph_stamp_ns) to the composite's publication.
+    double latency_ms = 0;
+};
+
+// Called on the compositor's thread after a composite was published; holding it up holds up
+// the compositor (lossless: the whole pipeline).
+using CompositeCallback = std::function<void(const CompositeFrame& frame)>;
+
+struct LatencyPercentiles {
+    double p50_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+    uint64_t count = 0;
+};
+
+struct CompositorStats {
+    uint64_t sets = 0;                  // complete sets the synchronizer gave
+    uint64_t composites = 0;            // published
+    uint64_t rendered = 0;              // of them ray traced
+    uint64_t passed_through = 0;        // of them the camera image (no pose)
+    uint64_t skipped_superseded = 0;    // live: a newer set came before this one was started
+    uint64_t skipped_without_pose = 0;  // skip_without_pose
+    uint64_t publish_failures = 0;      // no free output buffer
+    SyncStats sync;                     // frames the synchronizer could not match, and why
+    LatencyPercentiles latency;         // over the last 1024 composites
+    double render_ms_mean = 0;
+    int quality_step = 0;
+    int quality_steps = 1;
+    std::string quality_label;
+};
+
+// Runs a SyncNode over its inputs and renders on a thread of its own, so matching never waits
+// for the renderer. Light records change the renderer's lights only when they change. With
+// target_fps it keeps a renderer per ladder rung it used and moves down a rung when frames
+// take more than 90 % of the period, up again after 2 s below 45 %.
+// Thread-safe: stats(), status() and waitDone() from any thread.
+class CompositorNode : public Node {
+public:
+    static Result<std::unique_ptr<CompositorNode>> create(CompositorOptions options,
+                                                          SceneDescription scene,
+                                                          CompositeCallback on_composite = {});
+    ~CompositorNode() override;
+
+    std::string name() const override { return options_.name; }
+    Status connect(Graph& graph) override;
+    Status start() override;
+    void stop() override;
+
+    // Until every input ended and the last composite was published; false on timeout.
+    bool waitDone(std::chrono::nanoseconds timeout) const;
+    Status status() const;
+    CompositorStats stats() const;
+    StreamId outputStream() const { return output_.id; }
+    const CompositorOptions& options() const { return options_; }
+
+private:
+    struct Pending {
+        FrameRef color, depth, pose, lights;
+    };
+    CompositorNode(CompositorOptions options, SceneDescription scene,
+                   CompositeCallback on_composite);
+    void onSet(const SyncSet& set);
+    void run();
+    Status composite(const Pending& set);
+    Result<Renderer*> renderer(int step);
+    void drainEnvironmentMaps();
+    void adjustQuality(double seconds);
+    void finish(Status status);
+    WritableFrame acquire(BufferPool& pool);
+
+    CompositorOptions options_;
+    SceneDescription scene_;
+    CompositeCallback on_composite_;
+    std::vector<QualityStep> ladder_;
+    std::vector<std::unique_ptr<Renderer>> renderers_;  // per rung, made when first used
+    std::vector<uint64_t> renderer_lights_version_;
+    std::vector<Light> lights_;
+    uint64_t lights_version_ = 0;
+    int64_t last_map_stamp_ns_ = -1;
+    std::map<int64_t, std::shared_ptr<const FloatImage>> environment_maps_;  // by stamp
+    RenderLayers layers_;
+
+    Graph* graph_ = nullptr;
+    std::unique_ptr<SyncNode> sync_;
+    int depth_index_ = -1, pose_index_ = -1, light_index_ = -1;
+    std::shared_ptr<FrameQueue> map_queue_;
+    PooledStream output_;
+
+    std::thread thread_;
+    std::atomic<bool> stop_{false};
+    std::stop_source stop_render_;
+    mutable std::mutex mutex_;
+    std::condition_variable mailbox_cv_;
+    std::optional<Pending> mailbox_;
+    mutable std::condition_variable done_cv_;
+    bool done_ = false;
+    Status status_;
+    CompositorStats stats_;
+    std::vector<double> latencies_ms_;  // ring of the last kLatencyWindow
+    size_t latency_next_ = 0;
+    double render_ms_sum_ = 0;
+    int step_ = 0;
+    double ema_s_ = 0;
+    int frames_at_step_ = 0;
+    int frames_fast_ = 0;
+};
+
+}  // namespace mixray::render

@@ -1,0 +1,437 @@
+// The whole AR pipeline as one device graph (mixray/render/ar_pipeline.h).
+#include "mixray/render/ar_pipeline.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+namespace mixray::render {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string streamList(const Graph& graph) {
+    std::string names;
+    for (const StreamInfo& s : graph.streams())
+        names += (names.empty() ? "" : ", ") + s.name;
+    return names.empty() ? "none" : names;
+}
+
+// The colour stream: the setup's camera, else the one asked for, else the first rgb8 one.
+Result<std::string> pickColor(const Graph& graph, const ArPipelineOptions& o) {
+    std::string wanted = o.setup ? o.setup->camera.stream : o.color_stream;
+    if (!wanted.empty()) {
+        if (!graph.findStream(wanted))
+            return Status(ErrorCode::kNotFound,
+                          "no stream " + wanted + " (the source has: " + streamList(graph) + ")");
+        return wanted;
+    }
+    for (const StreamInfo& s : graph.streams())
+        if (s.kind == StreamKind::kColor &&
+            (s.format.format == PixelFormat::kRGB8 || s.format.format == PixelFormat::kBGR8))
+            return s.name;
+    return Status(ErrorCode::kUnsupported,
+                  "the source has no rgb8/bgr8 colour stream (it has: " + streamList(graph) + ")");
+}
+
+struct DepthChoice {
+    std::string stream;
+    std::optional<calibration::DepthRegistration> registration;
+};
+
+// One the calibration registers into the colour camera, else a depth16 stream of its size
+// that is not raw (tagged aligned_with an IR camera: its pixels are not the colour camera's).
+Result<DepthChoice> pickDepth(const Graph& graph, const StreamInfo& color,
+                              const calibration::CalibrationFile* calibration) {
+    DepthChoice out;
+    for (const StreamInfo& s : graph.streams()) {
+        if (!calibration || s.format.format != PixelFormat::kDepth16)
+            continue;
+        auto registration = calibration->depthRegistration(s.name);
+        if (!registration)
+            continue;
+        const auto entry =
+            std::find_if(calibration->depth.begin(), calibration->depth.end(),
+                         [&](const calibration::CalibratedDepth& d) { return d.stream == s.name; });
+        if (entry->color_camera != color.name)
+            continue;
+        if (registration->depth.width != s.format.width ||
+            registration->depth.height != s.format.height)
+            return Status(ErrorCode::kInvalidArgument,
+                          "the calibration's " + entry->depth_camera + " is " +
+                              std::to_string(registration->depth.width) + "x" +
+                              std::to_string(registration->depth.height) + " but " + s.name +
+                              " is " + std::to_string(s.format.width) + "x" +
+                              std::to_string(s.format.height));
+        out.stream = s.name;
+        out.registration = std::move(registration).value();
+        return out;
+    }
+    for (const StreamInfo& s : graph.streams()) {
+        if (s.kind == StreamKind::kDepth && s.format.format == PixelFormat::kDepth16 &&
+            s.format.width == color.format.width && s.format.height == color.format.height &&
+            !s.tags.count("aligned_with")) {
+            out.stream = s.name;
+            break;
+        }
+    }
+    return out;
+}
+
+Result<std::string> pickPoseStream(const Graph& graph, const std::string& wanted) {
+    std::vector<std::string> poses;
+    for (const StreamInfo& s : graph.streams())
+        if (s.kind == StreamKind::kPose)
+            poses.push_back(s.name);
+    if (!wanted.empty()) {
+        if (std::find(poses.begin(), poses.end(), wanted) == poses.end())
+            return Status(ErrorCode::kNotFound, "no pose stream " + wanted);
+        return wanted;
+    }
+    if (poses.empty())
+        return Status(ErrorCode::kNotFound,
+                      "the scene's camera has no pose and the source has no pose stream to "
+                      "place it (track markers with a setup, or give the scene a camera pose)");
+    if (poses.size() > 1) {
+        std::string names;
+        for (const auto& p : poses)
+            names += (names.empty() ? "" : ", ") + p;
+        return Status(ErrorCode::kInvalidArgument,
+                      "the source has several pose streams (" + names + "): name one");
+    }
+    return poses.front();
+}
+
+}  // namespace
+
+// Frames per stream over the last second, and whether each stream ended, from a live edge of
+// capacity 1 per stream that the pipeline drains itself.
+struct ArPipeline::RateWindow {
+    struct Sample {
+        Clock::time_point at;
+        uint64_t count = 0;
+    };
+    struct Watch {
+        StreamId id = kInvalidStream;
+        std::shared_ptr<FrameQueue> queue;
+        std::vector<Sample> samples;  // the last ~2 s
+        Clock::time_point last_change{};
+        uint64_t last_count = 0;
+    };
+    std::mutex mutex;
+    std::vector<Watch> watches;
+};
+
+ArPipeline::~ArPipeline() {
+    stop();
+}
+
+Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& backends,
+                                                       const ArSource& source,
+                                                       ArPipelineOptions options) {
+    if (source.rig.has_value() == !source.recording.empty())
+        return Status(ErrorCode::kInvalidArgument,
+                      "an AR pipeline needs exactly one source: a rig or a recording");
+    const bool lossless = source.pace == ArSource::Pace::kFast;
+    if (lossless && source.rig)
+        return Status(ErrorCode::kInvalidArgument,
+                      "a rig's devices are live: pace fast applies to recordings only");
+    std::unique_ptr<ArPipeline> p(new ArPipeline);
+    p->graph_ = std::make_unique<Graph>();
+    Graph& graph = *p->graph_;
+
+    std::vector<DeviceConfig> configs;
+    if (source.rig) {
+        MIXRAY_RETURN_IF_ERROR(source.rig->validate());
+        configs = source.rig->deviceConfigs();
+    } else {
+        DeviceConfig c;
+        c.name = "recording";
+        c.driver = "replay";
+        c.id = source.recording.string();
+        c.options["names"] = "recorded";
+        c.options["pace"] = lossless ? "fast" : "original";
+        if (!lossless)
+            c.options["stamps"] = "arrival";
+        c.options["loop"] = source.loop ? "true" : "false";
+        configs.push_back(std::move(c));
+    }
+    for (const DeviceConfig& c : configs) {
+        auto device = backends.open(c);
+        if (!device)
+            return device.status().withContext(c.id.empty() ? c.name : c.id);
+        Device* raw = device->get();
+        MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(device).value()));
+        p->devices_.push_back(raw);
+    }
+
+    // Watch every source stream for rates and ends.
+    p->rates_ = std::make_unique<RateWindow>();
+    for (StreamId id = 0; id < graph.streamCount(); ++id) {
+        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "pipeline-watch"});
+        if (!queue)
+            return queue.status();
+        p->rates_->watches.push_back({id, std::move(queue).value(), {}, {}, 0});
+    }
+
+    const bool compositing = options.scene.has_value();
+    if (options.setup || compositing) {
+        auto color = pickColor(graph, options);
+        if (!color)
+            return color.status();
+        p->color_stream_ = *color;
+    }
+
+    std::string pose_stream, light_stream, map_stream;
+    if (options.setup) {
+        tracking::TrackingNodeOptions t;
+        t.setup = *options.setup;
+        t.pipeline = options.tracking;
+        t.lossless = lossless;
+        auto node = tracking::TrackingNode::create(std::move(t), options.on_tracked);
+        if (!node)
+            return node.status();
+        p->tracking_ = node->get();
+        MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(node).value()));
+        pose_stream = p->tracking_->options().pose_stream;
+        light_stream = p->tracking_->options().light_stream;
+        if (p->tracking_->hasEnvironment())
+            map_stream = p->tracking_->options().environment_map_stream;
+    }
+
+    if (compositing) {
+        SceneDescription scene = std::move(*options.scene);
+        const StreamInfo color = graph.stream(*graph.findStream(p->color_stream_));
+        // The camera: the calibration's model of the colour stream, else the scene's, else the
+        // tracking setup's.
+        std::optional<calibration::CameraModel> model;
+        if (options.calibration)
+            if (const calibration::CalibratedCamera* c = options.calibration->find(color.name))
+                model = c->model;
+        if (!model && scene.camera && scene.camera->model)
+            model = scene.camera->model;
+        if (!model && options.setup)
+            model = options.setup->camera.model;
+        if (!model)
+            return Status(ErrorCode::kInvalidArgument,
+                          scene.source_path.string() +
+                              ": the scene's camera has no model, and no calibration or "
+                              "tracking setup gives one for " +
+                              color.name);
+        p->camera_ = *model;
+        CompositorOptions c;
+        c.color_stream = color.name;
+        c.camera = *model;
+        c.render = options.render;
+        c.lossless = lossless;
+        c.target_fps = lossless                 ? 0
+                       : options.target_fps < 0 ? (color.nominal_fps > 0 ? color.nominal_fps : 30)
+                                                : options.target_fps;
+        c.skip_without_pose = options.skip_without_pose;
+        c.time_base = source.rig ? SyncTimeBase::kCommon : SyncTimeBase::kHost;
+        c.T_world_anchor = options.T_world_anchor;
+        if (options.use_depth) {
+            auto depth =
+                pickDepth(graph, color, options.calibration ? &*options.calibration : nullptr);
+            if (!depth)
+                return depth.status();
+            c.depth_stream = depth->stream;
+            c.depth_registration = std::move(depth->registration);
+            if (c.depth_registration)
+                c.depth_registration->color = *model;
+        }
+        if (!pose_stream.empty() && options.pose_stream.empty()) {
+            c.pose_stream = pose_stream;
+        } else if (!options.pose_stream.empty() || !scene.camera || !scene.camera->has_pose) {
+            auto recorded = pickPoseStream(graph, options.pose_stream);
+            if (!recorded)
+                return recorded.status();
+            c.pose_stream = *recorded;
+        } else {
+            c.fixed_T_world_cam = scene.camera->T_world_cam;
+        }
+        c.light_stream = light_stream;
+        c.environment_map_stream = map_stream;
+        auto node = CompositorNode::create(std::move(c), std::move(scene), options.on_composite);
+        if (!node)
+            return node.status();
+        p->compositor_ = node->get();
+        MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(node).value()));
+    }
+
+    if (!options.record.empty()) {
+        RecorderOptions r;
+        r.path = options.record;
+        r.policy = lossless ? QueuePolicy::kLossless : QueuePolicy::kLive;
+        r.attachments = options.record_attachments;
+        r.tags = options.record_tags;
+        auto recorder = std::make_unique<Recorder>(std::move(r));
+        p->recorder_ = recorder.get();
+        MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(recorder)));
+    }
+    return p;
+}
+
+Status ArPipeline::start() {
+    started_ = Clock::now();
+    return graph_->start();
+}
+
+bool ArPipeline::waitDone(std::chrono::nanoseconds timeout) const {
+    const auto deadline = Clock::now() + timeout;
+    if (compositor_)
+        return compositor_->waitDone(timeout);
+    if (tracking_)
+        return tracking_->waitDone(timeout);
+    // A monitor: done when every source stream ended.
+    while (Clock::now() < deadline) {
+        bool all = true;
+        for (const auto& w : rates_->watches)
+            all = all && w.queue->closed();
+        if (all)
+            return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+}
+
+void ArPipeline::stop() {
+    if (graph_)
+        graph_->stop();
+}
+
+Status ArPipeline::status() const {
+    if (tracking_)
+        MIXRAY_RETURN_IF_ERROR(tracking_->status());
+    if (compositor_)
+        MIXRAY_RETURN_IF_ERROR(compositor_->status());
+    if (recorder_) {
+        const RecorderStats r = recorder_->stats();
+        if (!r.error)
+            return r.error;
+    }
+    return Status::ok();
+}
+
+std::string ArPipeline::compositeStream() const {
+    return compositor_ ? graph_->stream(compositor_->outputStream()).name : std::string();
+}
+
+ArPipelineStats ArPipeline::stats() const {
+    ArPipelineStats s;
+    const auto now = Clock::now();
+    s.seconds = std::chrono::duration<double>(now - started_).count();
+    std::map<std::string, std::pair<int, int>> device_streams;  // streaming, ended
+    {
+        std::lock_guard lock(rates_->mutex);
+        for (auto& w : rates_->watches) {
+            while (w.queue->tryPop()) {
+            }
+            const StreamInfo info = graph_->stream(w.id);
+            ArPipelineStats::Stream st;
+            st.name = info.name;
+            st.device = info.device;
+            st.published = graph_->publishedCount(w.id);
+            st.lost = graph_->lostCount(w.id);
+            if (st.published != w.last_count) {
+                w.last_count = st.published;
+                w.last_change = now;
+            }
+            w.samples.push_back({now, st.published});
+            while (w.samples.size() > 2 && now - w.samples[1].at >= std::chrono::seconds(1))
+                w.samples.erase(w.samples.begin());
+            const double dt = std::chrono::duration<double>(now - w.samples.front().at).count();
+            st.fps =
+                dt > 0.2 ? static_cast<double>(st.published - w.samples.front().count) / dt : 0;
+            auto& d = device_streams[info.device];
+            if (w.queue->closed())
+                ++d.second;
+            else if (st.published > 0 && now - w.last_change < std::chrono::seconds(1))
+                ++d.first;
+            if (st.published == 0 && !w.queue->closed())
+                d.first -= 1000;  // a stream that never sent anything: waiting
+            s.streams.push_back(std::move(st));
+        }
+    }
+    for (const Device* d : devices_) {
+        const auto& counts = device_streams[d->name()];
+        ArPipelineStats::Device dev;
+        dev.name = d->name();
+        int total = 0;
+        for (const auto& st : s.streams)
+            total += st.device == d->name();
+        dev.state = total > 0 && counts.second == total ? "ended"
+                    : counts.first > 0                  ? "streaming"
+                    : counts.first < -500               ? "waiting"
+                                                        : "lost";
+        s.devices.push_back(std::move(dev));
+    }
+    for (const EdgeStats& e : graph_->edgeStats())
+        if (e.consumer != "pipeline-watch")
+            s.edge_drops += e.queue.dropped;
+    if (tracking_)
+        s.tracking = tracking_->stats();
+    if (compositor_)
+        s.compositor = compositor_->stats();
+    if (recorder_)
+        s.recorder = recorder_->stats();
+    return s;
+}
+
+std::string ArPipelineStats::json() const {
+    using nlohmann::json;
+    json j;
+    json devs = json::array();
+    for (const auto& d : devices)
+        devs.push_back({{"name", d.name}, {"state", d.state}});
+    j["devices"] = devs;
+    json sts = json::array();
+    for (const auto& st : streams)
+        sts.push_back({{"name", st.name},
+                       {"fps", std::round(st.fps * 10) / 10},
+                       {"published", st.published},
+                       {"dropped", st.lost}});
+    j["streams"] = sts;
+    j["edge_drops"] = edge_drops;
+    j["seconds"] = std::round(seconds * 10) / 10;
+    json messages = json::array();
+    if (compositor) {
+        const CompositorStats& c = *compositor;
+        j["latency_ms"] = {{"p50", c.latency.p50_ms},
+                           {"p95", c.latency.p95_ms},
+                           {"p99", c.latency.p99_ms},
+                           {"max", c.latency.max_ms}};
+        j["sync"] = {{"skew_ms_mean", c.sync.skew_mean_ns / 1e6},
+                     {"skew_ms_max", static_cast<double>(c.sync.skew_max_ns) / 1e6},
+                     {"sets", c.sync.sets_emitted},
+                     {"frames_unmatched", c.sync.framesDropped()},
+                     {"skipped", c.skipped_superseded}};
+        j["ladder"] = {
+            {"step", c.quality_step}, {"steps", c.quality_steps}, {"label", c.quality_label}};
+        j["composites"] = {{"published", c.composites},
+                           {"rendered", c.rendered},
+                           {"passed_through", c.passed_through},
+                           {"render_ms_mean", c.render_ms_mean}};
+        if (c.passed_through > 0)
+            messages.push_back(std::to_string(c.passed_through) +
+                               " composites without a pose: the camera image as is");
+    }
+    if (tracking) {
+        j["tracking"] = {{"color_frames", tracking->color_frames},
+                         {"skipped", tracking->color_skipped},
+                         {"environment_frames", tracking->environment_frames}};
+    }
+    if (recorder) {
+        j["recorder"] = {{"written", recorder->frames_written},
+                         {"dropped", recorder->frames_dropped},
+                         {"bytes", recorder->bytes_written}};
+        if (!recorder->error)
+            messages.push_back("recording stopped: " + recorder->error.message());
+    }
+    j["messages"] = messages;
+    return j.dump();
+}
+
+}  // namespace mixray::render

@@ -1,0 +1,547 @@
+// The compositor as a graph node (mixray/render/compositor_node.h).
+#include "mixray/render/compositor_node.h"
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+
+namespace mixray::render {
+namespace {
+
+constexpr size_t kLatencyWindow = 1024;
+constexpr size_t kEnvironmentMapsKept = 4;
+constexpr auto kPollInterval = std::chrono::milliseconds(10);
+
+int64_t monotonicNowNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+Rgb rgb(const Eigen::Vector3d& v) {
+    return Rgb(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
+}
+
+std::string_view shadowName(SoftShadowMethod m) {
+    switch (m) {
+        case SoftShadowMethod::kHard:
+            return "hard";
+        case SoftShadowMethod::kUniform:
+            return "uniform";
+        case SoftShadowMethod::kAdaptive:
+            return "adaptive";
+    }
+    return "?";
+}
+
+double percentile(std::vector<double>& sorted, double p) {
+    if (sorted.empty())
+        return 0;
+    const size_t i = std::min(
+        sorted.size() - 1,
+        static_cast<size_t>(std::ceil(p * static_cast<double>(sorted.size()))) - (p > 0 ? 1 : 0));
+    return sorted[i];
+}
+
+}  // namespace
+
+std::vector<Light> lightsFromEstimates(const std::vector<tracking::EstimatedLight>& estimates,
+                                       std::shared_ptr<const FloatImage> environment_map) {
+    std::vector<Light> out;
+    for (size_t i = 0; i < estimates.size(); ++i) {
+        const tracking::EstimatedLight& e = estimates[i];
+        if (e.intensity.maxCoeff() <= 0)
+            continue;
+        Light l;
+        l.name = "estimated_" + std::to_string(i);
+        if (e.position_world && e.angular_radius_rad > 0) {
+            const double d = e.position_world->norm();
+            l.type = LightType::kSphere;
+            l.position = *e.position_world;
+            l.radius = static_cast<float>(d * std::tan(e.angular_radius_rad));
+            l.intensity = rgb(e.intensity * d * d);
+        } else {
+            l.type = LightType::kDirectional;
+            l.direction = -e.to_light_world.normalized();
+            l.intensity = rgb(e.intensity);
+        }
+        out.push_back(std::move(l));
+    }
+    if (environment_map) {
+        Light env;
+        env.name = "estimated_environment";
+        env.type = LightType::kEnvironment;
+        env.environment_image = std::move(environment_map);
+        out.push_back(std::move(env));
+    }
+    return out;
+}
+
+std::string QualityStep::label() const {
+    return "spp " + std::to_string(samples_per_pixel) + ", shadows " +
+           std::string(shadowName(soft_shadows)) +
+           (soft_shadows == SoftShadowMethod::kHard ? "" : "/" + std::to_string(shadow_samples)) +
+           ", depth " + std::to_string(max_depth);
+}
+
+std::vector<QualityStep> qualityLadder(const RenderOptions& best) {
+    std::vector<QualityStep> ladder;
+    QualityStep s{best.samples_per_pixel, best.shadow_samples, best.max_depth, best.soft_shadows};
+    const auto add = [&ladder](const QualityStep& step) {
+        if (ladder.empty() || step.samples_per_pixel != ladder.back().samples_per_pixel ||
+            step.shadow_samples != ladder.back().shadow_samples ||
+            step.max_depth != ladder.back().max_depth ||
+            step.soft_shadows != ladder.back().soft_shadows)
+            ladder.push_back(step);
+    };
+    add(s);
+    s.samples_per_pixel = 1;
+    add(s);
+    s.shadow_samples = std::max(4, s.shadow_samples / 2);
+    add(s);
+    s.max_depth = std::min(s.max_depth, 1);
+    s.shadow_samples = std::min(s.shadow_samples, 4);
+    add(s);
+    s.soft_shadows = SoftShadowMethod::kHard;
+    s.max_depth = 0;
+    add(s);
+    return ladder;
+}
+
+Status CompositorOptions::validate() const {
+    if (name.empty() || color_stream.empty() || output_stream.empty())
+        return {ErrorCode::kInvalidArgument,
+                "compositor: name, color_stream and output_stream are required"};
+    if (!(target_fps >= 0) || !std::isfinite(target_fps))
+        return {ErrorCode::kInvalidArgument, "compositor: target_fps must be >= 0"};
+    if (queue_capacity < 2 || output_buffers < 2)
+        return {ErrorCode::kInvalidArgument,
+                "compositor: queue_capacity and output_buffers must be at least 2"};
+    return render.validate();
+}
+
+Result<std::unique_ptr<CompositorNode>> CompositorNode::create(CompositorOptions options,
+                                                               SceneDescription scene,
+                                                               CompositeCallback on_composite) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    MIXRAY_RETURN_IF_ERROR(scene.validate());
+    std::unique_ptr<CompositorNode> node(
+        new CompositorNode(std::move(options), std::move(scene), std::move(on_composite)));
+    // The first rung now, so a scene that does not load fails here, not in the thread.
+    auto first = node->renderer(0);
+    if (!first)
+        return first.status();
+    return node;
+}
+
+CompositorNode::CompositorNode(CompositorOptions options, SceneDescription scene,
+                               CompositeCallback on_composite)
+    : options_(std::move(options)),
+      scene_(std::move(scene)),
+      on_composite_(std::move(on_composite)),
+      ladder_(qualityLadder(options_.render)),
+      renderers_(ladder_.size()),
+      renderer_lights_version_(ladder_.size(), 0) {
+    latencies_ms_.reserve(kLatencyWindow);
+    stats_.quality_steps = static_cast<int>(ladder_.size());
+    stats_.quality_label = ladder_.front().label();
+}
+
+CompositorNode::~CompositorNode() {
+    stop();
+}
+
+Result<Renderer*> CompositorNode::renderer(int step) {
+    auto& slot = renderers_[static_cast<size_t>(step)];
+    if (!slot) {
+        RenderOptions o = options_.render;
+        const QualityStep& q = ladder_[static_cast<size_t>(step)];
+        o.samples_per_pixel = q.samples_per_pixel;
+        o.shadow_samples = q.shadow_samples;
+        o.max_depth = q.max_depth;
+        o.soft_shadows = q.soft_shadows;
+        auto made = Renderer::create(scene_, o);
+        if (!made)
+            return made.status();
+        slot = std::move(made).value();
+    }
+    return slot.get();
+}
+
+Status CompositorNode::connect(Graph& graph) {
+    graph_ = &graph;
+    const auto color = graph.findStream(options_.color_stream);
+    if (!color)
+        return {ErrorCode::kNotFound, options_.name + ": no stream " + options_.color_stream};
+    const StreamInfo info = graph.stream(*color);
+    if (info.format.format != PixelFormat::kRGB8 && info.format.format != PixelFormat::kBGR8)
+        return {ErrorCode::kUnsupported, options_.name + ": " + info.name +
+                                             " is not rgb8 or bgr8, so it cannot be composited"};
+    if (options_.camera.width != info.format.width || options_.camera.height != info.format.height)
+        return {ErrorCode::kInvalidArgument,
+                options_.name + ": the camera model is " + std::to_string(options_.camera.width) +
+                    "x" + std::to_string(options_.camera.height) + " but " + info.name + " is " +
+                    std::to_string(info.format.width) + "x" + std::to_string(info.format.height)};
+    const double fps = info.nominal_fps > 0 ? info.nominal_fps : 30;
+
+    SyncNodeOptions sync;
+    sync.name = options_.name;
+    sync.streams.push_back(options_.color_stream);
+    const auto addInput = [&](const std::string& stream, int& index) {
+        if (stream.empty())
+            return;
+        index = static_cast<int>(sync.streams.size());
+        sync.streams.push_back(stream);
+    };
+    addInput(options_.depth_stream, depth_index_);
+    addInput(options_.pose_stream, pose_index_);
+    addInput(options_.light_stream, light_index_);
+    sync.queue = {options_.queue_capacity,
+                  options_.lossless ? QueuePolicy::kLossless : QueuePolicy::kLive, options_.name};
+    sync.sync.time_base = options_.time_base;
+    // Frames of one instant: under half a colour period apart.
+    sync.sync.max_skew_ns = static_cast<int64_t>(0.45e9 / fps);
+    sync.sync.queue_size = static_cast<uint32_t>(std::max<size_t>(options_.queue_capacity, 2));
+    for (const std::string& name : sync.streams) {
+        const auto id = graph.findStream(name);
+        if (!id)
+            return {ErrorCode::kNotFound, options_.name + ": no stream " + name};
+        const double f = graph.stream(*id).nominal_fps;
+        // Records published per colour frame come at its rate; a little under the nominal
+        // period, so that jitter never makes a set look provably complete too early.
+        sync.sync.min_period_ns.push_back(f > 0 ? static_cast<int64_t>(0.8e9 / f) : 0);
+    }
+    // Offline the renderer sets the pace: a source waiting on it is not a dead source.
+    if (options_.lossless)
+        sync.stall_timeout = std::chrono::hours(1);
+    sync_ = std::make_unique<SyncNode>(std::move(sync), [this](const SyncSet& set) { onSet(set); });
+    MIXRAY_RETURN_IF_ERROR(sync_->connect(graph));
+
+    if (!options_.environment_map_stream.empty()) {
+        const auto maps = graph.findStream(options_.environment_map_stream);
+        if (!maps)
+            return {ErrorCode::kNotFound,
+                    options_.name + ": no stream " + options_.environment_map_stream};
+        auto queue =
+            graph.subscribe(*maps, {kEnvironmentMapsKept,
+                                    options_.lossless ? QueuePolicy::kLossless : QueuePolicy::kLive,
+                                    options_.name});
+        if (!queue)
+            return queue.status();
+        map_queue_ = std::move(queue).value();
+    }
+
+    StreamInfo out;
+    out.name = options_.output_stream;
+    out.device = options_.name;
+    out.kind = StreamKind::kColor;
+    out.format = ImageDesc::packed(PixelFormat::kRGB8, info.format.width, info.format.height);
+    out.nominal_fps = info.nominal_fps;
+    out.clock_domain = info.clock_domain;
+    out.tags["composite_of"] = info.name;
+    auto output = addPooledStream(graph, out, options_.output_buffers);
+    if (!output)
+        return output.status();
+    output_ = std::move(output).value();
+    return Status::ok();
+}
+
+Status CompositorNode::start() {
+    if (!graph_)
+        return {ErrorCode::kInternal, options_.name + ": start() before connect()"};
+    stop_ = false;
+    thread_ = std::thread([this] { run(); });
+    return sync_->start();
+}
+
+void CompositorNode::stop() {
+    stop_ = true;
+    stop_render_.request_stop();
+    mailbox_cv_.notify_all();
+    if (sync_)
+        sync_->stop();
+    if (map_queue_)
+        map_queue_->close();
+    if (thread_.joinable())
+        thread_.join();
+}
+
+bool CompositorNode::waitDone(std::chrono::nanoseconds timeout) const {
+    std::unique_lock lock(mutex_);
+    return done_cv_.wait_for(lock, timeout, [this] { return done_; });
+}
+
+Status CompositorNode::status() const {
+    std::lock_guard lock(mutex_);
+    return status_;
+}
+
+CompositorStats CompositorNode::stats() const {
+    CompositorStats s;
+    std::vector<double> sorted;
+    {
+        std::lock_guard lock(mutex_);
+        s = stats_;
+        sorted = latencies_ms_;
+    }
+    if (sync_)
+        s.sync = sync_->stats();
+    std::sort(sorted.begin(), sorted.end());
+    s.latency.count = sorted.size();
+    s.latency.p50_ms = percentile(sorted, 0.50);
+    s.latency.p95_ms = percentile(sorted, 0.95);
+    s.latency.p99_ms = percentile(sorted, 0.99);
+    s.latency.max_ms = sorted.empty() ? 0 : sorted.back();
+    return s;
+}
+
+void CompositorNode::onSet(const SyncSet& set) {
+    Pending p;
+    p.color = set.frames[0];
+    if (depth_index_ >= 0)
+        p.depth = set.frames[static_cast<size_t>(depth_index_)];
+    if (pose_index_ >= 0)
+        p.pose = set.frames[static_cast<size_t>(pose_index_)];
+    if (light_index_ >= 0)
+        p.lights = set.frames[static_cast<size_t>(light_index_)];
+    std::unique_lock lock(mutex_);
+    ++stats_.sets;
+    if (options_.lossless) {
+        // Back-pressure: the synchronizer (and through its lossless edges the sources) waits
+        // for the renderer.
+        mailbox_cv_.wait(lock, [this] { return !mailbox_ || stop_; });
+        if (stop_)
+            return;
+    } else if (mailbox_) {
+        ++stats_.skipped_superseded;
+    }
+    mailbox_ = std::move(p);
+    lock.unlock();
+    mailbox_cv_.notify_all();
+}
+
+void CompositorNode::drainEnvironmentMaps() {
+    if (!map_queue_)
+        return;
+    while (auto frame = map_queue_->tryPop()) {
+        auto decoded = tracking::decodeEnvironmentMapRecord(frame->image());
+        if (!decoded)
+            continue;  // a damaged map is no map: the previous one stays
+        environment_maps_[decoded->header.good_stamp_ns] =
+            std::make_shared<const FloatImage>(std::move(decoded->map));
+        while (environment_maps_.size() > kEnvironmentMapsKept)
+            environment_maps_.erase(environment_maps_.begin());
+    }
+}
+
+void CompositorNode::run() {
+    Status result;
+    while (true) {
+        std::optional<Pending> set;
+        {
+            std::unique_lock lock(mutex_);
+            mailbox_cv_.wait_for(lock, kPollInterval, [this] { return mailbox_ || stop_; });
+            if (stop_)
+                break;
+            if (mailbox_) {
+                set = std::move(mailbox_);
+                mailbox_.reset();
+            }
+        }
+        if (!set) {
+            if (sync_->done()) {
+                std::lock_guard lock(mutex_);
+                if (!mailbox_)
+                    break;
+            }
+            continue;
+        }
+        mailbox_cv_.notify_all();
+        result = composite(*set);
+        if (!result)
+            break;
+    }
+    if (result.code() == ErrorCode::kCancelled)
+        result = Status::ok();
+    finish(std::move(result));
+}
+
+void CompositorNode::finish(Status status) {
+    graph_->endStream(output_.id);
+    {
+        std::lock_guard lock(mutex_);
+        status_ = std::move(status);
+        done_ = true;
+        stop_ = stop_ || !status_;
+    }
+    mailbox_cv_.notify_all();
+    done_cv_.notify_all();
+}
+
+void CompositorNode::adjustQuality(double seconds) {
+    if (options_.lossless || options_.target_fps <= 0)
+        return;
+    const double period = 1.0 / options_.target_fps;
+    ema_s_ = frames_at_step_ == 0 ? seconds : 0.8 * ema_s_ + 0.2 * seconds;
+    ++frames_at_step_;
+    frames_fast_ = ema_s_ < 0.45 * period ? frames_fast_ + 1 : 0;
+    const int last = static_cast<int>(ladder_.size()) - 1;
+    if (ema_s_ > 0.9 * period && step_ < last && frames_at_step_ >= 3) {
+        ++step_;
+        frames_at_step_ = 0;
+        frames_fast_ = 0;
+    } else if (step_ > 0 && frames_fast_ >= static_cast<int>(2 * options_.target_fps)) {
+        --step_;
+        frames_at_step_ = 0;
+        frames_fast_ = 0;
+    }
+}
+
+Status CompositorNode::composite(const Pending& set) {
+    drainEnvironmentMaps();
+    CompositeFrame out;
+    out.color = set.color;
+    out.depth = set.depth;
+    Eigen::Isometry3d T_world_cam = options_.fixed_T_world_cam;
+    bool has_pose = true;
+    if (set.pose) {
+        auto pose = decodePoseRecord(set.pose.image());
+        if (!pose)
+            return pose.status().withContext(options_.pose_stream);
+        out.pose = *pose;
+        has_pose = pose->status != PoseStatus::kLost;
+        if (has_pose)
+            T_world_cam = pose->transform();
+    }
+    if (set.lights) {
+        const ImageView bytes = set.lights.image();
+        auto lights = tracking::decodeLightRecord(bytes);
+        if (!lights)
+            return lights.status().withContext(options_.light_stream);
+        std::shared_ptr<const FloatImage> map;
+        int64_t map_stamp = 0;
+        for (const tracking::LightGroup& g : lights->groups)
+            if (g.name == "environment" && g.good_stamp_ns > 0)
+                map_stamp = g.good_stamp_ns;
+        if (map_stamp > 0) {
+            auto found = environment_maps_.find(map_stamp);
+            if (found == environment_maps_.end() && !environment_maps_.empty())
+                found = std::prev(environment_maps_.end());
+            if (found != environment_maps_.end()) {
+                map = found->second;
+                map_stamp = found->first;
+            }
+        }
+        // The renderer rebuilds its light data only when the estimates changed.
+        std::vector<tracking::EstimatedLight> render_lights;
+        for (const tracking::LightGroup& g : lights->groups)
+            if (g.name == "render")
+                render_lights = g.lights;
+        std::vector<Light> scene_lights = lightsFromEstimates(render_lights, map);
+        if (lights_version_ == 0 || map_stamp != last_map_stamp_ns_ ||
+            scene_lights.size() != lights_.size() || [&] {
+                for (size_t i = 0; i < scene_lights.size(); ++i) {
+                    const Light &a = scene_lights[i], &b = lights_[i];
+                    if (a.type != b.type || a.position != b.position ||
+                        a.direction != b.direction || a.radius != b.radius ||
+                        !(a.intensity == b.intensity))
+                        return true;
+                }
+                return false;
+            }()) {
+            lights_ = std::move(scene_lights);
+            last_map_stamp_ns_ = map_stamp;
+            ++lights_version_;
+        }
+        out.lights = std::move(lights).value();
+    }
+
+    FrameRef published;
+    if (!has_pose) {
+        std::lock_guard lock(mutex_);
+        if (options_.skip_without_pose) {
+            ++stats_.skipped_without_pose;
+            return Status::ok();
+        }
+    }
+    const int step = step_;
+    if (has_pose) {
+        auto r = renderer(step);
+        if (!r)
+            return r.status();
+        Renderer* renderer = *r;
+        if (set.lights && renderer_lights_version_[static_cast<size_t>(step)] != lights_version_) {
+            MIXRAY_RETURN_IF_ERROR(renderer->setLights(lights_));
+            renderer_lights_version_[static_cast<size_t>(step)] = lights_version_;
+        }
+        RenderInputs in;
+        in.camera_image = set.color.image();
+        in.camera = options_.camera;
+        in.T_world_cam = T_world_cam;
+        if (set.depth) {
+            in.depth_mm = set.depth.image();
+            if (options_.depth_registration)
+                in.depth_registration = &*options_.depth_registration;
+        }
+        in.T_world_anchor = options_.T_world_anchor;
+        in.stop = stop_render_.get_token();
+        MIXRAY_RETURN_IF_ERROR(renderer->render(in, layers_, &out.stats));
+        out.rendered = true;
+        out.layers = &layers_;
+    }
+    // Without a pose the camera image goes on as the composite, so the stream has no holes.
+    const ImageView src = out.rendered ? layers_.composite.view() : set.color.image();
+    WritableFrame frame = acquire(*output_.pool);
+    if (frame) {
+        std::copy(src.data, src.data + src.size_bytes, frame.image().data);
+        frame.meta() = set.color.meta();
+        frame.meta().stream = output_.id;
+        published = std::move(frame).publish();
+    }
+    if (!published) {
+        std::lock_guard lock(mutex_);
+        ++stats_.publish_failures;
+        graph_->countLost(output_.id);
+        return Status::ok();
+    }
+    graph_->publish(published);
+    const FrameMetadata& captured = set.color.meta();
+    out.latency_ms = static_cast<double>(monotonicNowNs() - (captured.graph_stamp_ns != 0
+                                                                 ? captured.graph_stamp_ns
+                                                                 : captured.host_stamp_ns)) /
+                     1e6;
+    out.composite = published;
+    out.quality_step = step;
+    {
+        std::lock_guard lock(mutex_);
+        out.index = stats_.composites++;
+        (out.rendered ? stats_.rendered : stats_.passed_through)++;
+        if (latencies_ms_.size() < kLatencyWindow)
+            latencies_ms_.push_back(out.latency_ms);
+        else
+            latencies_ms_[latency_next_] = out.latency_ms;
+        latency_next_ = (latency_next_ + 1) % kLatencyWindow;
+        if (out.rendered) {
+            render_ms_sum_ += out.stats.seconds * 1e3;
+            stats_.render_ms_mean = render_ms_sum_ / static_cast<double>(stats_.rendered);
+        }
+    }
+    if (out.rendered)
+        adjustQuality(out.stats.seconds);
+    {
+        std::lock_guard lock(mutex_);
+        stats_.quality_step = step_;
+        stats_.quality_label = ladder_[static_cast<size_t>(step_)].label();
+    }
+    if (on_composite_)
+        on_composite_(out);
+    return Status::ok();
+}
+
+WritableFrame CompositorNode::acquire(BufferPool& pool) {
+    // Lossless, a record waits for a consumer to return a buffer; live, it is dropped (counted).
+    return options_.lossless ? acquireWaiting(pool, [this] { return stop_.load(); })
+                             : pool.acquire();
+}
+
+}  // namespace mixray::render

@@ -1,0 +1,378 @@
+// The AR pipeline as one device graph (mixray/render/ar_pipeline.h): on the bundled simulated
+// session, the graph gives the same composites, poses and lights as tracking and rendering the
+// recording frame by frame in a loop (what mixray demo, track and render did before), and its
+// records stream, record and replay like any other.
+#include "mixray/render/ar_pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "mixray/graph/mkv.h"
+#include "mixray/graph/pose.h"
+#include "mixray/render/scene_file.h"
+#include "mixray/replay/open_recording.h"
+#include "mixray/replay/replay_backend.h"
+#include "mixray/tracking/light_record.h"
+#include "mixray/tracking/pipeline.h"
+#include "test_data.h"
+
+namespace mixray::render {
+namespace {
+
+namespace fs = std::filesystem;
+using tracking::TrackedFrame;
+
+fs::path session() {
+    return test::fixturesDir() / "sessions/sim_tabletop.mkv";
+}
+
+// A virtual box and glass ball on the session's table (the table itself a ghost), no lights of
+// its own: they come from tracking.
+SceneDescription testScene() {
+    auto scene = parseScene(R"(version: 1
+materials:
+  table: { type: diffuse, albedo: [0.6, 0.6, 0.6] }
+  clay: { type: diffuse, albedo: [0.7, 0.35, 0.2] }
+  glass: { type: glass, ior: 1.5 }
+objects:
+  - name: table
+    role: ghost
+    shape: { box: { size: [1.2, 0.8, 0.02] } }
+    material: table
+    pose: { translation: [0, 0, -0.01] }
+  - name: box
+    shape: { box: { size: [0.04, 0.04, 0.07] } }
+    material: clay
+    pose: { translation: [-0.06, -0.1, 0.035] }
+  - name: ball
+    shape: { sphere: { radius: 0.035 } }
+    material: glass
+    pose: { translation: [0.08, 0.05, 0.035] }
+)",
+                            "test scene");
+    EXPECT_TRUE(scene.isOk()) << scene.status().toString();
+    return std::move(scene).value();
+}
+
+RenderOptions testRenderOptions() {
+    RenderOptions o;
+    o.samples_per_pixel = 1;
+    o.max_depth = 2;
+    o.soft_shadows = SoftShadowMethod::kAdaptive;
+    o.depth_secondary = DepthSecondaryRays::kNone;
+    o.threads = 2;
+    return o;
+}
+
+BackendRegistry replayRegistry() {
+    BackendRegistry registry;
+    EXPECT_TRUE(registry.add(std::make_unique<replay::ReplayBackend>()).isOk());
+    return registry;
+}
+
+// What one colour frame gave.
+struct FrameResult {
+    std::vector<uint8_t> composite;
+    std::optional<Eigen::Isometry3d> pose;
+    bool pose_stale = true;
+    std::vector<tracking::EstimatedLight> lights;
+    bool rendered = false;
+};
+
+tracking::TrackingSetup sessionSetup(const RecordingReader& reader) {
+    auto setup = tracking::findTrackingSetup(session(), reader, "");
+    EXPECT_TRUE(setup.isOk()) << setup.status().toString();
+    return std::move(setup).value();
+}
+
+// The loop the graph replaces: every frame in recording order; a colour frame is tracked and
+// rendered when the next one arrives (by then its environment and depth frames were read).
+std::map<uint64_t, FrameResult> referenceLoop() {
+    std::map<uint64_t, FrameResult> out;
+    auto reader = replay::openRecording(session());
+    EXPECT_TRUE(reader.isOk());
+    const tracking::TrackingSetup setup = sessionSetup(**reader);
+    auto pipeline = tracking::TrackingPipeline::create(setup, (*reader)->streams(), {});
+    EXPECT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    auto renderer = Renderer::create(testScene(), testRenderOptions());
+    EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
+    StreamId depth_stream = kInvalidStream;
+    for (StreamId i = 0; i < (*reader)->streams().size(); ++i)
+        if ((*reader)->streams()[i].kind == StreamKind::kDepth)
+            depth_stream = i;
+    FrameRef depth, pending;
+    RenderLayers layers;
+    std::vector<Light> last_lights;
+    bool lights_set = false;
+    const auto process = [&] {
+        auto tracked = (*pipeline)->push(pending);
+        ASSERT_TRUE(tracked.isOk() && tracked->has_value());
+        const TrackedFrame& f = **tracked;
+        FrameResult r;
+        r.pose = f.track.pose.value;
+        r.pose_stale = f.track.pose.stale || f.track.state != tracking::TrackState::kTracking;
+        r.lights = (*pipeline)->renderLights(f);
+        std::vector<Light> lights = lightsFromEstimates(
+            r.lights, f.environment.value ? f.environment.value->environment_map : nullptr);
+        if (!lights_set || lights.size() != last_lights.size() || [&] {
+                for (size_t i = 0; i < lights.size(); ++i)
+                    if (lights[i].direction != last_lights[i].direction ||
+                        !(lights[i].intensity == last_lights[i].intensity) ||
+                        lights[i].environment_image != last_lights[i].environment_image)
+                        return true;
+                return false;
+            }()) {
+            ASSERT_TRUE((*renderer)->setLights(lights).isOk());
+            last_lights = lights;
+            lights_set = true;
+        }
+        ImageView composite = f.color.image();
+        if (f.track.pose.value) {
+            RenderInputs in;
+            in.camera_image = f.color.image();
+            in.camera = setup.camera.model;
+            in.T_world_cam = *f.track.pose.value;
+            if (depth && depth.meta().host_stamp_ns == f.color.meta().host_stamp_ns)
+                in.depth_mm = depth.image();
+            ASSERT_TRUE((*renderer)->render(in, layers).isOk());
+            composite = layers.composite.view();
+            r.rendered = true;
+        }
+        r.composite.assign(composite.data, composite.data + composite.size_bytes);
+        out[f.color.meta().sequence] = std::move(r);
+        pending = FrameRef();
+    };
+    while (true) {
+        auto next = (*reader)->next();
+        if (!next)
+            break;
+        FrameRef frame = std::move(next).value();
+        if (frame.meta().stream == depth_stream) {
+            depth = frame;
+        } else if (frame.meta().stream == (*pipeline)->colorStream()) {
+            if (pending)
+                process();
+            pending = frame;
+        } else {
+            EXPECT_TRUE((*pipeline)->push(frame).isOk());
+        }
+    }
+    if (pending)
+        process();
+    return out;
+}
+
+TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
+    const std::map<uint64_t, FrameResult> reference = referenceLoop();
+    ASSERT_EQ(reference.size(), 36u);
+
+    auto reader = replay::openRecording(session());
+    ASSERT_TRUE(reader.isOk());
+    ArPipelineOptions options;
+    options.setup = sessionSetup(**reader);
+    options.scene = testScene();
+    options.render = testRenderOptions();
+    std::mutex mutex;
+    std::map<uint64_t, FrameResult> got;
+    std::vector<tracking::LightRecord> light_records;
+    options.on_composite = [&](const CompositeFrame& c) {
+        FrameResult r;
+        const ImageView image = c.composite.image();
+        r.composite.assign(image.data, image.data + image.size_bytes);
+        r.rendered = c.rendered;
+        if (c.pose && c.pose->status != PoseStatus::kLost)
+            r.pose = c.pose->transform();
+        r.pose_stale = !c.pose || c.pose->status != PoseStatus::kValid;
+        if (c.lights)
+            for (const auto& g : c.lights->groups)
+                if (g.name == "render")
+                    r.lights = g.lights;
+        std::lock_guard lock(mutex);
+        got[c.color.meta().sequence] = std::move(r);
+    };
+    ArSource source;
+    source.recording = session();
+    source.pace = ArSource::Pace::kFast;
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ASSERT_TRUE((*pipeline)->start().isOk());
+    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
+    (*pipeline)->stop();
+    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+
+    ASSERT_EQ(got.size(), reference.size());
+    int rendered = 0;
+    for (const auto& [sequence, want] : reference) {
+        SCOPED_TRACE("colour frame " + std::to_string(sequence));
+        const FrameResult& have = got.at(sequence);
+        ASSERT_EQ(have.pose.has_value(), want.pose.has_value());
+        if (want.pose) {
+            // Pose records hold the transform as translation + quaternion in doubles.
+            EXPECT_LT((have.pose->translation() - want.pose->translation()).norm(), 1e-12);
+            EXPECT_LT((have.pose->linear() - want.pose->linear()).norm(), 1e-12);
+        }
+        EXPECT_EQ(have.pose_stale, want.pose_stale);
+        ASSERT_EQ(have.lights.size(), want.lights.size());
+        for (size_t i = 0; i < want.lights.size(); ++i) {
+            EXPECT_EQ(have.lights[i].to_light_world, want.lights[i].to_light_world);
+            EXPECT_EQ(have.lights[i].intensity, want.lights[i].intensity);
+        }
+        EXPECT_EQ(have.rendered, want.rendered);
+        rendered += have.rendered;
+        EXPECT_TRUE(have.composite == want.composite) << "composites differ";
+    }
+    EXPECT_GT(rendered, 30);
+    const ArPipelineStats stats = (*pipeline)->stats();
+    ASSERT_TRUE(stats.compositor.has_value());
+    EXPECT_EQ(stats.compositor->composites, 36u);
+    EXPECT_EQ(stats.compositor->skipped_superseded, 0u);
+    EXPECT_EQ(stats.compositor->sync.framesDropped(), 0u);
+    EXPECT_EQ(stats.compositor->latency.count, 36u);
+}
+
+TEST(ArPipeline, RecordsRawStreamsPosesLightsAndTheCompositeIntoOneRecording) {
+    const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_record.mkv";
+    auto reader = replay::openRecording(session());
+    ASSERT_TRUE(reader.isOk());
+    ArPipelineOptions options;
+    options.setup = sessionSetup(**reader);
+    options.scene = testScene();
+    options.render = testRenderOptions();
+    options.render.max_depth = 0;
+    options.record = out;
+    ArSource source;
+    source.recording = session();
+    source.pace = ArSource::Pace::kFast;
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ASSERT_TRUE((*pipeline)->start().isOk());
+    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
+    (*pipeline)->stop();
+    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+
+    auto recorded = replay::openRecording(out);
+    ASSERT_TRUE(recorded.isOk()) << recorded.status().toString();
+    std::map<std::string, StreamId> ids;
+    for (StreamId i = 0; i < (*recorded)->streams().size(); ++i)
+        ids[(*recorded)->streams()[i].name] = i;
+    for (const char* name : {"kinect/color", "kinect/depth", "env/color", "tracking/pose",
+                             "tracking/lights", "tracking/environment_map", "composite/color"})
+        EXPECT_TRUE(ids.count(name)) << name << " is not in the recording";
+    std::map<StreamId, int> counts;
+    std::set<std::string> groups;
+    while (true) {
+        auto frame = (*recorded)->next();
+        if (!frame)
+            break;
+        const StreamId s = frame->meta().stream;
+        ++counts[s];
+        if (s == ids["tracking/pose"]) {
+            EXPECT_TRUE(decodePoseRecord(frame->image()).isOk());
+        }
+        if (s == ids["tracking/lights"]) {
+            auto lights = tracking::decodeLightRecord(frame->image());
+            ASSERT_TRUE(lights.isOk()) << lights.status().toString();
+            for (const auto& g : lights->groups)
+                groups.insert(g.name);
+        }
+        if (s == ids["tracking/environment_map"]) {
+            EXPECT_TRUE(tracking::decodeEnvironmentMapRecord(frame->image()).isOk());
+        }
+    }
+    // Every captured frame reached the file, and one pose, light record and composite each.
+    EXPECT_EQ(counts[ids["kinect/color"]], 36);
+    EXPECT_EQ(counts[ids["kinect/depth"]], 36);
+    EXPECT_EQ(counts[ids["env/color"]], 3);
+    EXPECT_EQ(counts[ids["tracking/pose"]], 36);
+    EXPECT_EQ(counts[ids["tracking/lights"]], 36);
+    EXPECT_EQ(counts[ids["composite/color"]], 36);
+    EXPECT_GE(counts[ids["tracking/environment_map"]], 1);
+    // Each estimator's answer, and the lights the compositor rendered with.
+    EXPECT_EQ(groups, (std::set<std::string>{"render", "probe:probe_mirror", "probe:probe_diffuse",
+                                             "environment"}));
+}
+
+TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
+    // The colour stream only (no tracking, a fixed camera): the compositor at the recording's
+    // own pace takes the newest set and reports latency from each frame's arrival.
+    ArPipelineOptions options;
+    options.scene = testScene();
+    options.scene->camera = FixedCamera{};
+    auto reader = replay::openRecording(session());
+    ASSERT_TRUE(reader.isOk());
+    options.scene->camera->model = sessionSetup(**reader).camera.model;
+    options.scene->camera->T_world_cam.translation() = Eigen::Vector3d(0, -0.5, 0.4);
+    options.scene->camera->T_world_cam.linear() =
+        Eigen::AngleAxisd(-2.2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    options.render = testRenderOptions();
+    options.target_fps = -1;
+    ArSource source;
+    source.recording = session();
+    source.pace = ArSource::Pace::kReal;
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ASSERT_TRUE((*pipeline)->start().isOk());
+    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(30)));
+    (*pipeline)->stop();
+    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    const ArPipelineStats stats = (*pipeline)->stats();
+    ASSERT_TRUE(stats.compositor.has_value());
+    const CompositorStats& c = *stats.compositor;
+    // Every set is composited or counted as skipped for a newer one: none vanishes.
+    EXPECT_EQ(c.composites + c.skipped_superseded, c.sets);
+    EXPECT_GT(c.composites, 0u);
+    EXPECT_EQ(c.latency.count, c.composites);
+    EXPECT_GT(c.latency.p50_ms, 0);
+    EXPECT_LE(c.latency.p50_ms, c.latency.p99_ms);
+    EXPECT_GE(c.quality_steps, 2);
+    const std::string json = stats.json();
+    for (const char* key : {"\"latency_ms\"", "\"p99\"", "\"ladder\"", "\"devices\""})
+        EXPECT_NE(json.find(key), std::string::npos) << key << " missing in " << json;
+}
+
+TEST(ArPipeline, RefusesWhatItCannotBuild) {
+    ArSource none;
+    EXPECT_EQ(ArPipeline::create(replayRegistry(), none, {}).status().code(),
+              ErrorCode::kInvalidArgument);
+    ArSource missing;
+    missing.recording = "/nonexistent/session.mkv";
+    auto opened = ArPipeline::create(replayRegistry(), missing, {});
+    EXPECT_FALSE(opened.isOk());
+    EXPECT_NE(opened.status().message().find("/nonexistent/session.mkv"), std::string::npos)
+        << opened.status().toString();
+    // A scene without a camera pose and no tracking: the camera must come from a pose stream,
+    // and the session has exactly one (truth/pose), so that one is used; naming a stream that
+    // is not there is an error.
+    ArPipelineOptions options;
+    options.scene = testScene();
+    options.pose_stream = "no/such/pose";
+    ArSource source;
+    source.recording = session();
+    source.pace = ArSource::Pace::kFast;
+    auto bad = ArPipeline::create(replayRegistry(), source, std::move(options));
+    EXPECT_FALSE(bad.isOk());
+}
+
+TEST(QualityLadder, GoesDownFromWhatWasAskedAndLeavesOutRungsThatChangeNothing) {
+    RenderOptions best;
+    best.samples_per_pixel = 4;
+    best.shadow_samples = 20;
+    best.max_depth = 3;
+    const auto ladder = qualityLadder(best);
+    ASSERT_GE(ladder.size(), 4u);
+    EXPECT_EQ(ladder.front().samples_per_pixel, 4);
+    EXPECT_EQ(ladder.back().soft_shadows, SoftShadowMethod::kHard);
+    EXPECT_EQ(ladder.back().max_depth, 0);
+    RenderOptions cheap;
+    cheap.samples_per_pixel = 1;
+    cheap.shadow_samples = 4;
+    cheap.max_depth = 0;
+    cheap.soft_shadows = SoftShadowMethod::kHard;
+    EXPECT_EQ(qualityLadder(cheap).size(), 1u);
+}
+
+}  // namespace
+}  // namespace mixray::render
