@@ -22,6 +22,7 @@
 #include "mixray/liveview/live_view.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/pattern/pattern_image.h"
+#include "test_data.h"
 #include "watchdog.h"
 
 namespace mixray::liveview {
@@ -181,6 +182,25 @@ TEST(LiveViewOptions, DefaultsAreLoopbackAndBadValuesNameTheField) {
         EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument) << c.field;
         EXPECT_NE(s.message().find(c.field), std::string::npos) << s.message();
         EXPECT_FALSE(LiveView::create(c.options).isOk());
+    }
+}
+
+TEST(LiveViewOptions, ViewAddressIsPortOrAddressAndPort) {
+    LiveViewOptions o;
+    ASSERT_TRUE(parseViewAddress("9000", &o).isOk());
+    EXPECT_EQ(o.address, "127.0.0.1");  // a bare port keeps the loopback default
+    EXPECT_EQ(o.port, 9000);
+    ASSERT_TRUE(parseViewAddress("0.0.0.0:0", &o).isOk());
+    EXPECT_EQ(o.address, "0.0.0.0");
+    EXPECT_EQ(o.port, 0);
+    for (const std::string& bad :
+         std::vector<std::string>{"", "http", ":80", "localhost:80", "1.2.3.4:", "1.2.3.4:65536",
+                                  "1.2.3.4:-1", "1.2.3:80", std::string("1.2.3.4\0x:80", 12)}) {
+        LiveViewOptions before;
+        const Status s = parseViewAddress(bad, &before);
+        EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument) << bad;
+        EXPECT_NE(s.message().find("--view"), std::string::npos) << s.message();
+        EXPECT_EQ(before.port, 8080) << "left untouched on error: " << bad;
     }
 }
 
@@ -679,9 +699,12 @@ TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
         "   || {}).textContent, latency: document.getElementById('latency').textContent,"
         " ladder: document.getElementById('ladder').textContent,"
         " messages: document.getElementById('messages').textContent})";
+    // A picture of the page for people (kept beside the test's other outputs).
+    chrome.screenshot = test::tempDir() / "live_view.png";
     const int status_before = calls.load();
     const test::ChromiumRun run = test::runHeadlessChromium(rig.view->url(), chrome);
     ASSERT_TRUE(run.started) << run.error;
+    std::printf("live view page: %s\n", chrome.screenshot.c_str());
     EXPECT_TRUE(run.until_met) << run.result << "\n" << run.error;
     const auto page = nlohmann::json::parse(run.result, nullptr, false);
     ASSERT_FALSE(page.is_discarded()) << run.result;

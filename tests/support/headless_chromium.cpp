@@ -9,6 +9,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <thread>
@@ -86,6 +87,34 @@ private:
     int last_id_ = 0;
     std::string buffer_;
 };
+
+std::string base64Decode(const std::string& text) {
+    std::string out;
+    uint32_t bits = 0;
+    int count = 0;
+    for (const char c : text) {
+        int v = -1;
+        if (c >= 'A' && c <= 'Z')
+            v = c - 'A';
+        if (c >= 'a' && c <= 'z')
+            v = c - 'a' + 26;
+        if (c >= '0' && c <= '9')
+            v = c - '0' + 52;
+        if (c == '+')
+            v = 62;
+        if (c == '/')
+            v = 63;
+        if (v < 0)
+            continue;  // padding
+        bits = (bits << 6) | static_cast<uint32_t>(v);
+        count += 6;
+        if (count >= 8) {
+            count -= 8;
+            out.push_back(static_cast<char>((bits >> count) & 0xFF));
+        }
+    }
+    return out;
+}
 
 std::string tail(const std::filesystem::path& path, size_t bytes) {
     FILE* f = std::fopen(path.c_str(), "rb");
@@ -216,6 +245,13 @@ ChromiumRun runHeadlessChromium(const std::string& url, const ChromiumOptions& o
         auto value = closing.evaluate(session, options.result_js);
         if (value)
             run.result = value->is_string() ? value->get<std::string>() : value->dump();
+        if (!options.screenshot.empty()) {
+            auto shot = closing.call("Page.captureScreenshot", {{"format", "png"}}, session);
+            if (shot && shot->contains("result")) {
+                std::ofstream(options.screenshot, std::ios::binary)
+                    << base64Decode((*shot)["result"].value("data", ""));
+            }
+        }
         closing.call("Browser.close", nlohmann::json::object());
     }
     close(to_browser[1]);

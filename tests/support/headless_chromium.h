@@ -21,6 +21,8 @@ struct ChromiumOptions {
     std::string result_js = "document.documentElement.outerHTML";
     std::chrono::milliseconds timeout{20000};
     std::chrono::milliseconds poll{200};
+    // Where to write a PNG of the page at the end (Page.captureScreenshot); empty: none.
+    std::filesystem::path screenshot;
     int window_width = 1280;
     int window_height = 900;
 };

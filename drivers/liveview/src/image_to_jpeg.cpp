@@ -161,16 +161,22 @@ Status JpegEncoder::encode(const ImageView& image, const TileRenderOptions& opti
     uint8_t* dst = pixels_.data();
 
     if (desc.format == PixelFormat::kMono16 || desc.format == PixelFormat::kIR16) {
-        // Normalised over the frame's own range, so a dim infrared image is still visible.
-        uint16_t lo = std::numeric_limits<uint16_t>::max();
-        uint16_t hi = 0;
+        // Normalised between the frame's own 1st and 99th percentiles, so a dim infrared image
+        // is visible and a few saturated speckles do not turn the rest black.
+        values_.clear();
         for (int y = 0; y < h; ++y) {
             const uint16_t* row = image.row<uint16_t>(y * factor);
-            for (int x = 0; x < w; ++x) {
-                lo = std::min(lo, row[x * factor]);
-                hi = std::max(hi, row[x * factor]);
-            }
+            for (int x = 0; x < w; ++x)
+                values_.push_back(row[x * factor]);
         }
+        const size_t lo_at = values_.size() / 100;
+        const size_t hi_at = values_.size() - 1 - values_.size() / 100;
+        std::nth_element(values_.begin(), values_.begin() + static_cast<std::ptrdiff_t>(lo_at),
+                         values_.end());
+        const uint16_t lo = values_[lo_at];
+        std::nth_element(values_.begin(), values_.begin() + static_cast<std::ptrdiff_t>(hi_at),
+                         values_.end());
+        const uint16_t hi = values_[hi_at];
         const double scale = hi > lo ? 255.0 / (hi - lo) : 0.0;
         for (int y = 0; y < h; ++y) {
             const uint16_t* row = image.row<uint16_t>(y * factor);

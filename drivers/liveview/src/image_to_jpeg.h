@@ -59,7 +59,8 @@ public:
 
 private:
     void* tj_ = nullptr;
-    std::vector<uint8_t> pixels_;  // the converted, subsampled 8-bit image
+    std::vector<uint8_t> pixels_;   // the converted, subsampled 8-bit image
+    std::vector<uint16_t> values_;  // a 16-bit grey frame's samples, for its percentiles
 };
 
 }  // namespace mixray::liveview

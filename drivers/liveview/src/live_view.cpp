@@ -110,6 +110,14 @@ int pickFreePort(const std::string& address) {
     return port;
 }
 
+// A dotted-quad IPv4 address (checked on the whole string: no NUL or anything after it).
+bool isIpv4(const std::string& text) {
+    in_addr parsed{};
+    return !text.empty() && text.size() <= 15 &&
+           text.find_first_not_of("0123456789.") == std::string::npos &&
+           inet_pton(AF_INET, text.c_str(), &parsed) == 1;
+}
+
 // Opens and closes a TCP connection to host:port (without waiting for it to be served).
 void knock(const std::string& host, int port) {
     const int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
@@ -130,8 +138,7 @@ Status LiveViewOptions::validate() const {
     auto bad = [](const std::string& field, const std::string& why) {
         return Status(ErrorCode::kInvalidArgument, "live view option " + field + ": " + why);
     };
-    in_addr parsed{};
-    if (inet_pton(AF_INET, address.c_str(), &parsed) != 1) {
+    if (!isIpv4(address)) {
         return bad("address", "'" + address + "' is not an IPv4 address (e.g. 127.0.0.1)");
     }
     if (port < 0 || port > 65535)
@@ -157,6 +164,33 @@ Status LiveViewOptions::validate() const {
         if (s.empty())
             return bad("streams", "an empty stream name");
     }
+    return Status::ok();
+}
+
+Status parseViewAddress(std::string_view text, LiveViewOptions* options) {
+    const auto bad = [&](const std::string& why) {
+        return Status(ErrorCode::kInvalidArgument,
+                      "--view '" + std::string(text) + "': " + why + " (expected [ADDR:]PORT)");
+    };
+    const size_t colon = text.rfind(':');
+    const std::string_view port_text =
+        colon == std::string_view::npos ? text : text.substr(colon + 1);
+    if (port_text.empty() || port_text.size() > 5 ||
+        !std::all_of(port_text.begin(), port_text.end(),
+                     [](char c) { return c >= '0' && c <= '9'; })) {
+        return bad("the port is not a number");
+    }
+    const int port = std::stoi(std::string(port_text));
+    if (port > 65535)
+        return bad("the port is over 65535");
+    std::string address = options->address;
+    if (colon != std::string_view::npos) {
+        address = std::string(text.substr(0, colon));
+        if (!isIpv4(address))
+            return bad("'" + address + "' is not an IPv4 address");
+    }
+    options->address = std::move(address);
+    options->port = port;
     return Status::ok();
 }
 

@@ -17,7 +17,7 @@ header h1{font-size:16px;margin:0}
 #conn{font-weight:600}
 #conn.up{color:#6c6}#conn.down{color:#e66}
 main{display:flex;gap:12px;padding:12px;align-items:flex-start}
-#tiles{display:flex;flex-wrap:wrap;gap:10px;flex:1}
+#tiles{display:flex;flex-wrap:wrap;gap:10px;flex:1;align-items:flex-start}
 .tile{background:#000;position:relative;border:1px solid #333}
 .tile .frame{position:relative}
 .tile img{display:block;width:100%;height:auto}

@@ -43,6 +43,11 @@ struct LiveViewOptions {
     Status validate() const;
 };
 
+// Reads "[ADDR:]PORT" as a command line's --view takes it ("8080", "0.0.0.0:8080",
+// "127.0.0.1:0") into options->address (left as it is when the text has none) and options->port.
+// kInvalidArgument quoting the text when it is not an IPv4 address and a port 0..65535.
+Status parseViewAddress(std::string_view text, LiveViewOptions* options);
+
 // One tile's figures.
 struct TileStats {
     std::string stream;
