@@ -638,6 +638,26 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
     });
 }
 
+TEST(LiveView, EncodesNothingWhileNoBrowserWatches) {
+    Rig rig(anyPort());
+    ASSERT_TRUE(rig.graph.start().isOk());
+    std::this_thread::sleep_for(500ms);
+    for (const TileStats& t : rig.view->stats().tiles) {
+        EXPECT_EQ(t.encoded, 0u) << t.stream;
+        EXPECT_GT(t.frames_in, 0u) << t.stream;
+    }
+    WsClient client;
+    ASSERT_TRUE(client.open(rig.view->port()));
+    int images = 0;
+    while (images < 6) {
+        auto m = client.next();
+        ASSERT_TRUE(m.has_value());
+        images += m->opcode == 2;
+    }
+    for (const TileStats& t : rig.view->stats().tiles)
+        EXPECT_GT(t.encoded, 0u) << t.stream;
+}
+
 TEST(LiveView, ClientStalledPastTheTimeoutIsDisconnected) {
     LiveViewOptions o = anyPort();
     o.max_tile_fps = 30;

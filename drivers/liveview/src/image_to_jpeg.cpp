@@ -163,10 +163,14 @@ Status JpegEncoder::encode(const ImageView& image, const TileRenderOptions& opti
     if (desc.format == PixelFormat::kMono16 || desc.format == PixelFormat::kIR16) {
         // Normalised between the frame's own 1st and 99th percentiles, so a dim infrared image
         // is visible and a few saturated speckles do not turn the rest black.
+        // The percentiles from about 16k samples on a grid: as good for a display, and a
+        // fraction of the cost of partitioning every pixel.
         values_.clear();
-        for (int y = 0; y < h; ++y) {
+        const int step =
+            std::max(1, static_cast<int>(std::sqrt(static_cast<double>(w) * h / 16384)));
+        for (int y = 0; y < h; y += step) {
             const uint16_t* row = image.row<uint16_t>(y * factor);
-            for (int x = 0; x < w; ++x)
+            for (int x = 0; x < w; x += step)
                 values_.push_back(row[x * factor]);
         }
         const size_t lo_at = values_.size() / 100;

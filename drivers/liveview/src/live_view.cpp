@@ -316,6 +316,7 @@ struct LiveView::Impl {
 
     mutable std::mutex clients_mutex;
     std::vector<std::shared_ptr<Client>> clients;
+    std::atomic<size_t> connected{0};  // clients.size(), read by the view's thread without a lock
     uint64_t next_client_id = 1;
     uint64_t clients_ever = 0;
     uint64_t clients_refused = 0;
@@ -413,7 +414,8 @@ struct LiveView::Impl {
     // Encodes the tile's newest frame when its turn has come.
     void serviceTile(size_t index, JpegEncoder& encoder, int64_t now) {
         Tile& tile = tiles[index];
-        if (now < tile.next_due_ns)
+        // Nobody watching: no work; the edge keeps replacing its one frame (counted skipped).
+        if (now < tile.next_due_ns || connected.load() == 0)
             return;
         std::optional<FrameRef> frame = tile.queue->tryPop();
         if (!frame)
@@ -569,6 +571,7 @@ struct LiveView::Impl {
                 }
             }
             self->clients.push_back(client);
+            self->connected = self->clients.size();
         }
         mg_set_user_connection_data(conn, client.get());
         client->sender = std::thread([c = client.get()] { c->run(); });
@@ -594,6 +597,7 @@ struct LiveView::Impl {
                 return;
             client = *it;
             self->clients.erase(it);
+            self->connected = self->clients.size();
             std::lock_guard client_lock(client->mutex);
             if (client->failed && !self->stopping.load())
                 ++self->clients_dropped;
@@ -792,6 +796,7 @@ void LiveView::stop() {
     {
         std::lock_guard lock(d.clients_mutex);
         left.swap(d.clients);
+        d.connected = 0;
     }
     for (const auto& client : left) {
         if (client->sender.joinable())
