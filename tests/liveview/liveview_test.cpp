@@ -476,6 +476,10 @@ TEST(LiveView, SeveralClientsGetEveryTileAtTheRateLimitWithStatusAndOverlays) {
     EXPECT_EQ(rig.view->setOverlay("cam/color", "{\"polygons\":[").code(),
               ErrorCode::kInvalidArgument);
     EXPECT_EQ(rig.view->setOverlay("cam/color", "[1,2]").code(), ErrorCode::kInvalidArgument);
+    EXPECT_EQ(
+        rig.view->setOverlay("cam/color", "{\"texts\":\"" + std::string(kMaxJsonBytes, 'x') + "\"}")
+            .code(),
+        ErrorCode::kInvalidArgument);
     ASSERT_TRUE(rig.graph.start().isOk());
     const int port = rig.view->port();
     constexpr int kClients = 3;
@@ -636,6 +640,31 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         done = true;
         drain.join();
     });
+}
+
+TEST(LiveView, StatusThatIsNotAJsonObjectIsShownAsAMessage) {
+    LiveViewOptions o = anyPort();
+    o.status_period_s = 0.05;
+    Rig rig(o, {pattern::PatternStream::kColor});
+    rig.view->setStatusProvider([] { return std::string("fps: 30"); });
+    ASSERT_TRUE(rig.graph.start().isOk());
+    WsClient client;
+    ASSERT_TRUE(client.open(rig.view->port()));
+    std::optional<nlohmann::json> status;
+    for (int i = 0; i < 50 && !status; ++i) {
+        auto m = client.next();
+        ASSERT_TRUE(m.has_value());
+        if (m->opcode != 1)
+            continue;
+        auto j = nlohmann::json::parse(m->payload);
+        if (j["type"] == "status")
+            status = j;
+    }
+    ASSERT_TRUE(status.has_value());
+    EXPECT_TRUE((*status)["pipeline"].is_null());
+    EXPECT_NE((*status)["error"].get<std::string>().find("not a JSON object"), std::string::npos);
+    EXPECT_EQ((*status)["view"]["tiles"][0]["stream"],
+              "cam/color");  // the view's own figures go on
 }
 
 TEST(LiveView, EncodesNothingWhileNoBrowserWatches) {

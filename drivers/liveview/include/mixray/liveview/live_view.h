@@ -114,7 +114,8 @@ public:
     // has stalled. Idempotent.
     void stop() override;
 
-    // Called on the view's thread every status_period_s: a JSON object with the pipeline's
+    // Called on the view's thread (the one that encodes, so it must return quickly) every
+    // status_period_s: a JSON object with the pipeline's
     // figures (docs/live-view.md has the schema), sent to every browser. Set before start().
     // A reply that is not a JSON object (or over kMaxJsonBytes) is shown as a message instead.
     void setStatusProvider(std::function<std::string()> provider);
