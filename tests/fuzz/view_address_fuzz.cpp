@@ -30,7 +30,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         }
         return 0;
     }
-    if (!options.validate().isOk()) broken("accepted text does not validate", text);
+    if (!options.validate().isOk())
+        broken("accepted text does not validate", text);
     liveview::LiveViewOptions again;
     const std::string formatted = options.address + ":" + std::to_string(options.port);
     if (!liveview::parseViewAddress(formatted, &again).isOk() || again.address != options.address ||
