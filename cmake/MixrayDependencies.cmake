@@ -34,6 +34,19 @@ mixray_pkg(LIBV4L2 libv4l2 libv4l-dev)
 mixray_pkg(LIBUSB libusb-1.0 libusb-1.0-0-dev)
 mixray_pkg(LIBFREENECT libfreenect libfreenect-dev)
 
+# The live view in the browser (drivers/liveview): HTTP + WebSocket, and JPEG.
+# Debian's civetweb CMake config needs the civetweb server binary (another package): find the C
+# library and header directly.
+find_path(CIVETWEB_INCLUDE_DIR civetweb.h)
+find_library(CIVETWEB_LIBRARY civetweb)
+mixray_require(CIVETWEB_LIBRARY "civetweb" libcivetweb-dev)
+if(NOT TARGET civetweb::civetweb)
+    add_library(civetweb::civetweb UNKNOWN IMPORTED)
+    set_target_properties(civetweb::civetweb PROPERTIES IMPORTED_LOCATION ${CIVETWEB_LIBRARY}
+                                                        INTERFACE_INCLUDE_DIRECTORIES ${CIVETWEB_INCLUDE_DIR})
+endif()
+mixray_pkg(TURBOJPEG libturbojpeg libturbojpeg0-dev)
+
 # Algorithms.
 find_package(Eigen3 3.4 QUIET NO_MODULE)
 mixray_require(Eigen3_FOUND "Eigen 3" libeigen3-dev)

@@ -1,0 +1,889 @@
+// LiveView: subscribes to image streams, encodes JPEG tiles at a bounded rate and sends them,
+// with overlays and figures, to every connected browser through its own one-slot mailboxes.
+#include "mixray/liveview/live_view.h"
+
+#include <arpa/inet.h>
+#include <civetweb.h>
+#include <dirent.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "image_to_jpeg.h"
+#include "page.h"
+
+namespace mixray::liveview {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Bytes = std::shared_ptr<const std::string>;
+
+int64_t nowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+        .count();
+}
+
+// True when `text` is one JSON object (syntax checked without exceptions).
+bool isJsonObject(std::string_view text) {
+    const size_t first = text.find_first_not_of(" \t\r\n");
+    return first != std::string_view::npos && text[first] == '{' &&
+           nlohmann::json::accept(text.begin(), text.end());
+}
+
+std::string jsonString(std::string_view text) {
+    return nlohmann::json(std::string(text)).dump();
+}
+
+std::string endpoint(const std::string& address, int port) {
+    return address + ":" + std::to_string(port);
+}
+
+// The socket of an accepted connection, found by its two ends: civetweb does not expose it,
+// and the view must be able to shut a stalled connection down from another thread (civetweb's
+// websocket write blocks while the browser does not read). -1 when not found.
+int findConnectionSocket(const std::string& remote_addr, int remote_port, int local_port) {
+    DIR* dir = opendir("/proc/self/fd");
+    if (dir == nullptr)
+        return -1;
+    int found = -1;
+    while (dirent* entry = readdir(dir)) {
+        char* end = nullptr;
+        const long fd = std::strtol(entry->d_name, &end, 10);  // NOLINT(google-runtime-int)
+        if (end == entry->d_name || *end != '\0' || fd == dirfd(dir))
+            continue;
+        struct stat st {};
+        if (fstat(static_cast<int>(fd), &st) != 0 || !S_ISSOCK(st.st_mode))
+            continue;
+        sockaddr_in peer{};
+        sockaddr_in local{};
+        socklen_t peer_len = sizeof(peer);
+        socklen_t local_len = sizeof(local);
+        if (getpeername(static_cast<int>(fd), reinterpret_cast<sockaddr*>(&peer), &peer_len) != 0 ||
+            getsockname(static_cast<int>(fd), reinterpret_cast<sockaddr*>(&local), &local_len) !=
+                0 ||
+            peer.sin_family != AF_INET || local.sin_family != AF_INET) {
+            continue;
+        }
+        char text[INET_ADDRSTRLEN] = {};
+        inet_ntop(AF_INET, &peer.sin_addr, text, sizeof(text));
+        if (ntohs(peer.sin_port) == remote_port && ntohs(local.sin_port) == local_port &&
+            remote_addr == text) {
+            found = static_cast<int>(fd);
+            break;
+        }
+    }
+    closedir(dir);
+    return found;
+}
+
+// A port nobody listens on now, for port 0 (civetweb needs a number): the kernel's choice for
+// a socket bound to `address`, released again. -1 when binding fails.
+int pickFreePort(const std::string& address) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0)
+        return -1;
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = 0;
+    int port = -1;
+    if (inet_pton(AF_INET, address.c_str(), &addr.sin_addr) == 1 &&
+        bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0) {
+        socklen_t len = sizeof(addr);
+        if (getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0) {
+            port = ntohs(addr.sin_port);
+        }
+    }
+    close(fd);
+    return port;
+}
+
+// A dotted-quad IPv4 address (checked on the whole string: no NUL or anything after it).
+bool isIpv4(const std::string& text) {
+    in_addr parsed{};
+    return !text.empty() && text.size() <= 15 &&
+           text.find_first_not_of("0123456789.") == std::string::npos &&
+           inet_pton(AF_INET, text.c_str(), &parsed) == 1;
+}
+
+// Opens and closes a TCP connection to host:port (without waiting for it to be served).
+void knock(const std::string& host, int port) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
+    if (fd < 0)
+        return;
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    if (inet_pton(AF_INET, host.c_str(), &addr.sin_addr) == 1) {
+        (void)::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
+    }
+    close(fd);
+}
+
+}  // namespace
+
+Status LiveViewOptions::validate() const {
+    auto bad = [](const std::string& field, const std::string& why) {
+        return Status(ErrorCode::kInvalidArgument, "live view option " + field + ": " + why);
+    };
+    if (!isIpv4(address)) {
+        return bad("address", "'" + address + "' is not an IPv4 address (e.g. 127.0.0.1)");
+    }
+    if (port < 0 || port > 65535)
+        return bad("port", std::to_string(port) + " is not 0..65535");
+    if (!(max_tile_fps > 0 && max_tile_fps <= 240))
+        return bad("max_tile_fps", "must be in (0, 240]");
+    if (jpeg_quality < 1 || jpeg_quality > 100)
+        return bad("jpeg_quality", "must be 1..100");
+    if (max_tile_width < 16 || max_tile_width > 16384) {
+        return bad("max_tile_width", "must be 16..16384");
+    }
+    if (!(depth_min_m >= 0 && depth_max_m > depth_min_m && std::isfinite(depth_max_m))) {
+        return bad("depth_min_m/depth_max_m", "need 0 <= min < max");
+    }
+    if (max_clients < 1 || max_clients > 64)
+        return bad("max_clients", "must be 1..64");
+    if (!(stalled_client_timeout_s > 0))
+        return bad("stalled_client_timeout_s", "must be > 0");
+    if (!(status_period_s > 0 && status_period_s <= 60)) {
+        return bad("status_period_s", "must be in (0, 60]");
+    }
+    for (const std::string& s : streams) {
+        if (s.empty())
+            return bad("streams", "an empty stream name");
+    }
+    return Status::ok();
+}
+
+Status parseViewAddress(std::string_view text, LiveViewOptions* options) {
+    const auto bad = [&](const std::string& why) {
+        return Status(ErrorCode::kInvalidArgument,
+                      "--view '" + std::string(text) + "': " + why + " (expected [ADDR:]PORT)");
+    };
+    const size_t colon = text.rfind(':');
+    const std::string_view port_text =
+        colon == std::string_view::npos ? text : text.substr(colon + 1);
+    if (port_text.empty() || port_text.size() > 5 ||
+        !std::all_of(port_text.begin(), port_text.end(),
+                     [](char c) { return c >= '0' && c <= '9'; })) {
+        return bad("the port is not a number");
+    }
+    const int port = std::stoi(std::string(port_text));
+    if (port > 65535)
+        return bad("the port is over 65535");
+    std::string address = options->address;
+    if (colon != std::string_view::npos) {
+        address = std::string(text.substr(0, colon));
+        if (!isIpv4(address))
+            return bad("'" + address + "' is not an IPv4 address");
+    }
+    options->address = std::move(address);
+    options->port = port;
+    return Status::ok();
+}
+
+// One connected browser: a mailbox of one slot per message kind and tile (the newest message
+// wins), and the sender thread that writes it to the socket.
+struct Client {
+    uint64_t id = 0;
+    std::string remote;
+    mg_connection* conn = nullptr;
+    int fd = -1;
+
+    std::mutex mutex;
+    std::condition_variable wake;
+    // Slots: 0 the tile list, 1 the status, then one overlay per tile, then one image per tile.
+    std::vector<Bytes> slots;
+    size_t first_image_slot = 0;
+    size_t next_slot = 0;  // round-robin start among overlays and images
+    size_t queued_bytes = 0;
+    size_t queued_bytes_high = 0;
+    bool closing = false;
+    bool failed = false;
+    int64_t write_started_ns = 0;  // 0: not writing
+    uint64_t frames_sent = 0;
+    uint64_t frames_skipped = 0;
+    uint64_t messages_sent = 0;
+    std::thread sender;
+
+    // Puts `message` into `slot`, replacing what waited there. Never blocks on the socket.
+    void post(size_t slot, Bytes message) {
+        std::lock_guard lock(mutex);
+        if (closing)
+            return;
+        if (slots[slot]) {
+            queued_bytes -= slots[slot]->size();
+            if (slot >= first_image_slot)
+                ++frames_skipped;
+        }
+        queued_bytes += message->size();
+        queued_bytes_high = std::max(queued_bytes_high, queued_bytes);
+        slots[slot] = std::move(message);
+        wake.notify_one();
+    }
+
+    void run() {
+        std::unique_lock lock(mutex);
+        while (true) {
+            wake.wait(lock, [&] {
+                return closing || std::any_of(slots.begin(), slots.end(),
+                                              [](const Bytes& b) { return b != nullptr; });
+            });
+            if (closing)
+                return;
+            // The tile list and the status first, then overlays and images in turn.
+            size_t slot = slots[0] ? 0 : 1;
+            if (!slots[slot]) {
+                const size_t n = slots.size() - 2;
+                for (size_t k = 0; k < n; ++k) {
+                    const size_t s = 2 + (next_slot + k) % n;
+                    if (slots[s]) {
+                        slot = s;
+                        next_slot = (s - 2 + 1) % n;
+                        break;
+                    }
+                }
+            }
+            Bytes message = std::move(slots[slot]);
+            const bool binary = slot >= first_image_slot;
+            write_started_ns = nowNs();
+            lock.unlock();
+            const int rc = mg_websocket_write(
+                conn, binary ? MG_WEBSOCKET_OPCODE_BINARY : MG_WEBSOCKET_OPCODE_TEXT,
+                message->data(), message->size());
+            lock.lock();
+            write_started_ns = 0;
+            queued_bytes -= message->size();
+            if (rc <= 0) {
+                // The connection is gone or broke mid-message: a half-written frame cannot be
+                // resumed, so end it; civetweb's reader then calls the close handler.
+                failed = true;
+                closing = true;
+                shutdown(fd, SHUT_RDWR);
+                return;
+            }
+            ++messages_sent;
+            if (binary)
+                ++frames_sent;
+        }
+    }
+};
+
+struct Tile {
+    std::string stream;
+    StreamInfo info;
+    std::shared_ptr<FrameQueue> queue;
+    int tile_width = 0;
+    int tile_height = 0;
+    int64_t next_due_ns = 0;
+    uint64_t encoded = 0;
+    uint64_t encode_errors = 0;
+    std::string last_error;
+    uint64_t fps_base_encoded = 0;
+    int64_t fps_base_ns = 0;
+    double fps = 0;
+};
+
+struct LiveView::Impl {
+    LiveViewOptions options;
+    Graph* graph = nullptr;
+    std::vector<Tile> tiles;
+    std::function<std::string()> status_provider;
+
+    mg_context* ctx = nullptr;
+    bool library_initialised = false;
+    std::atomic<int> port{0};
+    std::atomic<bool> stopping{false};
+    std::string last_log;  // civetweb's last message, for bind errors
+    std::mutex log_mutex;
+
+    std::thread thread;
+    std::mutex thread_mutex;
+    std::condition_variable thread_wake;
+    bool thread_stop = false;
+
+    mutable std::mutex clients_mutex;
+    std::vector<std::shared_ptr<Client>> clients;
+    std::atomic<size_t> connected{0};  // clients.size(), read by the view's thread without a lock
+    uint64_t next_client_id = 1;
+    uint64_t clients_ever = 0;
+    uint64_t clients_refused = 0;
+    uint64_t clients_dropped = 0;
+    // The newest message of each kind, for browsers that connect later.
+    Bytes config_message;
+    Bytes status_message;
+    std::vector<Bytes> overlay_messages;
+    std::vector<Bytes> image_messages;
+    mutable std::mutex tiles_mutex;  // the tiles' figures, read by stats()
+
+    size_t slotCount() const { return 2 + 2 * tiles.size(); }
+
+    // Hands `message` to every browser's `slot`, and keeps it for later ones.
+    void broadcast(size_t slot, Bytes message) {
+        std::lock_guard lock(clients_mutex);
+        if (slot == 1) {
+            status_message = message;
+        } else if (slot >= 2 && slot < 2 + tiles.size()) {
+            overlay_messages[slot - 2] = message;
+        } else if (slot >= 2 + tiles.size()) {
+            image_messages[slot - 2 - tiles.size()] = message;
+        }
+        for (const auto& client : clients)
+            client->post(slot, message);
+    }
+
+    std::string configJson() const {
+        nlohmann::json tiles_json = nlohmann::json::array();
+        for (size_t i = 0; i < tiles.size(); ++i) {
+            const Tile& t = tiles[i];
+            tiles_json.push_back({{"index", i},
+                                  {"stream", t.stream},
+                                  {"device", t.info.device},
+                                  {"kind", std::string(toString(t.info.kind))},
+                                  {"format", std::string(toString(t.info.format.format))},
+                                  {"width", t.info.format.width},
+                                  {"height", t.info.format.height},
+                                  {"tile_width", t.tile_width},
+                                  {"tile_height", t.tile_height},
+                                  {"nominal_fps", t.info.nominal_fps}});
+        }
+        const nlohmann::json j = {{"type", "config"},
+                                  {"title", options.title},
+                                  {"max_tile_fps", options.max_tile_fps},
+                                  {"depth_auto_range", options.depth_auto_range},
+                                  {"depth_min_m", options.depth_min_m},
+                                  {"depth_max_m", options.depth_max_m},
+                                  {"tiles", tiles_json}};
+        return j.dump();
+    }
+
+    std::string statusJson() {
+        nlohmann::json view_tiles = nlohmann::json::array();
+        {
+            std::lock_guard lock(tiles_mutex);
+            for (const Tile& t : tiles) {
+                const QueueStats q = t.queue ? t.queue->stats() : QueueStats{};
+                nlohmann::json tile = {{"stream", t.stream},
+                                       {"fps", std::round(t.fps * 10) / 10},
+                                       {"frames_in", q.pushed},
+                                       {"encoded", t.encoded},
+                                       {"skipped", q.dropped}};
+                if (!t.last_error.empty())
+                    tile["error"] = t.last_error;
+                view_tiles.push_back(std::move(tile));
+            }
+        }
+        size_t client_count = 0;
+        {
+            std::lock_guard lock(clients_mutex);
+            client_count = clients.size();
+        }
+        std::string pipeline = "null";
+        std::string error;
+        if (status_provider) {
+            std::string reply = status_provider();
+            if (reply.size() > kMaxJsonBytes) {
+                error = "the pipeline's status is over " + std::to_string(kMaxJsonBytes) + " bytes";
+            } else if (!isJsonObject(reply)) {
+                error = "the pipeline's status is not a JSON object";
+            } else {
+                pipeline = std::move(reply);
+            }
+        }
+        const nlohmann::json view = {{"tiles", view_tiles}, {"clients", client_count}};
+        std::string out =
+            R"({"type":"status","view":)" + view.dump() + R"(,"pipeline":)" + pipeline;
+        if (!error.empty())
+            out += R"(,"error":)" + jsonString(error);
+        out += "}";
+        return out;
+    }
+
+    // Encodes the tile's newest frame when its turn has come.
+    void serviceTile(size_t index, JpegEncoder& encoder, int64_t now) {
+        Tile& tile = tiles[index];
+        // Nobody watching: no work; the edge keeps replacing its one frame (counted skipped).
+        if (now < tile.next_due_ns || connected.load() == 0)
+            return;
+        std::optional<FrameRef> frame = tile.queue->tryPop();
+        if (!frame)
+            return;
+        const auto period_ns = static_cast<int64_t>(1e9 / options.max_tile_fps);
+        // Never more than max_tile_fps, and no burst to catch up after a pause.
+        tile.next_due_ns = std::max(tile.next_due_ns + period_ns, now + period_ns / 2);
+        TileRenderOptions render{options.max_tile_width, options.jpeg_quality, options.depth_min_m,
+                                 options.depth_max_m, options.depth_auto_range};
+        EncodedTile encoded;
+        const Status status = encoder.encode(frame->image(), render, &encoded);
+        const FrameMetadata meta = frame->meta();
+        frame.reset();  // the buffer goes back to its device's pool before sending
+        if (!status.isOk()) {
+            std::lock_guard lock(tiles_mutex);
+            ++tile.encode_errors;
+            tile.last_error = tile.stream + ": " + status.message();
+            return;
+        }
+        const nlohmann::json header = {{"tile", index},
+                                       {"seq", meta.sequence},
+                                       {"host_stamp_ns", meta.host_stamp_ns},
+                                       {"width", encoded.width},
+                                       {"height", encoded.height},
+                                       {"lo", encoded.range_lo},
+                                       {"hi", encoded.range_hi},
+                                       {"status", std::string(toString(meta.status))}};
+        const std::string header_text = header.dump();
+        auto message = std::make_shared<std::string>();
+        message->reserve(4 + header_text.size() + encoded.jpeg.size());
+        const auto n = static_cast<uint32_t>(header_text.size());
+        const char len[4] = {static_cast<char>(n & 0xFF), static_cast<char>((n >> 8) & 0xFF),
+                             static_cast<char>((n >> 16) & 0xFF), static_cast<char>(n >> 24)};
+        message->append(len, 4);
+        message->append(header_text);
+        message->append(encoded.jpeg);
+        {
+            std::lock_guard lock(tiles_mutex);
+            ++tile.encoded;
+            tile.last_error.clear();
+        }
+        broadcast(2 + tiles.size() + index, std::move(message));
+    }
+
+    void updateFps(int64_t now) {
+        std::lock_guard lock(tiles_mutex);
+        for (Tile& t : tiles) {
+            const int64_t dt = now - t.fps_base_ns;
+            if (dt >= 1'000'000'000) {
+                t.fps = static_cast<double>(t.encoded - t.fps_base_encoded) * 1e9 /
+                        static_cast<double>(dt);
+                t.fps_base_encoded = t.encoded;
+                t.fps_base_ns = now;
+            }
+        }
+    }
+
+    // Shuts down connections whose write has made no progress for too long.
+    void dropStalledClients(int64_t now) {
+        const auto limit_ns = static_cast<int64_t>(options.stalled_client_timeout_s * 1e9);
+        std::lock_guard lock(clients_mutex);
+        for (const auto& client : clients) {
+            std::lock_guard client_lock(client->mutex);
+            if (!client->closing && client->write_started_ns != 0 &&
+                now - client->write_started_ns > limit_ns) {
+                client->closing = true;
+                client->failed = true;  // counted as dropped when its close handler runs
+                shutdown(client->fd, SHUT_RDWR);
+                client->wake.notify_one();
+            }
+        }
+    }
+
+    void run() {
+        JpegEncoder encoder;
+        const auto status_period_ns = static_cast<int64_t>(options.status_period_s * 1e9);
+        int64_t next_status_ns = 0;
+        const auto pass = std::chrono::microseconds(std::clamp(
+            static_cast<int64_t>(250'000 / options.max_tile_fps), int64_t{1000}, int64_t{10'000}));
+        std::unique_lock lock(thread_mutex);
+        while (!thread_stop) {
+            lock.unlock();
+            const int64_t now = nowNs();
+            for (size_t i = 0; i < tiles.size(); ++i)
+                serviceTile(i, encoder, now);
+            if (now >= next_status_ns) {
+                next_status_ns = now + status_period_ns;
+                updateFps(now);
+                broadcast(1, std::make_shared<const std::string>(statusJson()));
+                dropStalledClients(now);
+            }
+            lock.lock();
+            thread_wake.wait_for(lock, pass, [&] { return thread_stop; });
+        }
+    }
+
+    // civetweb callbacks. cbdata is the Impl.
+    static int servePage(mg_connection* conn, void* cbdata) {
+        const mg_request_info* request = mg_get_request_info(conn);
+        const std::string uri = request->local_uri != nullptr ? request->local_uri : "";
+        if (uri != "/" && uri != "/index.html") {
+            mg_send_http_error(conn, 404, "%s", "mixray live view: only / is served\n");
+            return 404;
+        }
+        (void)cbdata;
+        const std::string_view page = pageHtml();
+        mg_send_http_ok(conn, "text/html; charset=utf-8", static_cast<long long>(page.size()));
+        mg_write(conn, page.data(), page.size());
+        return 200;
+    }
+
+    static int wsConnect(const mg_connection* /*conn*/, void* cbdata) {
+        auto* self = static_cast<Impl*>(cbdata);
+        std::lock_guard lock(self->clients_mutex);
+        if (self->stopping.load() ||
+            self->clients.size() >= static_cast<size_t>(self->options.max_clients)) {
+            ++self->clients_refused;
+            return 1;  // civetweb closes the connection without a handshake
+        }
+        return 0;
+    }
+
+    static void wsReady(mg_connection* conn, void* cbdata) {
+        auto* self = static_cast<Impl*>(cbdata);
+        const mg_request_info* request = mg_get_request_info(conn);
+        auto client = std::make_shared<Client>();
+        client->conn = conn;
+        client->remote = endpoint(request->remote_addr, request->remote_port);
+        client->fd =
+            findConnectionSocket(request->remote_addr, request->remote_port, self->port.load());
+        client->slots.resize(self->slotCount());
+        client->first_image_slot = 2 + self->tiles.size();
+        {
+            std::lock_guard lock(self->clients_mutex);
+            client->id = self->next_client_id++;
+            ++self->clients_ever;
+            // Without its socket the view could not end a stalled write: refuse rather than
+            // risk a stop() that hangs.
+            if (self->stopping.load() || client->fd < 0) {
+                ++self->clients_refused;
+                mg_set_user_connection_data(conn, nullptr);
+                mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, "", 0);
+                return;
+            }
+            client->post(0, self->config_message);
+            if (self->status_message)
+                client->post(1, self->status_message);
+            for (size_t i = 0; i < self->tiles.size(); ++i) {
+                if (self->overlay_messages[i])
+                    client->post(2 + i, self->overlay_messages[i]);
+                if (self->image_messages[i]) {
+                    client->post(client->first_image_slot + i, self->image_messages[i]);
+                }
+            }
+            self->clients.push_back(client);
+            self->connected = self->clients.size();
+        }
+        mg_set_user_connection_data(conn, client.get());
+        client->sender = std::thread([c = client.get()] { c->run(); });
+    }
+
+    static int wsData(mg_connection* /*conn*/, int opcode, char* /*data*/, size_t /*size*/,
+                      void* /*cbdata*/) {
+        // The page sends nothing the view reads; only a close ends the connection.
+        return (opcode & 0xF) == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE ? 0 : 1;
+    }
+
+    static void wsClose(const mg_connection* conn, void* cbdata) {
+        auto* self = static_cast<Impl*>(cbdata);
+        auto* raw = static_cast<Client*>(mg_get_user_connection_data(conn));
+        if (raw == nullptr)
+            return;
+        std::shared_ptr<Client> client;
+        {
+            std::lock_guard lock(self->clients_mutex);
+            auto it = std::find_if(self->clients.begin(), self->clients.end(),
+                                   [&](const auto& c) { return c.get() == raw; });
+            if (it == self->clients.end())
+                return;
+            client = *it;
+            self->clients.erase(it);
+            self->connected = self->clients.size();
+            std::lock_guard client_lock(client->mutex);
+            if (client->failed && !self->stopping.load())
+                ++self->clients_dropped;
+        }
+        {
+            std::lock_guard lock(client->mutex);
+            client->closing = true;
+            // A write in progress would block until the browser reads; the connection ends now
+            // anyway, so end the write too.
+            if (client->write_started_ns != 0)
+                shutdown(client->fd, SHUT_RDWR);
+            client->wake.notify_one();
+        }
+        if (client->sender.joinable())
+            client->sender.join();
+        mg_set_user_connection_data(conn, nullptr);
+    }
+
+    static int logMessage(const mg_connection* conn, const char* message) {
+        auto* self = static_cast<Impl*>(mg_get_user_data(mg_get_context(conn)));
+        if (self != nullptr && message != nullptr) {
+            std::lock_guard lock(self->log_mutex);
+            self->last_log = message;
+        }
+        return 1;  // the view reports errors as Status; civetweb prints nothing
+    }
+};
+
+LiveView::LiveView(LiveViewOptions options) : impl_(std::make_unique<Impl>()) {
+    impl_->options = std::move(options);
+}
+
+LiveView::~LiveView() {
+    stop();
+}
+
+Result<std::unique_ptr<LiveView>> LiveView::create(LiveViewOptions options) {
+    MIXRAY_RETURN_IF_ERROR(options.validate());
+    return std::unique_ptr<LiveView>(new LiveView(std::move(options)));
+}
+
+Status LiveView::connect(Graph& graph) {
+    Impl& d = *impl_;
+    d.graph = &graph;
+    std::vector<StreamInfo> chosen;
+    if (d.options.streams.empty()) {
+        for (const StreamInfo& info : graph.streams()) {
+            if (isTileFormat(info.format.format))
+                chosen.push_back(info);
+        }
+    } else {
+        for (const std::string& name : d.options.streams) {
+            const std::optional<StreamId> id = graph.findStream(name);
+            if (!id) {
+                return {ErrorCode::kNotFound, "live view: no stream '" + name + "' in the graph"};
+            }
+            StreamInfo info = graph.stream(*id);
+            if (!isTileFormat(info.format.format)) {
+                return {ErrorCode::kInvalidArgument, "live view: stream '" + name + "' is " +
+                                                         std::string(toString(info.format.format)) +
+                                                         ", not an image"};
+            }
+            chosen.push_back(std::move(info));
+        }
+    }
+    for (const StreamInfo& info : chosen) {
+        Tile tile;
+        tile.stream = info.name;
+        tile.info = info;
+        tileSize(info.format, d.options.max_tile_width, &tile.tile_width, &tile.tile_height);
+        // Capacity 1, live: the newest frame waits for the view's next turn, older ones are
+        // replaced (counted as skipped), and the view holds at most one buffer of the pool.
+        Result<std::shared_ptr<FrameQueue>> queue =
+            graph.subscribe(*graph.findStream(info.name),
+                            QueueOptions{1, QueuePolicy::kLive, "liveview:" + info.name});
+        if (!queue)
+            return queue.status().withContext("live view");
+        tile.queue = std::move(queue.value());
+        d.tiles.push_back(std::move(tile));
+    }
+    d.overlay_messages.assign(d.tiles.size(), nullptr);
+    d.image_messages.assign(d.tiles.size(), nullptr);
+    d.config_message = std::make_shared<const std::string>(d.configJson());
+    return Status::ok();
+}
+
+Status LiveView::start() {
+    Impl& d = *impl_;
+    if (d.ctx != nullptr)
+        return Status::ok();
+    if (!d.config_message)
+        d.config_message = std::make_shared<const std::string>(d.configJson());
+    int port = d.options.port;
+    if (port == 0) {
+        port = pickFreePort(d.options.address);
+        if (port < 0) {
+            return {ErrorCode::kUnavailable, "live view: cannot bind " +
+                                                 endpoint(d.options.address, 0) + ": " +
+                                                 std::strerror(errno)};
+        }
+    }
+    const std::string where = endpoint(d.options.address, port);
+    const std::string threads = std::to_string(d.options.max_clients + 4);
+    const char* config[] = {"listening_ports",
+                            where.c_str(),
+                            "num_threads",
+                            threads.c_str(),
+                            "enable_keep_alive",
+                            "no",
+                            "request_timeout_ms",
+                            "10000",
+                            "websocket_timeout_ms",
+                            "3600000",
+                            nullptr};
+    mg_callbacks callbacks{};
+    callbacks.log_message = &Impl::logMessage;
+    mg_init_library(0);
+    d.library_initialised = true;
+    char error_text[256] = {};
+    unsigned error_code = 0;
+    mg_error_data error{};
+    error.code = &error_code;
+    error.text = error_text;
+    error.text_buffer_size = sizeof(error_text);
+    mg_init_data init{};
+    init.callbacks = &callbacks;
+    init.user_data = &d;
+    init.configuration_options = config;
+    d.stopping = false;
+    d.ctx = mg_start2(&init, &error);
+    if (d.ctx == nullptr) {
+        mg_exit_library();
+        d.library_initialised = false;
+        std::string why = error_text;
+        if (why.empty()) {
+            std::lock_guard lock(d.log_mutex);
+            why = d.last_log;
+        }
+        return {ErrorCode::kUnavailable, "live view: cannot listen on " + where + ": " +
+                                             (why.empty() ? "bind failed" : why)};
+    }
+    d.port = port;
+    mg_set_request_handler(d.ctx, "/", &Impl::servePage, &d);
+    mg_set_websocket_handler(d.ctx, "/ws", &Impl::wsConnect, &Impl::wsReady, &Impl::wsData,
+                             &Impl::wsClose, &d);
+    {
+        std::lock_guard lock(d.thread_mutex);
+        d.thread_stop = false;
+    }
+    const int64_t now = nowNs();
+    for (Tile& t : d.tiles)
+        t.fps_base_ns = now;
+    d.thread = std::thread([&d] { d.run(); });
+    return Status::ok();
+}
+
+void LiveView::stop() {
+    Impl& d = *impl_;
+    if (d.ctx == nullptr)
+        return;
+    d.stopping = true;
+    {
+        std::lock_guard lock(d.thread_mutex);
+        d.thread_stop = true;
+        d.thread_wake.notify_all();
+    }
+    if (d.thread.joinable())
+        d.thread.join();
+    {
+        // Ends every connection at the socket: a sender blocked on a browser that does not read
+        // returns, and civetweb's reader sees the end and calls the close handler.
+        std::lock_guard lock(d.clients_mutex);
+        for (const auto& client : d.clients) {
+            std::lock_guard client_lock(client->mutex);
+            client->closing = true;
+            shutdown(client->fd, SHUT_RDWR);
+            client->wake.notify_one();
+        }
+    }
+    // civetweb's listening thread polls for 2 s at a time before it sees the stop flag; a
+    // connection wakes it at once, so knock until mg_stop() returns.
+    std::atomic<bool> stopped{false};
+    std::thread knocker([&] {
+        const std::string host = d.options.address == "0.0.0.0" ? "127.0.0.1" : d.options.address;
+        while (!stopped.load()) {
+            knock(host, d.port.load());
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        }
+    });
+    mg_stop(d.ctx);
+    stopped = true;
+    knocker.join();
+    d.ctx = nullptr;
+    // Close handlers have run for every connection civetweb served; anything left never got one.
+    std::vector<std::shared_ptr<Client>> left;
+    {
+        std::lock_guard lock(d.clients_mutex);
+        left.swap(d.clients);
+        d.connected = 0;
+    }
+    for (const auto& client : left) {
+        if (client->sender.joinable())
+            client->sender.join();
+    }
+    if (d.library_initialised) {
+        mg_exit_library();
+        d.library_initialised = false;
+    }
+    d.port = 0;
+}
+
+void LiveView::setStatusProvider(std::function<std::string()> provider) {
+    impl_->status_provider = std::move(provider);
+}
+
+Status LiveView::setOverlay(std::string_view stream, std::string overlay_json) {
+    Impl& d = *impl_;
+    const auto it = std::find_if(d.tiles.begin(), d.tiles.end(),
+                                 [&](const Tile& t) { return t.stream == stream; });
+    if (it == d.tiles.end()) {
+        return {ErrorCode::kNotFound,
+                "live view overlay: '" + std::string(stream) + "' is not a tile"};
+    }
+    if (overlay_json.size() > kMaxJsonBytes) {
+        return {ErrorCode::kInvalidArgument, "live view overlay for '" + std::string(stream) +
+                                                 "': over " + std::to_string(kMaxJsonBytes) +
+                                                 " bytes"};
+    }
+    if (!isJsonObject(overlay_json)) {
+        return {ErrorCode::kInvalidArgument,
+                "live view overlay for '" + std::string(stream) + "': not a JSON object"};
+    }
+    const auto index = static_cast<size_t>(it - d.tiles.begin());
+    auto message =
+        std::make_shared<const std::string>(R"({"type":"overlay","tile":)" + std::to_string(index) +
+                                            R"(,"overlay":)" + overlay_json + "}");
+    d.broadcast(2 + index, std::move(message));
+    return Status::ok();
+}
+
+int LiveView::port() const {
+    return impl_->port.load();
+}
+
+std::string LiveView::url() const {
+    const int p = port();
+    if (p == 0)
+        return "";
+    const std::string host =
+        impl_->options.address == "0.0.0.0" ? "127.0.0.1" : impl_->options.address;
+    return "http://" + endpoint(host, p) + "/";
+}
+
+LiveViewStats LiveView::stats() const {
+    const Impl& d = *impl_;
+    LiveViewStats s;
+    {
+        std::lock_guard lock(d.tiles_mutex);
+        for (const Tile& t : d.tiles) {
+            const QueueStats q = t.queue ? t.queue->stats() : QueueStats{};
+            s.tiles.push_back({t.stream, q.pushed, t.encoded, q.dropped, t.encode_errors, t.fps});
+        }
+    }
+    // Bound: every slot full at its largest (header and length prefix included).
+    size_t bound = d.config_message ? d.config_message->size() : 0;
+    bound += kMaxJsonBytes + 4096;  // status: the pipeline's JSON and the view's figures
+    for (const Tile& t : d.tiles) {
+        const size_t image = t.info.format.format == PixelFormat::kMJPEG
+                                 ? t.info.format.bufferBytes()
+                                 : JpegEncoder::maxJpegBytes(t.tile_width, t.tile_height);
+        bound += image + 1024 + kMaxJsonBytes + 64;
+    }
+    s.queue_bound_bytes = bound;
+    std::lock_guard lock(d.clients_mutex);
+    s.clients_ever = d.clients_ever;
+    s.clients_refused = d.clients_refused;
+    s.clients_dropped = d.clients_dropped;
+    const int64_t now = nowNs();
+    for (const auto& c : d.clients) {
+        std::lock_guard client_lock(c->mutex);
+        s.clients.push_back(
+            {c->id, c->remote, c->frames_sent, c->frames_skipped, c->messages_sent, c->queued_bytes,
+             c->queued_bytes_high,
+             c->write_started_ns != 0 && now - c->write_started_ns > 1'000'000'000});
+    }
+    return s;
+}
+
+}  // namespace mixray::liveview

@@ -1,0 +1,801 @@
+// The live view: tile images, options, bind errors, several WebSocket clients, a stalled one, and
+// the page itself in headless Chromium, with pattern cameras as the source.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <turbojpeg.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <thread>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define MIXRAY_LIVEVIEW_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define MIXRAY_LIVEVIEW_ASAN 1
+#endif
+#endif
+#if MIXRAY_LIVEVIEW_ASAN
+// The sanitizer runtime's own function (GCC ships no header declaring it).
+extern "C" size_t __sanitizer_get_current_allocated_bytes();
+#endif
+
+#include "headless_chromium.h"
+#include "image_to_jpeg.h"
+#include "mixray/graph/graph.h"
+#include "mixray/liveview/live_view.h"
+#include "mixray/pattern/pattern_backend.h"
+#include "mixray/pattern/pattern_image.h"
+#include "test_data.h"
+#include "watchdog.h"
+
+namespace mixray::liveview {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+// ---- JPEG decoding (the test's independent reader) ----
+
+struct Decoded {
+    int width = 0;
+    int height = 0;
+    std::vector<uint8_t> rgb;
+};
+
+Decoded decodeJpeg(const std::string& jpeg) {
+    Decoded out;
+    tjhandle tj = tjInitDecompress();
+    int subsamp = 0;
+    int colorspace = 0;
+    const auto* data = reinterpret_cast<const unsigned char*>(jpeg.data());
+    if (tjDecompressHeader3(tj, data, jpeg.size(), &out.width, &out.height, &subsamp,
+                            &colorspace) == 0) {
+        out.rgb.resize(static_cast<size_t>(out.width) * out.height * 3);
+        if (tjDecompress2(tj, data, jpeg.size(), out.rgb.data(), out.width, 0, out.height, TJPF_RGB,
+                          TJFLAG_ACCURATEDCT) != 0) {
+            out.rgb.clear();
+        }
+    }
+    tjDestroy(tj);
+    return out;
+}
+
+const uint8_t* pixel(const Decoded& d, int x, int y) {
+    return d.rgb.data() + (static_cast<size_t>(y) * d.width + x) * 3;
+}
+
+// ---- Frame -> JPEG ----
+
+TEST(TileImage, DepthIsFalseColourOverTheFixedRangeWithHolesBlack) {
+    Image depth(ImageDesc::packed(PixelFormat::kDepth16, 64, 32));
+    for (int y = 0; y < 32; ++y) {
+        auto* row = depth.mutableView().row<uint16_t>(y);
+        for (int x = 0; x < 64; ++x)
+            row[x] = x < 16 ? 300 : x < 32 ? 5000 : x < 48 ? 0 : 2650;
+    }
+    JpegEncoder encoder;
+    EncodedTile tile;
+    ASSERT_TRUE(encoder.encode(depth.view(), TileRenderOptions{}, &tile).isOk());
+    EXPECT_DOUBLE_EQ(tile.range_lo, 0.3);
+    EXPECT_DOUBLE_EQ(tile.range_hi, 5.0);
+    const Decoded d = decodeJpeg(tile.jpeg);
+    ASSERT_EQ(d.width, 64);
+    ASSERT_FALSE(d.rgb.empty());
+    uint8_t near[3], far[3], mid[3];
+    turboColor(0.0, near);
+    turboColor(1.0, far);
+    turboColor(0.5, mid);
+    auto close = [](const uint8_t* got, const uint8_t* want) {
+        for (int c = 0; c < 3; ++c) {
+            if (std::abs(got[c] - want[c]) > 20)
+                return false;
+        }
+        return true;
+    };
+    EXPECT_TRUE(close(pixel(d, 8, 16), near));
+    EXPECT_TRUE(close(pixel(d, 24, 16), far));
+    const uint8_t black[3] = {0, 0, 0};
+    EXPECT_TRUE(close(pixel(d, 40, 16), black));
+    EXPECT_TRUE(close(pixel(d, 56, 16), mid));
+}
+
+TEST(TileImage, ColourFormatsAgreeAndLargeImagesAreSubsampled) {
+    // The same colours as rgb8, bgr8 and yuyv (grey levels, which YUV carries exactly).
+    const int w = 1280, h = 64;
+    Image rgb(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+    Image bgr(ImageDesc::packed(PixelFormat::kBGR8, w, h));
+    Image yuyv(ImageDesc::packed(PixelFormat::kYUYV, w, h));
+    for (int y = 0; y < h; ++y) {
+        uint8_t* a = rgb.mutableView().row<uint8_t>(y);
+        uint8_t* b = bgr.mutableView().row<uint8_t>(y);
+        uint8_t* c = yuyv.mutableView().row<uint8_t>(y);
+        for (int x = 0; x < w; ++x) {
+            const uint8_t r = x < w / 2 ? 200 : 30, g = 100, bl = x < w / 2 ? 20 : 220;
+            a[3 * x] = r, a[3 * x + 1] = g, a[3 * x + 2] = bl;
+            b[3 * x] = bl, b[3 * x + 1] = g, b[3 * x + 2] = r;
+            c[2 * x] = x < w / 2 ? 60 : 200;  // Y
+            c[2 * x + 1] = 128;               // U, V: grey
+        }
+    }
+    JpegEncoder encoder;
+    TileRenderOptions options;
+    options.max_width = 640;
+    EncodedTile a, b, c;
+    ASSERT_TRUE(encoder.encode(rgb.view(), options, &a).isOk());
+    ASSERT_TRUE(encoder.encode(bgr.view(), options, &b).isOk());
+    ASSERT_TRUE(encoder.encode(yuyv.view(), options, &c).isOk());
+    EXPECT_EQ(a.width, 640);
+    EXPECT_EQ(a.height, 32);
+    const Decoded da = decodeJpeg(a.jpeg), db = decodeJpeg(b.jpeg), dc = decodeJpeg(c.jpeg);
+    ASSERT_EQ(da.width, 640);
+    for (int c2 = 0; c2 < 3; ++c2) {
+        EXPECT_NEAR(pixel(da, 100, 16)[c2], pixel(db, 100, 16)[c2], 2);
+        EXPECT_NEAR(pixel(da, 500, 16)[c2], pixel(db, 500, 16)[c2], 2);
+    }
+    EXPECT_NEAR(pixel(da, 100, 16)[0], 200, 12);
+    EXPECT_NEAR(pixel(da, 500, 16)[2], 220, 12);
+    // BT.601 limited range: Y 60 -> 51, Y 200 -> 214.
+    EXPECT_NEAR(pixel(dc, 100, 16)[1], 51, 6);
+    EXPECT_NEAR(pixel(dc, 500, 16)[1], 214, 6);
+}
+
+TEST(TileImage, Infrared16IsNormalisedAndBinaryIsNoTile) {
+    Image ir(ImageDesc::packed(PixelFormat::kIR16, 32, 16));
+    for (int y = 0; y < 16; ++y) {
+        auto* row = ir.mutableView().row<uint16_t>(y);
+        for (int x = 0; x < 32; ++x)
+            row[x] = x < 16 ? 1000 : 1100;  // a dim image
+    }
+    JpegEncoder encoder;
+    EncodedTile tile;
+    ASSERT_TRUE(encoder.encode(ir.view(), TileRenderOptions{}, &tile).isOk());
+    const Decoded d = decodeJpeg(tile.jpeg);
+    ASSERT_FALSE(d.rgb.empty());
+    EXPECT_LT(pixel(d, 4, 8)[0], 10);
+    EXPECT_GT(pixel(d, 28, 8)[0], 245);
+    EXPECT_FALSE(isTileFormat(PixelFormat::kBinary));
+    Image binary(ImageDesc::packed(PixelFormat::kBinary, 16, 1));
+    EXPECT_EQ(encoder.encode(binary.view(), TileRenderOptions{}, &tile).code(),
+              ErrorCode::kUnsupported);
+    // A payload shorter than its layout is an error, not a read past the end.
+    ImageView truncated = ir.view();
+    truncated.size_bytes = 100;
+    EXPECT_EQ(encoder.encode(truncated, TileRenderOptions{}, &tile).code(),
+              ErrorCode::kCorruptData);
+}
+
+// ---- Options and binding ----
+
+TEST(LiveViewOptions, DefaultsAreLoopbackAndBadValuesNameTheField) {
+    const LiveViewOptions defaults;
+    EXPECT_EQ(defaults.address, "127.0.0.1");
+    EXPECT_TRUE(defaults.validate().isOk());
+    struct Case {
+        LiveViewOptions options;
+        std::string field;
+    };
+    std::vector<Case> cases(5);
+    cases[0].options.address = "localhost:80", cases[0].field = "address";
+    cases[1].options.port = 70000, cases[1].field = "port";
+    cases[2].options.max_tile_fps = 0, cases[2].field = "max_tile_fps";
+    cases[3].options.jpeg_quality = 0, cases[3].field = "jpeg_quality";
+    cases[4].options.depth_max_m = 0.1, cases[4].field = "depth_min_m";
+    for (const Case& c : cases) {
+        const Status s = c.options.validate();
+        EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument) << c.field;
+        EXPECT_NE(s.message().find(c.field), std::string::npos) << s.message();
+        EXPECT_FALSE(LiveView::create(c.options).isOk());
+    }
+}
+
+TEST(LiveViewOptions, ViewAddressIsPortOrAddressAndPort) {
+    LiveViewOptions o;
+    ASSERT_TRUE(parseViewAddress("9000", &o).isOk());
+    EXPECT_EQ(o.address, "127.0.0.1");  // a bare port keeps the loopback default
+    EXPECT_EQ(o.port, 9000);
+    ASSERT_TRUE(parseViewAddress("0.0.0.0:0", &o).isOk());
+    EXPECT_EQ(o.address, "0.0.0.0");
+    EXPECT_EQ(o.port, 0);
+    for (const std::string& bad :
+         std::vector<std::string>{"", "http", ":80", "localhost:80", "1.2.3.4:", "1.2.3.4:65536",
+                                  "1.2.3.4:-1", "1.2.3:80", std::string("1.2.3.4\0x:80", 12)}) {
+        LiveViewOptions before;
+        const Status s = parseViewAddress(bad, &before);
+        EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument) << bad;
+        EXPECT_NE(s.message().find("--view"), std::string::npos) << s.message();
+        EXPECT_EQ(before.port, 8080) << "left untouched on error: " << bad;
+    }
+}
+
+// A pattern camera in a graph, with the view as its sink.
+struct Rig {
+    Graph graph;
+    pattern::PatternDevice* device = nullptr;
+    LiveView* view = nullptr;
+
+    explicit Rig(LiveViewOptions options,
+                 std::vector<pattern::PatternStream> streams = {pattern::PatternStream::kColor,
+                                                                pattern::PatternStream::kDepth,
+                                                                pattern::PatternStream::kInfrared},
+                 int width = 320, int height = 240) {
+        pattern::PatternOptions p;
+        for (auto s : streams)
+            p.streams.push_back({s, width, height});
+        p.fps = 30;
+        p.realtime = true;
+        auto dev = std::make_unique<pattern::PatternDevice>("cam", p);
+        device = dev.get();
+        EXPECT_TRUE(graph.addNode(std::move(dev)).isOk());
+        auto created = LiveView::create(std::move(options));
+        EXPECT_TRUE(created.isOk()) << created.status().toString();
+        view = created.value().get();
+        const Status connected = graph.addNode(std::move(created.value()));
+        EXPECT_TRUE(connected.isOk()) << connected.toString();
+    }
+    ~Rig() { graph.stop(); }
+};
+
+LiveViewOptions anyPort() {
+    LiveViewOptions o;
+    o.port = 0;
+    return o;
+}
+
+// A listening TCP socket on 127.0.0.1 at any port.
+int listenAnywhere(int* port) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
+    listen(fd, 4);
+    socklen_t len = sizeof(addr);
+    getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+    *port = ntohs(addr.sin_port);
+    return fd;
+}
+
+TEST(LiveView, BindFailuresNameAddressAndPort) {
+    int taken = 0;
+    const int holder = listenAnywhere(&taken);
+    {
+        LiveViewOptions o;
+        o.port = taken;
+        Rig rig(o);
+        const Status s = rig.graph.start();
+        EXPECT_EQ(s.code(), ErrorCode::kUnavailable) << s.toString();
+        EXPECT_NE(s.message().find("127.0.0.1:" + std::to_string(taken)), std::string::npos)
+            << s.message();
+    }
+    close(holder);
+    {
+        LiveViewOptions o;
+        o.address = "192.0.2.7";  // TEST-NET-1: no interface of this machine has it
+        o.port = 0;
+        Rig rig(o);
+        const Status s = rig.graph.start();
+        EXPECT_EQ(s.code(), ErrorCode::kUnavailable) << s.toString();
+        EXPECT_NE(s.message().find("192.0.2.7:"), std::string::npos) << s.message();
+    }
+}
+
+// Whether /proc/net/tcp lists a listening socket on `port` bound to 127.0.0.1 only.
+bool listensOnLoopbackOnly(int port) {
+    std::ifstream tcp("/proc/net/tcp");
+    std::string line;
+    char want[16];
+    std::snprintf(want, sizeof(want), ":%04X", port);
+    bool loopback = false, other = false;
+    while (std::getline(tcp, line)) {
+        std::istringstream in(line);
+        std::string slot, local, remote, state;
+        in >> slot >> local >> remote >> state;
+        if (state != "0A" || local.size() < 13 || local.substr(8) != want)
+            continue;
+        (local.substr(0, 8) == "0100007F" ? loopback : other) = true;
+    }
+    return loopback && !other;
+}
+
+// ---- A minimal WebSocket client (server frames are unmasked) ----
+
+class WsClient {
+public:
+    // Connects and completes the handshake; receive_buffer > 0 shrinks the socket's buffer.
+    bool open(int port, int receive_buffer = 0) {
+        fd_ = socket(AF_INET, SOCK_STREAM, 0);
+        if (receive_buffer > 0) {
+            setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof(receive_buffer));
+        }
+        sockaddr_in addr{};
+        addr.sin_family = AF_INET;
+        addr.sin_port = htons(static_cast<uint16_t>(port));
+        addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0)
+            return false;
+        const std::string request = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                                    "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                                    "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                                    "Sec-WebSocket-Version: 13\r\n\r\n";
+        if (send(fd_, request.data(), request.size(), MSG_NOSIGNAL) !=
+            static_cast<ssize_t>(request.size())) {
+            return false;
+        }
+        std::string response;
+        while (response.find("\r\n\r\n") == std::string::npos) {
+            char c;
+            if (!readExact(&c, 1, 5000))
+                return false;
+            response.push_back(c);
+        }
+        return response.rfind("HTTP/1.1 101", 0) == 0;
+    }
+    ~WsClient() {
+        if (fd_ >= 0)
+            close(fd_);
+    }
+
+    struct Message {
+        int opcode = 0;
+        std::string payload;
+    };
+    std::optional<Message> next(int timeout_ms = 3000) {
+        uint8_t h[2];
+        if (!readExact(h, 2, timeout_ms))
+            return std::nullopt;
+        uint64_t len = h[1] & 0x7F;
+        if (len == 126) {
+            uint8_t e[2];
+            if (!readExact(e, 2, timeout_ms))
+                return std::nullopt;
+            len = (e[0] << 8) | e[1];
+        } else if (len == 127) {
+            uint8_t e[8];
+            if (!readExact(e, 8, timeout_ms))
+                return std::nullopt;
+            len = 0;
+            for (uint8_t b : e)
+                len = (len << 8) | b;
+        }
+        Message m;
+        m.opcode = h[0] & 0x0F;
+        m.payload.resize(len);
+        if (len > 0 && !readExact(m.payload.data(), len, timeout_ms))
+            return std::nullopt;
+        return m;
+    }
+
+private:
+    bool readExact(void* out, size_t n, int timeout_ms) {
+        auto* p = static_cast<char*>(out);
+        while (n > 0) {
+            pollfd pfd{fd_, POLLIN, 0};
+            if (poll(&pfd, 1, timeout_ms) <= 0)
+                return false;
+            const ssize_t got = recv(fd_, p, n, 0);
+            if (got <= 0)
+                return false;
+            p += got;
+            n -= static_cast<size_t>(got);
+        }
+        return true;
+    }
+    int fd_ = -1;
+};
+
+// An image message: its header and JPEG.
+struct ImageMessage {
+    nlohmann::json header;
+    std::string jpeg;
+};
+std::optional<ImageMessage> parseImage(const WsClient::Message& m) {
+    if (m.opcode != 2 || m.payload.size() < 4)
+        return std::nullopt;
+    const auto* b = reinterpret_cast<const uint8_t*>(m.payload.data());
+    const uint32_t n = b[0] | (b[1] << 8) | (b[2] << 16) | (static_cast<uint32_t>(b[3]) << 24);
+    if (4 + n > m.payload.size())
+        return std::nullopt;
+    ImageMessage out;
+    out.header = nlohmann::json::parse(m.payload.substr(4, n));
+    out.jpeg = m.payload.substr(4 + n);
+    return out;
+}
+
+// An HTTP GET on 127.0.0.1:port; the whole response.
+std::string httpGet(int port, const std::string& path) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    std::string response;
+    if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0) {
+        const std::string request =
+            "GET " + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+        send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+        char chunk[65536];
+        ssize_t n = 0;
+        while ((n = recv(fd, chunk, sizeof(chunk), 0)) > 0)
+            response.append(chunk, n);
+    }
+    close(fd);
+    return response;
+}
+
+TEST(LiveView, ServesItsPageOnLoopbackAndChoosesImageStreams) {
+    Rig rig(anyPort());
+    // A stream that is not an image is no tile.
+    StreamInfo records;
+    records.name = "cam/poses";
+    records.device = "cam";
+    records.kind = StreamKind::kPose;
+    records.format = ImageDesc::packed(PixelFormat::kBinary, 64, 1);
+    ASSERT_TRUE(rig.graph.addStream(records).isOk());
+    ASSERT_TRUE(rig.graph.start().isOk());
+    const int port = rig.view->port();
+    ASSERT_GT(port, 0);
+    EXPECT_EQ(rig.view->url(), "http://127.0.0.1:" + std::to_string(port) + "/");
+    EXPECT_TRUE(listensOnLoopbackOnly(port));
+    const std::string page = httpGet(port, "/");
+    EXPECT_EQ(page.rfind("HTTP/1.1 200", 0), 0u) << page.substr(0, 200);
+    EXPECT_NE(page.find("new WebSocket"), std::string::npos);
+    EXPECT_EQ(httpGet(port, "/secret").rfind("HTTP/1.1 404", 0), 0u);
+    const LiveViewStats stats = rig.view->stats();
+    ASSERT_EQ(stats.tiles.size(), 3u);
+    EXPECT_EQ(stats.tiles[0].stream, "cam/color");
+    EXPECT_EQ(stats.tiles[1].stream, "cam/depth");
+    EXPECT_EQ(stats.tiles[2].stream, "cam/ir");
+
+    // Named streams: absent and non-image ones are errors.
+    Graph graph;
+    ASSERT_TRUE(graph.addStream(records).isOk());
+    LiveViewOptions named;
+    named.streams = {"cam/nothing"};
+    EXPECT_EQ(graph.addNode(LiveView::create(named).value()).code(), ErrorCode::kNotFound);
+    named.streams = {"cam/poses"};
+    EXPECT_EQ(graph.addNode(LiveView::create(named).value()).code(), ErrorCode::kInvalidArgument);
+}
+
+TEST(LiveView, SeveralClientsGetEveryTileAtTheRateLimitWithStatusAndOverlays) {
+    LiveViewOptions o = anyPort();
+    o.max_tile_fps = 10;
+    o.status_period_s = 0.2;
+    Rig rig(o);
+    rig.view->setStatusProvider(
+        [] { return R"({"devices":[{"name":"cam","state":"streaming"}],"custom":7})"; });
+    EXPECT_EQ(rig.view->setOverlay("cam/nothing", "{}").code(), ErrorCode::kNotFound);
+    EXPECT_EQ(rig.view->setOverlay("cam/color", "{\"polygons\":[").code(),
+              ErrorCode::kInvalidArgument);
+    EXPECT_EQ(rig.view->setOverlay("cam/color", "[1,2]").code(), ErrorCode::kInvalidArgument);
+    EXPECT_EQ(
+        rig.view->setOverlay("cam/color", "{\"texts\":\"" + std::string(kMaxJsonBytes, 'x') + "\"}")
+            .code(),
+        ErrorCode::kInvalidArgument);
+    ASSERT_TRUE(rig.graph.start().isOk());
+    const int port = rig.view->port();
+    constexpr int kClients = 3;
+    std::vector<std::unique_ptr<WsClient>> clients;
+    for (int i = 0; i < kClients; ++i) {
+        clients.push_back(std::make_unique<WsClient>());
+        ASSERT_TRUE(clients.back()->open(port));
+    }
+    ASSERT_TRUE(rig.view
+                    ->setOverlay("cam/color",
+                                 R"({"circles":[{"centre":[10,20],"radius":5,"color":"#ff0000"}]})")
+                    .isOk());
+    struct Seen {
+        bool config_first = false;
+        int status = 0;
+        int overlays = 0;
+        std::vector<std::set<uint64_t>> seqs = std::vector<std::set<uint64_t>>(3);
+        bool decoded = true;
+    };
+    std::vector<Seen> seen(kClients);
+    std::vector<std::thread> readers;
+    const auto start = Clock::now();
+    for (int i = 0; i < kClients; ++i) {
+        readers.emplace_back([&, i] {
+            bool first = true;
+            while (Clock::now() - start < 2s) {
+                auto m = clients[i]->next();
+                if (!m)
+                    break;
+                if (m->opcode == 1) {
+                    const auto j = nlohmann::json::parse(m->payload);
+                    if (first)
+                        seen[i].config_first = j["type"] == "config";
+                    if (j["type"] == "status" && j["pipeline"]["custom"] == 7 &&
+                        j["view"]["tiles"].size() == 3) {
+                        ++seen[i].status;
+                    }
+                    if (j["type"] == "overlay" && j["tile"] == 0)
+                        ++seen[i].overlays;
+                } else if (auto image = parseImage(*m)) {
+                    const int tile = image->header["tile"];
+                    seen[i].seqs[tile].insert(image->header["seq"].get<uint64_t>());
+                    const Decoded d = decodeJpeg(image->jpeg);
+                    if (d.rgb.empty() || d.width != image->header["width"])
+                        seen[i].decoded = false;
+                }
+                first = false;
+            }
+        });
+    }
+    for (auto& r : readers)
+        r.join();
+    const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+    const LiveViewStats stats = rig.view->stats();
+    for (int i = 0; i < kClients; ++i) {
+        SCOPED_TRACE("client " + std::to_string(i));
+        EXPECT_TRUE(seen[i].config_first);
+        EXPECT_GE(seen[i].status, 3);
+        EXPECT_GE(seen[i].overlays, 1);
+        EXPECT_TRUE(seen[i].decoded);
+        for (int t = 0; t < 3; ++t)
+            EXPECT_GE(seen[i].seqs[t].size(), 5u) << "tile " << t;
+    }
+    EXPECT_EQ(stats.clients.size(), static_cast<size_t>(kClients));
+    EXPECT_EQ(stats.clients_ever, static_cast<uint64_t>(kClients));
+    for (const TileStats& t : stats.tiles) {
+        // At most max_tile_fps (with one period of slack for the start); the camera's 30 fps
+        // mostly skipped on the edge.
+        EXPECT_LE(t.encoded, static_cast<uint64_t>(10 * (elapsed + 0.5)) + 2) << t.stream;
+        EXPECT_GT(t.skipped_rate, 0u) << t.stream;
+        EXPECT_EQ(t.encode_errors, 0u) << t.stream;
+    }
+}
+
+// The process's memory in use: RSS, or under AddressSanitizer its live heap bytes (its
+// quarantine keeps freed blocks resident, so RSS grows there with every frame freed).
+uint64_t memoryInUse() {
+#if MIXRAY_LIVEVIEW_ASAN
+    return __sanitizer_get_current_allocated_bytes();
+#else
+    std::ifstream statm("/proc/self/statm");
+    uint64_t pages = 0, resident = 0;
+    statm >> pages >> resident;
+    return resident * static_cast<uint64_t>(sysconf(_SC_PAGESIZE));
+#endif
+}
+
+TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
+    test::runWithin(60s, "the stalled-client test", [](test::WatchdogStage& stage) {
+        LiveViewOptions o = anyPort();
+        o.max_tile_fps = 30;  // as fast as the camera: the stalled client's mailbox is busy
+        o.jpeg_quality = 95;
+        Rig rig(o, {pattern::PatternStream::kColor, pattern::PatternStream::kDepth}, 640, 480);
+        ASSERT_TRUE(rig.graph.start().isOk());
+        const int port = rig.view->port();
+        stage.set("connecting");
+        WsClient stalled;
+        ASSERT_TRUE(stalled.open(port, 4096));  // handshake done, then never reads
+        WsClient reader;
+        ASSERT_TRUE(reader.open(port));
+        std::atomic<int> frames{0};
+        std::atomic<bool> done{false};
+        std::thread drain([&] {
+            while (!done) {
+                auto m = reader.next(1000);
+                if (m && m->opcode == 2)
+                    ++frames;
+            }
+        });
+        stage.set("waiting for the stalled client's buffers to fill");
+        std::this_thread::sleep_for(1500ms);
+        const uint64_t memory_before = memoryInUse();
+        const uint64_t published_before = rig.device->publishedFrames();
+        const int frames_before = frames.load();
+        const auto t0 = Clock::now();
+        size_t high = 0;
+        bool saw_stalled = false;
+        while (Clock::now() - t0 < 3s) {
+            std::this_thread::sleep_for(100ms);
+            for (const ClientStats& c : rig.view->stats().clients) {
+                high = std::max(high, c.queued_bytes);
+                saw_stalled = saw_stalled || c.stalled;
+            }
+        }
+        const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        const uint64_t published = rig.device->publishedFrames() - published_before;
+        const int received = frames.load() - frames_before;
+        const uint64_t memory_after = memoryInUse();
+        const LiveViewStats stats = rig.view->stats();
+
+        // The camera kept its rate (2 streams at 30 fps) and lost nothing.
+        EXPECT_GE(published, static_cast<uint64_t>(0.85 * 2 * 30 * seconds));
+        EXPECT_EQ(rig.device->poolExhausted(), 0u);
+        for (StreamId id : rig.device->streamIds())
+            EXPECT_EQ(rig.graph.lostCount(id), 0u);
+        // The stalled client is seen as stalled, its mailbox stays within the bound.
+        EXPECT_TRUE(saw_stalled);
+        EXPECT_LE(high, stats.queue_bound_bytes);
+        for (const ClientStats& c : stats.clients) {
+            EXPECT_LE(c.queued_bytes_high, stats.queue_bound_bytes);
+        }
+        ASSERT_EQ(stats.clients.size(), 2u);
+        const ClientStats& slow = stats.clients[0].frames_sent < stats.clients[1].frames_sent
+                                      ? stats.clients[0]
+                                      : stats.clients[1];
+        EXPECT_GT(slow.frames_skipped, 0u);
+        // The other browser kept receiving both tiles at about the view's rate.
+        EXPECT_GE(received, static_cast<int>(0.5 * 2 * 30 * seconds));
+        // Memory flat: a few MB of slack for the allocator, not a frame per frame.
+        EXPECT_LT(memory_after, memory_before + 8u * 1024 * 1024)
+            << "memory in use grew from " << memory_before << " to " << memory_after;
+
+        stage.set("stopping with the stalled client connected");
+        const auto s0 = Clock::now();
+        rig.view->stop();
+        const double stop_s = std::chrono::duration<double>(Clock::now() - s0).count();
+        EXPECT_LT(stop_s, 1.0);
+        done = true;
+        drain.join();
+    });
+}
+
+TEST(LiveView, StatusThatIsNotAJsonObjectIsShownAsAMessage) {
+    LiveViewOptions o = anyPort();
+    o.status_period_s = 0.05;
+    Rig rig(o, {pattern::PatternStream::kColor});
+    rig.view->setStatusProvider([] { return std::string("fps: 30"); });
+    ASSERT_TRUE(rig.graph.start().isOk());
+    WsClient client;
+    ASSERT_TRUE(client.open(rig.view->port()));
+    std::optional<nlohmann::json> status;
+    for (int i = 0; i < 50 && !status; ++i) {
+        auto m = client.next();
+        ASSERT_TRUE(m.has_value());
+        if (m->opcode != 1)
+            continue;
+        auto j = nlohmann::json::parse(m->payload);
+        if (j["type"] == "status")
+            status = j;
+    }
+    ASSERT_TRUE(status.has_value());
+    EXPECT_TRUE((*status)["pipeline"].is_null());
+    EXPECT_NE((*status)["error"].get<std::string>().find("not a JSON object"), std::string::npos);
+    EXPECT_EQ((*status)["view"]["tiles"][0]["stream"],
+              "cam/color");  // the view's own figures go on
+}
+
+TEST(LiveView, EncodesNothingWhileNoBrowserWatches) {
+    Rig rig(anyPort());
+    ASSERT_TRUE(rig.graph.start().isOk());
+    std::this_thread::sleep_for(500ms);
+    for (const TileStats& t : rig.view->stats().tiles) {
+        EXPECT_EQ(t.encoded, 0u) << t.stream;
+        EXPECT_GT(t.frames_in, 0u) << t.stream;
+    }
+    WsClient client;
+    ASSERT_TRUE(client.open(rig.view->port()));
+    int images = 0;
+    while (images < 6) {
+        auto m = client.next();
+        ASSERT_TRUE(m.has_value());
+        images += m->opcode == 2;
+    }
+    for (const TileStats& t : rig.view->stats().tiles)
+        EXPECT_GT(t.encoded, 0u) << t.stream;
+}
+
+TEST(LiveView, ClientStalledPastTheTimeoutIsDisconnected) {
+    LiveViewOptions o = anyPort();
+    o.max_tile_fps = 30;
+    o.stalled_client_timeout_s = 0.5;
+    o.jpeg_quality = 95;
+    Rig rig(o, {pattern::PatternStream::kColor}, 640, 480);
+    ASSERT_TRUE(rig.graph.start().isOk());
+    WsClient stalled;
+    ASSERT_TRUE(stalled.open(rig.view->port(), 4096));
+    const auto t0 = Clock::now();
+    while (rig.view->stats().clients_dropped == 0 && Clock::now() - t0 < 10s) {
+        std::this_thread::sleep_for(50ms);
+    }
+    const LiveViewStats stats = rig.view->stats();
+    EXPECT_EQ(stats.clients_dropped, 1u);
+    EXPECT_TRUE(stats.clients.empty());
+}
+
+TEST(LiveView, MoreBrowsersThanMaxClientsAreRefused) {
+    LiveViewOptions o = anyPort();
+    o.max_clients = 2;
+    Rig rig(o);
+    ASSERT_TRUE(rig.graph.start().isOk());
+    WsClient a, b, c;
+    ASSERT_TRUE(a.open(rig.view->port()));
+    ASSERT_TRUE(b.open(rig.view->port()));
+    std::this_thread::sleep_for(200ms);
+    EXPECT_FALSE(c.open(rig.view->port()));
+    EXPECT_EQ(rig.view->stats().clients_refused, 1u);
+    EXPECT_EQ(rig.view->stats().clients.size(), 2u);
+}
+
+// ---- The page in a real browser ----
+
+TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
+    if (test::chromiumPath().empty()) {
+        GTEST_SKIP() << "chromium is not installed (apt-get install chromium); the page is not "
+                        "checked in a browser";
+    }
+    LiveViewOptions o = anyPort();
+    o.max_tile_fps = 10;
+    o.title = "rig check";
+    Rig rig(o);
+    std::atomic<int> calls{0};
+    rig.view->setStatusProvider([&calls] {
+        const int n = ++calls;
+        return R"({"devices":[{"name":"cam","state":"streaming"},{"name":"env","state":"lost"}],)"
+               R"("streams":[{"name":"cam/color","fps":30.0,"published":)" +
+               std::to_string(n) +
+               R"(,"dropped":0}],"latency_ms":{"p50":12.5,"p95":20,"p99":31},)"
+               R"("ladder":{"step":2,"steps":4,"label":"spp 1"},"messages":["marker 23 stale"]})";
+    });
+    ASSERT_TRUE(rig.view
+                    ->setOverlay("cam/color",
+                                 R"({"polygons":[{"points":[[10,10],[100,10],[100,80]],)"
+                                 R"("color":"#00ff00","label":"23"}]})")
+                    .isOk());
+    ASSERT_TRUE(rig.graph.start().isOk());
+
+    test::ChromiumOptions chrome;
+    chrome.timeout = 40s;
+    chrome.until_js =
+        "(() => { const t = [...document.querySelectorAll('.tile')];"
+        " return t.length === 3 && t.every(x => Number(x.dataset.distinct) >= 4) &&"
+        " Number(document.body.dataset.statusCount) >= 5; })()";
+    chrome.result_js =
+        "JSON.stringify({title: document.title, connected: document.body.dataset.connected,"
+        " status: Number(document.body.dataset.statusCount), error: document.body.dataset.error || "
+        "'',"
+        " tiles: [...document.querySelectorAll('.tile')].map(t => ({stream: t.dataset.stream,"
+        "   images: Number(t.dataset.images), distinct: Number(t.dataset.distinct),"
+        "   overlays: Number(t.dataset.overlays), legend: !!t.querySelector('.legend')})),"
+        " devices: [...document.querySelectorAll('#devices li')].map(d => ({name: d.dataset.name,"
+        "   state: d.dataset.state, cls: d.className})),"
+        " published: (document.querySelector('#streams tr[data-stream=\"cam/color\"] "
+        "td:nth-child(3)')"
+        "   || {}).textContent, latency: document.getElementById('latency').textContent,"
+        " ladder: document.getElementById('ladder').textContent,"
+        " messages: document.getElementById('messages').textContent})";
+    // A picture of the page for people (kept beside the test's other outputs).
+    chrome.screenshot = test::tempDir() / "live_view.png";
+    const int status_before = calls.load();
+    const test::ChromiumRun run = test::runHeadlessChromium(rig.view->url(), chrome);
+    ASSERT_TRUE(run.started) << run.error;
+    std::printf("live view page: %s\n", chrome.screenshot.c_str());
+    EXPECT_TRUE(run.until_met) << run.result << "\n" << run.error;
+    const auto page = nlohmann::json::parse(run.result, nullptr, false);
+    ASSERT_FALSE(page.is_discarded()) << run.result;
+    EXPECT_EQ(page["title"], "rig check");
+    EXPECT_EQ(page["connected"], "1");
+    EXPECT_EQ(page["error"], "");
+    ASSERT_EQ(page["tiles"].size(), 3u);
+    for (const auto& t : page["tiles"]) {
+        EXPECT_GE(t["distinct"].get<int>(), 4) << t.dump();  // the images change
+    }
+    EXPECT_EQ(page["tiles"][0]["stream"], "cam/color");
+    EXPECT_GE(page["tiles"][0]["overlays"].get<int>(), 1);
+    EXPECT_TRUE(page["tiles"][1]["legend"].get<bool>());  // depth has its colour legend
+    ASSERT_EQ(page["devices"].size(), 2u);
+    EXPECT_EQ(page["devices"][1]["name"], "env");
+    EXPECT_EQ(page["devices"][1]["state"], "lost");
+    EXPECT_NE(page["devices"][1]["cls"].get<std::string>().find("state-lost"), std::string::npos);
+    // The figures are the latest: a published count the provider gave after the page opened.
+    EXPECT_GT(std::stoi(page["published"].get<std::string>()), status_before);
+    EXPECT_NE(page["latency"].get<std::string>().find("p99 31.0 ms"), std::string::npos);
+    EXPECT_NE(page["ladder"].get<std::string>().find("step 2 of 4"), std::string::npos);
+    EXPECT_NE(page["messages"].get<std::string>().find("marker 23 stale"), std::string::npos);
+    EXPECT_GE(rig.view->stats().clients_ever, 1u);
+}
+
+}  // namespace
+}  // namespace mixray::liveview
