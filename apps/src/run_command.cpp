@@ -15,9 +15,11 @@
 #include "mixray/calibration/calibration_file.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/rig.h"
+#include "mixray/liveview/live_view.h"
 #include "mixray/render/ar_pipeline.h"
 #include "mixray/render/scene_file.h"
 #include "mixray/replay/open_recording.h"
+#include "mixray/tracking/overlay.h"
 #include "mixray/tracking/pipeline.h"
 
 namespace mixray::cli {
@@ -34,6 +36,7 @@ struct RunOptions {
     std::string record;
     std::string output = "out/run";
     std::string pace = "real";
+    std::string view;  // [ADDR:]PORT of the live view; empty: none
     bool loop = false;
     double target_fps = -1;  // -1: the colour stream's rate at real pace, 0: no ladder
     double duration_s = 0;   // 0: until the source ends (or a signal)
@@ -154,6 +157,15 @@ int runRun(const RunOptions& options) {
         ar.calibration = std::move(calibration).value();
     }
     reader.reset();
+    std::error_code ec;
+    for (const fs::path& dir : {fs::path(options.output), fs::path(options.record).parent_path()}) {
+        if (dir.empty())
+            continue;
+        fs::create_directories(dir, ec);
+        if (ec)
+            return fail("run", {ErrorCode::kIoError,
+                                "cannot create " + dir.string() + ": " + ec.message()});
+    }
     ar.render.samples_per_pixel = options.samples;
     ar.render.shadow_samples = options.shadow_samples;
     ar.render.max_depth = options.max_depth;
@@ -162,6 +174,28 @@ int runRun(const RunOptions& options) {
     ar.record = options.record;
     ar.target_fps = options.target_fps;
 
+    // The live view: a sink on the pipeline's graph, with the tracking overlay on the colour
+    // tile and the pipeline's figures beside the tiles.
+    std::unique_ptr<liveview::LiveView> view;
+    if (!options.view.empty()) {
+        liveview::LiveViewOptions view_options;
+        if (Status s = liveview::parseViewAddress(options.view, &view_options); !s)
+            return fail("run", s);
+        view_options.title = "mixray run " + path.filename().string();
+        auto made = liveview::LiveView::create(view_options);
+        if (!made)
+            return fail("run", made.status());
+        view = std::move(made).value();
+        if (ar.setup) {
+            liveview::LiveView* v = view.get();
+            const tracking::TrackingSetup setup = *ar.setup;
+            ar.on_tracked = [v, setup](const tracking::TrackedFrame& f) {
+                (void)v->setOverlay(setup.camera.stream,
+                                    tracking::trackingOverlay(f, setup).json());
+            };
+        }
+    }
+
     InterruptFlag interrupt;
     auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
     if (!pipeline)
@@ -169,8 +203,17 @@ int runRun(const RunOptions& options) {
     render::ArPipeline& p = **pipeline;
     const std::string color = p.colorStream();
     const std::string composite = p.compositeStream();
+    liveview::LiveView* live_view = view.get();
+    if (view) {
+        view->setStatusProvider([&p] { return p.stats().json(); });
+        if (Status s = p.graph().addNode(std::move(view)); !s)
+            return fail("run", s);
+    }
     if (Status s = p.start(); !s)
         return fail("run", s);
+    if (live_view)
+        std::printf("live view: %s\n", live_view->url().c_str());
+    std::fflush(stdout);
     StatusLine status;
     const auto started = std::chrono::steady_clock::now();
     bool timed_out = false;
@@ -191,8 +234,6 @@ int runRun(const RunOptions& options) {
     if (Status s = p.status(); !s)
         return fail("run", s);
 
-    std::error_code ec;
-    fs::create_directories(options.output, ec);
     json summary = json::parse(stats.json());
     summary["source"] = options.source;
     summary["pace"] = options.pace;
@@ -244,6 +285,9 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
                     "takes it, every frame (lossless)")
         ->check(CLI::IsMember({"real", "fast"}))
         ->capture_default_str();
+    sub->add_option("--view", o->view,
+                    "Serve the live view (tiles, tracking overlay, figures) on [ADDR:]PORT; "
+                    "loopback unless ADDR is given (docs/live-view.md)");
     sub->add_flag("--loop", o->loop, "Play the recording again at its end (long live runs)");
     sub->add_option("--target-fps", o->target_fps,
                     "Frame rate the quality ladder holds at real pace (default: the colour "

@@ -85,9 +85,13 @@ Result<std::string> pickPoseStream(const Graph& graph, const std::string& wanted
     for (const StreamInfo& s : graph.streams())
         if (s.kind == StreamKind::kPose)
             poses.push_back(s.name);
+    std::string names;
+    for (const auto& p : poses)
+        names += (names.empty() ? "" : ", ") + p;
     if (!wanted.empty()) {
         if (std::find(poses.begin(), poses.end(), wanted) == poses.end())
-            return Status(ErrorCode::kNotFound, "no pose stream " + wanted);
+            return Status(ErrorCode::kNotFound, "no pose stream " + wanted + " (pose streams: " +
+                                                    (names.empty() ? "none" : names) + ")");
         return wanted;
     }
     if (poses.empty())
@@ -95,9 +99,6 @@ Result<std::string> pickPoseStream(const Graph& graph, const std::string& wanted
                       "the scene's camera has no pose and the source has no pose stream to "
                       "place it (track markers with a setup, or give the scene a camera pose)");
     if (poses.size() > 1) {
-        std::string names;
-        for (const auto& p : poses)
-            names += (names.empty() ? "" : ", ") + p;
         return Status(ErrorCode::kInvalidArgument,
                       "the source has several pose streams (" + names + "): name one");
     }
@@ -116,6 +117,7 @@ struct ArPipeline::RateWindow {
     struct Watch {
         StreamId id = kInvalidStream;
         std::shared_ptr<FrameQueue> queue;
+        bool source = false;          // published by a device (not a pipeline stage)
         std::vector<Sample> samples;  // the last ~2 s
         Clock::time_point last_change{};
         uint64_t last_count = 0;
@@ -153,8 +155,12 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         c.id = source.recording.string();
         c.options["names"] = "recorded";
         c.options["pace"] = lossless ? "fast" : "original";
-        if (!lossless)
+        if (!lossless) {
             c.options["stamps"] = "arrival";
+            // Live consumers (tracking, compositor, recorder, view) each hold a few frames of a
+            // stream; the device must not run out of buffers before they drop old ones.
+            c.options["buffers"] = "16";
+        }
         c.options["loop"] = source.loop ? "true" : "false";
         configs.push_back(std::move(c));
     }
@@ -167,15 +173,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         p->devices_.push_back(raw);
     }
 
-    // Watch every source stream for rates and ends.
-    p->rates_ = std::make_unique<RateWindow>();
-    for (StreamId id = 0; id < graph.streamCount(); ++id) {
-        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "pipeline-watch"});
-        if (!queue)
-            return queue.status();
-        p->rates_->watches.push_back({id, std::move(queue).value(), {}, {}, 0});
-    }
-
+    const StreamId source_streams = static_cast<StreamId>(graph.streamCount());
     const bool compositing = options.scene.has_value();
     if (options.setup || compositing) {
         auto color = pickColor(graph, options);
@@ -261,6 +259,16 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(node).value()));
     }
 
+    // Watch every stream for rates and ends.
+    p->rates_ = std::make_unique<RateWindow>();
+    for (StreamId id = 0; id < graph.streamCount(); ++id) {
+        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "pipeline-watch"});
+        if (!queue)
+            return queue.status();
+        p->rates_->watches.push_back(
+            {id, std::move(queue).value(), id < source_streams, {}, {}, 0});
+    }
+
     if (!options.record.empty()) {
         RecorderOptions r;
         r.path = options.record;
@@ -289,7 +297,7 @@ bool ArPipeline::waitDone(std::chrono::nanoseconds timeout) const {
     while (Clock::now() < deadline) {
         bool all = true;
         for (const auto& w : rates_->watches)
-            all = all && w.queue->closed();
+            all = all && (!w.source || w.queue->closed());
         if (all)
             return true;
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -345,6 +353,10 @@ ArPipelineStats ArPipeline::stats() const {
             const double dt = std::chrono::duration<double>(now - w.samples.front().at).count();
             st.fps =
                 dt > 0.2 ? static_cast<double>(st.published - w.samples.front().count) / dt : 0;
+            if (!w.source) {
+                s.streams.push_back(std::move(st));
+                continue;
+            }
             auto& d = device_streams[info.device];
             if (w.queue->closed())
                 ++d.second;
@@ -355,17 +367,26 @@ ArPipelineStats ArPipeline::stats() const {
             s.streams.push_back(std::move(st));
         }
     }
-    for (const Device* d : devices_) {
-        const auto& counts = device_streams[d->name()];
+    // Devices as their streams name them: a recording stands in for the rig that made it, so
+    // its devices (kinect, env) are listed, not the replay device itself.
+    std::vector<std::string> names;
+    std::map<std::string, int> totals;  // source streams per device
+    for (size_t i = 0; i < s.streams.size(); ++i) {
+        if (!rates_->watches[i].source)
+            continue;
+        const std::string& device = s.streams[i].device;
+        if (totals[device]++ == 0)
+            names.push_back(device);
+    }
+    for (const std::string& name : names) {
+        const auto& counts = device_streams[name];
+        const int total = totals[name];
         ArPipelineStats::Device dev;
-        dev.name = d->name();
-        int total = 0;
-        for (const auto& st : s.streams)
-            total += st.device == d->name();
-        dev.state = total > 0 && counts.second == total ? "ended"
-                    : counts.first > 0                  ? "streaming"
-                    : counts.first < -500               ? "waiting"
-                                                        : "lost";
+        dev.name = name;
+        dev.state = counts.second == total ? "ended"
+                    : counts.first > 0     ? "streaming"
+                    : counts.first < -500  ? "waiting"
+                                           : "lost";
         s.devices.push_back(std::move(dev));
     }
     for (const EdgeStats& e : graph_->edgeStats())

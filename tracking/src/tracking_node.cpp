@@ -169,9 +169,12 @@ void TrackingNode::run() {
             // Lossless, an environment frame must not wait behind a colour frame that cannot
             // come before it is taken (the source publishes both from one thread).
             drainEnvironment();
-            if (color_queue_->closed() && !color_queue_->tryPop().has_value())
+            if (!color_queue_->closed())
+                continue;
+            // The last frame may have come between the timeout and the close.
+            next = color_queue_->tryPop();
+            if (!next)
                 break;
-            continue;
         }
         if (!options_.lossless) {
             // Live: skip to the newest colour frame waiting.

@@ -5,7 +5,9 @@
 #include <arpa/inet.h>
 #include <civetweb.h>
 #include <dirent.h>
+#include <dlfcn.h>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -24,6 +26,23 @@
 
 #include "image_to_jpeg.h"
 #include "page.h"
+
+// civetweb as Debian builds it (1.15) starts its threads with a fixed 100 kB stack. In a process
+// that also loads libquadmath (the mixray binary does: mrcal and Ceres pull in libgfortran),
+// glibc's printf family takes its positional path (libquadmath registers printf modifiers), which
+// needs more stack than that: the WebSocket handshake's mg_printf overflowed a worker's stack and
+// crashed `mixray run --view` as soon as a browser connected. civetweb has no run-time setting
+// for it, so the stack size a thread asks for is raised to at least kMinThreadStackBytes here;
+// the linker exports this definition from the executable, ahead of glibc's, to every library.
+namespace {
+constexpr size_t kMinThreadStackBytes = size_t{1} << 20;
+}  // namespace
+
+extern "C" int pthread_attr_setstacksize(pthread_attr_t* attr, size_t size) {
+    using Real = int (*)(pthread_attr_t*, size_t);
+    static const Real real = reinterpret_cast<Real>(dlsym(RTLD_NEXT, "pthread_attr_setstacksize"));
+    return real(attr, std::max(size, kMinThreadStackBytes));
+}
 
 namespace mixray::liveview {
 namespace {
