@@ -109,6 +109,8 @@ Status LiveCalibrationOptions::validate() const {
     if (views_wanted < 1 || pair_views_wanted < 0)
         return {ErrorCode::kInvalidArgument,
                 "views_wanted must be >= 1 and pair_views_wanted >= 0"};
+    if (instant_skew_ns < 0)
+        return {ErrorCode::kInvalidArgument, "instant_skew_ns must be >= 0"};
     if (!(group_wait_s >= 0 && group_wait_s <= 10))
         return {ErrorCode::kInvalidArgument, "group_wait_s must lie in [0, 10]"};
     if (coverage_width < 16 || coverage_width > 4096)
@@ -150,6 +152,7 @@ struct LiveCalibrationNode::Impl {
     Graph* graph = nullptr;
     std::vector<Input> inputs;
     std::vector<Camera> cameras;
+    int64_t instant_skew_ns = 0;
     std::vector<LivePairStatus> pairs;
 
     mutable std::mutex mutex;  // guards cameras' status/overlay, pairs, counters, stored
@@ -159,7 +162,7 @@ struct LiveCalibrationNode::Impl {
     double minShift(const Camera& c) const {
         if (options.min_corner_shift_px > 0)
             return options.min_corner_shift_px;
-        return 0.04 * std::hypot(c.width, c.height);
+        return 0.02 * std::hypot(c.width, c.height);
     }
 
     LivePairStatus* pairOf(int a, int b) {
@@ -169,7 +172,7 @@ struct LiveCalibrationNode::Impl {
         return nullptr;
     }
 
-    void processGroup(const std::vector<size_t>& members);
+    void processGroup(const std::vector<size_t>& members, int64_t instant_ns);
     void publishCoverage(Camera& c, const FrameMetadata& meta);
     std::string overlayJson(const LiveDecision& d) const;
     std::vector<std::string> missing() const;
@@ -259,6 +262,14 @@ Status LiveCalibrationNode::connect(Graph& graph) {
     if (m.cameras.empty())
         return {ErrorCode::kNotFound,
                 "no camera to calibrate: the rig has no mono8, rgb8, bgr8, mono16 or ir16 stream"};
+    m.instant_skew_ns = m.options.instant_skew_ns;
+    if (m.instant_skew_ns == 0) {
+        double fastest = 0;
+        for (const Impl::Input& in : m.inputs)
+            fastest = std::max(fastest, in.info.nominal_fps);
+        m.instant_skew_ns =
+            fastest > 0 ? static_cast<int64_t>(0.5e9 / fastest) : m.options.detection.max_skew_ns;
+    }
     for (size_t a = 0; a < m.cameras.size(); ++a)
         for (size_t b = a + 1; b < m.cameras.size(); ++b)
             m.pairs.push_back({m.cameras[a].name, m.cameras[b].name, 0});
@@ -280,7 +291,7 @@ void LiveCalibrationNode::stop() {
 
 void LiveCalibrationNode::run() {
     Impl& m = *impl_;
-    const int64_t skew = m.options.detection.max_skew_ns;
+    const int64_t skew = m.instant_skew_ns;
     const auto wait = std::chrono::duration_cast<Clock::duration>(
         std::chrono::duration<double>(m.options.group_wait_s));
     FrameMetadata first;  // empty maps, so the view shows every camera's grid from the start
@@ -334,7 +345,7 @@ void LiveCalibrationNode::run() {
             std::this_thread::sleep_for(std::chrono::milliseconds(3));
             continue;
         }
-        m.processGroup(members);
+        m.processGroup(members, anchor);
         for (size_t i : members)
             m.inputs[i].pending.reset();
     }
@@ -346,7 +357,8 @@ void LiveCalibrationNode::run() {
     finished_ = true;
 }
 
-void LiveCalibrationNode::Impl::processGroup(const std::vector<size_t>& members) {
+void LiveCalibrationNode::Impl::processGroup(const std::vector<size_t>& members,
+                                             int64_t instant_ns) {
     struct Judged {
         int camera = 0;
         LiveDecision d;
@@ -481,7 +493,9 @@ void LiveCalibrationNode::Impl::processGroup(const std::vector<size_t>& members)
                     return j.camera == in.camera && j.d.kept;
                 }))
                 continue;
-            stored.push_back({i, in.pending.meta(), Image::copyOf(in.pending.image())});
+            Stored frame{i, in.pending.meta(), Image::copyOf(in.pending.image())};
+            frame.meta.host_stamp_ns = instant_ns;
+            stored.push_back(std::move(frame));
         }
     }
     lock.unlock();

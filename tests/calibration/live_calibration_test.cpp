@@ -121,9 +121,9 @@ TEST(LiveCalibration, JudgesEveryViewAndRecordsTheKeptOnes) {
     for (const Seen& seen : s->of("env/color"))
         EXPECT_FALSE(seen.decision.reason.empty());
     // The colour camera sees the whole board in every pose; poses held over the fish-eye look
-    // alike from the Kinect, so a few of them are too similar to one kept before (16 kept, 4
-    // too similar with the default 32 px). The fish-eye sees the board only where it is held
-    // over it: its other views are "no target" or too few corners.
+    // alike from the Kinect, so some are too similar to one kept before (the default 16 px).
+    // The fish-eye sees the board only where it is held over it: its other views are "no
+    // target" or too few corners.
     for (const Seen& seen : s->of("kinect/color"))
         std::printf("kinect/color @%llu: %s\n",
                     static_cast<unsigned long long>(seen.decision.sequence),

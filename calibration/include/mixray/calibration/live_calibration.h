@@ -31,8 +31,9 @@ struct LiveCalibrationOptions {
     DetectionOptions detection;
     // A usable view whose corners lie, on average over the corners it shares with a kept view
     // of the same camera, closer than this to where they were in that view adds almost nothing
-    // to the solve: rejected as "too similar". 0: 4 % of the image diagonal (32 px at 640x480),
-    // well above a hand's tremor while the board is held, well below a deliberate move.
+    // to the solve: rejected as "too similar". 0: 2 % of the image diagonal (16 px at 640x480),
+    // well above a hand's tremor while the board is held, below a deliberate move (4 % rejected
+    // fish-eye views of sim_calibration.mkv that its solve needs).
     double min_corner_shift_px = 0;
     // The coverage grid over each image: cells in x and y. A cell is covered once a kept view
     // put a corner in it; its four corner cells are the image corners a lens model most needs.
@@ -43,8 +44,14 @@ struct LiveCalibrationOptions {
     double tilt_deg = 20;
     int views_wanted = 10;      // kept views per camera below which the camera is "missing views"
     int pair_views_wanted = 3;  // views seen by both cameras of each pair wanted for extrinsics
-    // Frames of different streams whose host stamps lie within detection.max_skew_ns form one
-    // instant; the node waits at most this long for the other streams' frames of an instant.
+    // Frames of different streams whose host stamps lie within this of the instant's first one
+    // form one instant (0: half the shortest nominal frame period of the streams, else
+    // detection.max_skew_ns). Devices stamp on arrival, and a device delivering several streams
+    // hands them over one after another, often more than 10 ms apart under load. The recording
+    // stores an instant's frames at its first host stamp, so the offline solve pairs exactly
+    // the views the session paired.
+    int64_t instant_skew_ns = 0;
+    // The node waits at most this long for the other streams' frames of an instant.
     double group_wait_s = 0.15;
     int coverage_width = 320;  // the coverage map's width in pixels (height by the aspect), > 0
     // Lossless input edges: every frame is judged (tests, recordings at fast pace); default
