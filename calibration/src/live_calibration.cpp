@@ -440,7 +440,8 @@ void LiveCalibrationNode::Impl::processGroup(const std::vector<size_t>& members,
                     ++pair->views;
             }
 
-    ++instants;
+    if (!judged.empty())
+        ++instants;  // an instant of depth frames alone judges nothing
     bool any_kept = false;
     for (Judged& j : judged) {
         Camera& c = cameras[j.camera];
