@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "calibrate_live.h"
 #include "calibration_report.h"
 #include "cli.h"
 #include "console.h"
@@ -38,7 +39,7 @@ struct CalibrateCommandOptions {
     bool fix_aspect_ratio = false;
     double outlier_sigma = 3.0;
     int min_views = 4;
-    std::string image_size;            // WxH of mrcal's corners caches; empty: from their images
+    std::string image_size;  // WxH of mrcal's corners caches; empty: from their images
     bool accept_weak = false;
     double max_rms_px = 2.0;
     std::vector<std::string> cameras;  // empty: every camera that saw the target
@@ -51,6 +52,10 @@ struct CalibrateCommandOptions {
     std::vector<std::string> exports;
     std::string output = "out/calibration";
     bool report = true;
+    // --live: the one input is a rig file; a session on its devices (calibrate_live.h).
+    bool live = false;
+    bool solve_live = false;  // after the session, calibrate its recording as below
+    LiveCalibrateOptions live_options;
 };
 
 // What the inputs gave: every camera's views, and from recordings the depth streams' frames at
@@ -571,6 +576,28 @@ Status writeExports(const fs::path& dir, const CalibrationFile& file,
     return Status::ok();
 }
 
+int runCalibrate(const CalibrateCommandOptions& o);
+
+int runLive(const CalibrateCommandOptions& o) {
+    const std::string ext = o.inputs.empty() ? "" : fs::path(o.inputs[0]).extension().string();
+    if (o.inputs.size() != 1 || !(ext == ".yaml" || ext == ".yml"))
+        return fail("calibrate", {ErrorCode::kInvalidArgument,
+                                  "--live takes one rig file (RIG.yaml) as its input"});
+    LiveCalibrateOptions live = o.live_options;
+    live.rig = o.inputs[0];
+    live.target = o.target;
+    live.output = o.output;
+    if (!o.solve_live)
+        return runCalibrateLive(live, {});
+    return runCalibrateLive(live, [&o](const std::string& recording) {
+        CalibrateCommandOptions offline = o;
+        offline.live = false;
+        offline.inputs = {recording};
+        std::printf("solving %s\n", recording.c_str());
+        return runCalibrate(offline);
+    });
+}
+
 int runCalibrate(const CalibrateCommandOptions& o) {
     const auto start = std::chrono::steady_clock::now();
     auto target = parseTarget(o.target);
@@ -696,7 +723,8 @@ void registerCalibrateCommand(CLI::App& app, Commands& commands) {
         "marker; writes calibration.yaml, corners.vnl and a report with pictures");
     sub->add_option("inputs", o->inputs,
                     "Image folders (one camera each, named after the folder), mixray recordings "
-                    "(.mkv: every image stream) or corners caches (.vnl)")
+                    "(.mkv: every image stream) or corners caches (.vnl); with --live, a rig "
+                    "file (RIG.yaml)")
         ->required();
     sub->add_option("--target", o->target,
                     "The target: chessboard:COLSxROWS:SQUARE_M, "
@@ -752,7 +780,35 @@ void registerCalibrateCommand(CLI::App& app, Commands& commands) {
                     "Also write opencv, mrcal, kalibr or ros files (repeatable)");
     sub->add_option("-o,--output", o->output, "Output folder")->capture_default_str();
     sub->add_flag("!--no-report", o->report, "Skip the report's pictures and tables");
-    commands.push_back({sub, [o] { return runCalibrate(*o); }});
+    sub->add_flag("--live", o->live,
+                  "A live session on the rig's devices (the input is RIG.yaml): judges each "
+                  "camera's newest view of the target (kept, or the rule that rejected it), "
+                  "shows coverage, tilts and views seen by camera pairs, and records the kept "
+                  "views; ends with the devices, --duration or Ctrl-C (exit 0)");
+    sub->add_option("--view", o->live_options.view,
+                    "--live: serve the live view at [ADDR:]PORT (loopback unless ADDR is given; "
+                    "docs/live-view.md)");
+    sub->add_option("--record", o->live_options.record,
+                    "--live: the recording of the kept views (default OUTPUT/live_session.mkv)");
+    sub->add_option("--duration", o->live_options.duration_s,
+                    "--live: end the session after this many seconds (0: with the devices)")
+        ->check(CLI::Range(0.0, 1e9));
+    sub->add_option("--min-shift", o->live_options.min_shift_px,
+                    "--live: a view whose corners moved less than this many pixels from a kept "
+                    "view's is rejected as too similar (0: 2 % of the image diagonal)")
+        ->check(CLI::Range(0.0, 10000.0));
+    sub->add_option("--views-wanted", o->live_options.views_wanted,
+                    "--live: kept views per camera before it stops being listed as missing")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    sub->add_option("--pair-views", o->live_options.pair_views_wanted,
+                    "--live: views seen by both cameras of each pair wanted (and kept even when "
+                    "too similar until reached)")
+        ->check(CLI::Range(0, 100000))
+        ->capture_default_str();
+    sub->add_flag("--solve", o->solve_live,
+                  "--live: after the session, calibrate its recording with the options above");
+    commands.push_back({sub, [o] { return o->live ? runLive(*o) : runCalibrate(*o); }});
 }
 
 }  // namespace mixray::cli

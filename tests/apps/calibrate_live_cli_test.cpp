@@ -1,0 +1,116 @@
+// mixray calibrate --live on a rig whose device replays the simulated calibration session at
+// its own pace: the session ends with the devices (or Ctrl-C), prints what was kept and what is
+// missing, records the kept views, and `mixray calibrate` solves that recording offline.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "cli_runner.h"
+#include "mixray/calibration/calibration_file.h"
+#include "mixray/calibration/detect.h"
+#include "test_data.h"
+
+namespace mixray {
+namespace {
+
+namespace fs = std::filesystem;
+using test::mixray;
+using test::q;
+
+const char* const kTarget = "charuco:7x5:0.05:0.037:DICT_6X6_250";
+
+// A rig of one device: the replay backend playing the session as its rig recorded it.
+fs::path writeRig(const fs::path& dir) {
+    const fs::path rig = dir / "sim_calibration_rig.yaml";
+    test::writeText(rig,
+                    "version: 1\nrig: sim-calibration\ndevices:\n  - name: session\n"
+                    "    driver: replay\n    id: \"" +
+                        (test::fixturesDir() / "sessions" / "sim_calibration.mkv").string() +
+                        "\"\n    options: {pace: original, names: recorded, stamps: "
+                        "arrival}\n");
+    return rig;
+}
+
+TEST(CalibrateLiveCli, WholeSessionIsRecordedAndSolvesOffline) {
+    const fs::path dir = test::tempDir();
+    const fs::path rig = writeRig(dir);
+    const fs::path record = dir / "kept.mkv";
+    const test::CliRun live = mixray("calibrate --live " + q(rig) + " --target " + kTarget +
+                                     " --record " + q(record) + " -o " + q(dir / "live"));
+    std::printf("%s", live.output.c_str());
+    ASSERT_EQ(live.exit_code, 0) << live.output;
+    EXPECT_NE(live.output.find("session stopped by the end of the devices' streams"),
+              std::string::npos);
+    EXPECT_NE(live.output.find("kinect/color: "), std::string::npos);
+    EXPECT_NE(live.output.find("views seen by both"), std::string::npos);
+    EXPECT_NE(live.output.find("env/color: "), std::string::npos);
+    EXPECT_NE(live.output.find("rejected (no target"), std::string::npos) << live.output;
+
+    // The recording: the kept views of every camera with the depth at their instants.
+    auto found = calibration::detectInRecording(record, calibration::parseTarget(kTarget).value());
+    ASSERT_TRUE(found) << found.status().toString();
+    std::map<std::string, size_t> usable;
+    for (const calibration::CameraViews& c : found->cameras)
+        usable[c.camera] = c.usable().size();
+    EXPECT_GE(usable["kinect/color"], 15u);
+    EXPECT_GE(usable["kinect/ir"], 15u);
+    EXPECT_GE(usable["env/color"], 3u);
+    EXPECT_EQ(found->depth.size(), 1u);
+
+    // The offline solve of what the session kept, as the session's last line says.
+    const test::CliRun offline =
+        mixray("calibrate " + q(record) + " --target " + kTarget +
+               " --model env/color=fisheye --marker DICT_6X6_250:23:0.1 -o " + q(dir / "solve"));
+    std::printf("%s", offline.output.c_str());
+    ASSERT_EQ(offline.exit_code, 0) << offline.output;
+    auto file = calibration::readCalibrationFile(dir / "solve" / "calibration.yaml");
+    ASSERT_TRUE(file) << file.status().toString();
+    std::set<std::string> names;
+    for (const auto& c : file->cameras)
+        names.insert(c.name);
+    EXPECT_TRUE(names.count("kinect/color"));
+    EXPECT_TRUE(names.count("kinect/ir"));
+    EXPECT_TRUE(names.count("env/color"));
+}
+
+TEST(CalibrateLiveCli, CtrlCEndsTheSessionRecordsAndSolves) {
+    const fs::path dir = test::tempDir();
+    const fs::path rig = writeRig(dir);
+    const test::CliProcess p = test::startMixray(
+        {"calibrate", "--live", rig.string(), "--target", kTarget, "--view", "127.0.0.1:0",
+         "--solve", "--camera", "kinect/color", "-o", (dir / "out").string()},
+        dir / "output.txt");
+    ASSERT_GT(p.pid, 0);
+    std::this_thread::sleep_for(std::chrono::seconds(6));
+    kill(p.pid, SIGINT);
+    const test::CliRun run = test::waitMixray(p);
+    std::printf("%s", run.output.c_str());
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("live view at http://127.0.0.1:"), std::string::npos);
+    EXPECT_NE(run.output.find("session stopped by SIGINT"), std::string::npos);
+    EXPECT_NE(run.output.find("missing: "), std::string::npos) << "a 6 s session lacks views";
+    EXPECT_TRUE(fs::exists(dir / "out" / "live_session.mkv"));
+    EXPECT_NE(run.output.find("solving "), std::string::npos);
+    EXPECT_TRUE(fs::exists(dir / "out" / "calibration.yaml")) << run.output;
+}
+
+TEST(CalibrateLiveCli, LiveTakesOneRigFile) {
+    const fs::path dir = test::tempDir();
+    const test::CliRun run =
+        mixray("calibrate --live " + q(test::fixturesDir() / "sessions" / "sim_calibration.mkv") +
+               " --target " + kTarget + " -o " + q(dir));
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_NE(run.output.find("--live takes one rig file"), std::string::npos) << run.output;
+    const test::CliRun missing =
+        mixray("calibrate --live " + q(dir / "absent.yaml") + " --target " + kTarget);
+    EXPECT_EQ(missing.exit_code, 3) << missing.output;
+    EXPECT_NE(missing.output.find("absent.yaml"), std::string::npos) << missing.output;
+}
+
+}  // namespace
+}  // namespace mixray
