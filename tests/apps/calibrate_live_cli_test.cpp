@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "cli_runner.h"
+#include "headless_chromium.h"
 #include "mixray/calibration/calibration_file.h"
 #include "mixray/calibration/detect.h"
 #include "test_data.h"
@@ -25,14 +26,15 @@ using test::q;
 const char* const kTarget = "charuco:7x5:0.05:0.037:DICT_6X6_250";
 
 // A rig of one device: the replay backend playing the session as its rig recorded it.
-fs::path writeRig(const fs::path& dir) {
+fs::path writeRig(const fs::path& dir, bool loop = false) {
     const fs::path rig = dir / "sim_calibration_rig.yaml";
     test::writeText(rig,
                     "version: 1\nrig: sim-calibration\ndevices:\n  - name: session\n"
                     "    driver: replay\n    id: \"" +
                         (test::fixturesDir() / "sessions" / "sim_calibration.mkv").string() +
                         "\"\n    options: {pace: original, names: recorded, stamps: "
-                        "arrival}\n");
+                        "arrival, loop: " +
+                        (loop ? "true" : "false") + "}\n");
     return rig;
 }
 
@@ -110,6 +112,56 @@ TEST(CalibrateLiveCli, LiveTakesOneRigFile) {
         mixray("calibrate --live " + q(dir / "absent.yaml") + " --target " + kTarget);
     EXPECT_EQ(missing.exit_code, 3) << missing.output;
     EXPECT_NE(missing.output.find("absent.yaml"), std::string::npos) << missing.output;
+}
+
+// The session's view in a real browser: each camera's tile with the detected board drawn over
+// it, a coverage tile per camera whose picture changes as views are kept, and what is missing
+// among the figures.
+TEST(CalibrateLiveCli, ViewShowsCoverageTilesOverlaysAndWhatIsMissing) {
+    if (test::chromiumPath().empty()) {
+        GTEST_SKIP() << "chromium is not installed (apt-get install chromium); the page is not "
+                        "checked in a browser";
+    }
+    const fs::path dir = test::tempDir();
+    const fs::path rig = writeRig(dir, true);
+    const test::CliProcess p =
+        test::startMixray({"calibrate", "--live", rig.string(), "--target", kTarget, "--view",
+                           "127.0.0.1:0", "--duration", "60", "-o", (dir / "out").string()},
+                          dir / "output.txt");
+    ASSERT_GT(p.pid, 0);
+    std::string url;
+    for (int i = 0; i < 200 && url.empty(); ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const std::string text = test::readText(p.output);
+        const size_t at = text.find("live view at ");
+        const size_t end = text.find('\n', at);
+        if (at != std::string::npos && end != std::string::npos)
+            url = text.substr(at + 13, end - at - 13);
+    }
+    ASSERT_FALSE(url.empty()) << test::readText(p.output);
+    test::ChromiumOptions chrome;
+    chrome.timeout = std::chrono::seconds(40);
+    chrome.until_js =
+        "(() => { const c = document.querySelector('.tile[data-stream=\"coverage/kinect/color\"]');"
+        " const k = document.querySelector('.tile[data-stream=\"kinect/color\"]');"
+        " const m = document.getElementById('messages');"
+        " return !!c && Number(c.dataset.distinct) >= 3 && !!k && Number(k.dataset.overlays) >= 1"
+        " && !!m && m.textContent.includes('missing: '); })()";
+    chrome.result_js =
+        "JSON.stringify({tiles: [...document.querySelectorAll('.tile')].map(t => ({stream: "
+        "t.dataset.stream, distinct: Number(t.dataset.distinct), overlays: "
+        "Number(t.dataset.overlays)})), messages: (document.getElementById('messages') || "
+        "{}).textContent})";
+    chrome.screenshot = dir / "calibrate_live_view.png";
+    const test::ChromiumRun run = test::runHeadlessChromium(url, chrome);
+    kill(p.pid, SIGINT);
+    const test::CliRun done = test::waitMixray(p);
+    ASSERT_TRUE(run.started) << run.error;
+    std::printf("page: %s\nscreenshot: %s\n", run.result.c_str(), chrome.screenshot.c_str());
+    EXPECT_TRUE(run.until_met) << run.result << "\n" << run.error;
+    EXPECT_NE(run.result.find("coverage/env/color"), std::string::npos);
+    EXPECT_NE(run.result.find("coverage/kinect/ir"), std::string::npos);
+    EXPECT_EQ(done.exit_code, 0) << done.output;
 }
 
 }  // namespace
