@@ -17,6 +17,7 @@
 #include "backends.h"
 #include "bench_calibrate.h"
 #include "bench_drivers.h"
+#include "bench_pipeline.h"
 #include "bench_render.h"
 #include "bench_track.h"
 #include "cli.h"
@@ -444,6 +445,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
     commands.push_back({graph, [options] { return runBenchGraph(*options); }});
     registerBenchCalibrate(*bench, commands);
     registerBenchDrivers(*bench, commands);
+    registerBenchPipeline(*bench, commands);
     registerBenchRender(*bench, commands);
     registerBenchTrack(*bench, commands);
 }

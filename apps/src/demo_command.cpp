@@ -127,65 +127,6 @@ Image differenceImage(const ImageView& ours, const ImageView& truth) {
     return out;
 }
 
-// The scene the demo renders: the real scene's objects as ghosts (no lights: those are
-// estimated) and the virtual objects. A mesh whose file is missing becomes a metal sphere of
-// its size, with a message.
-Result<render::SceneDescription> demoScene(const std::string& real_path,
-                                           const std::string& objects_path,
-                                           render::SceneDescription& inserted) {
-    auto real = render::loadScene(real_path);
-    if (!real)
-        return real.status();
-    auto objects = render::loadScene(objects_path);
-    if (!objects)
-        return objects.status();
-    render::SceneDescription scene;
-    scene.source_path = real->source_path;
-    scene.materials = real->materials;
-    for (render::SceneObject o : real->objects) {
-        o.role = render::ObjectRole::kGhost;
-        // Texture and mesh paths resolve against the real scene's file.
-        scene.objects.push_back(std::move(o));
-    }
-    for (auto& [name, m] : real->materials)
-        if (!m.albedo_texture.empty() && m.albedo_texture.is_relative())
-            scene.materials[name].albedo_texture =
-                fs::absolute(real->source_path.parent_path() / m.albedo_texture);
-    inserted = render::SceneDescription{};
-    for (const auto& [name, m] : objects->materials) {
-        if (scene.materials.count(name))
-            return Status(ErrorCode::kInvalidArgument,
-                          objects_path + ": material " + name + " is also the real scene's");
-        scene.materials[name] = m;
-        inserted.materials[name] = m;
-    }
-    for (render::SceneObject o : objects->objects) {
-        o.role = render::ObjectRole::kVirtual;
-        if (o.shape.type == render::ShapeType::kMesh && !o.shape.mesh.empty()) {
-            fs::path file = o.shape.mesh;
-            if (file.is_relative())
-                file = objects->source_path.parent_path() / file;
-            std::error_code ec;
-            if (!fs::exists(file, ec)) {
-                std::fprintf(stderr,
-                             "mixray demo: %s not found (the shared data is not here); a metal "
-                             "sphere stands in for %s\n",
-                             file.string().c_str(), o.name.c_str());
-                o.shape = render::Shape{};
-                o.shape.type = render::ShapeType::kSphere;
-                o.shape.radius = 0.04f;
-                o.T_anchor_object.translation().z() += 0.04;
-            } else {
-                o.shape.mesh = fs::absolute(file);
-            }
-        }
-        inserted.objects.push_back(o);
-        scene.objects.push_back(std::move(o));
-    }
-    MIXRAY_RETURN_IF_ERROR(scene.validate());
-    return scene;
-}
-
 // Errors of one light-estimation method against the true lights, per frame.
 struct LightErrors {
     std::vector<double> key_deg, fill_deg;
@@ -235,11 +176,13 @@ int runDemo(const DemoOptions& options) {
         real_scene = options.session;
         real_scene.replace_extension(".scene.yaml");
     }
-    render::SceneDescription inserted;
-    auto scene = demoScene(real_scene.string(), options.objects, inserted);
-    if (!scene)
-        return fail("demo", scene.status());
-    ar.scene = std::move(scene).value();
+    auto composed = render::composeArScene(real_scene, options.objects);
+    if (!composed)
+        return fail("demo", composed.status());
+    for (const std::string& note : composed->notes)
+        std::fprintf(stderr, "mixray demo: %s\n", note.c_str());
+    const render::SceneDescription inserted = composed->inserted;
+    ar.scene = std::move(composed->scene);
     ar.render.samples_per_pixel = options.samples;
     ar.render.max_depth = 3;
     ar.render.soft_shadows = render::SoftShadowMethod::kAdaptive;

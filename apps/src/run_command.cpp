@@ -31,6 +31,7 @@ using nlohmann::json;
 struct RunOptions {
     std::string source;  // RIG.yaml or a recording
     std::string scene;
+    std::string real_scene;  // ghosts; default for a recording: its NAME.scene.yaml, "none": none
     std::string setup;
     std::string calibration;
     std::string record;
@@ -126,10 +127,27 @@ int runRun(const RunOptions& options) {
     }
 
     if (!options.scene.empty()) {
-        auto scene = render::loadScene(options.scene);
-        if (!scene)
-            return fail("run", scene.status());
-        ar.scene = std::move(scene).value();
+        fs::path real_scene = options.real_scene == "none" ? "" : options.real_scene;
+        if (options.real_scene.empty() && reader) {
+            fs::path beside = path;
+            beside.replace_extension(".scene.yaml");
+            std::error_code ec;
+            if (fs::exists(beside, ec))
+                real_scene = beside;
+        }
+        if (real_scene.empty()) {
+            auto scene = render::loadScene(options.scene);
+            if (!scene)
+                return fail("run", scene.status());
+            ar.scene = std::move(scene).value();
+        } else {
+            auto composed = render::composeArScene(real_scene, options.scene);
+            if (!composed)
+                return fail("run", composed.status());
+            for (const std::string& note : composed->notes)
+                std::fprintf(stderr, "mixray run: %s\n", note.c_str());
+            ar.scene = std::move(composed->scene);
+        }
     }
     // Tracking: the setup given, else (with a scene) the recording's own.
     if (!options.setup.empty() || (ar.scene && reader)) {
@@ -271,6 +289,10 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
     auto o = std::make_shared<RunOptions>();
     sub->add_option("SOURCE", o->source, "A rig file (.yaml) or a recording")->required();
     sub->add_option("--scene", o->scene, "Scene with the virtual objects (docs/scene-format.md)");
+    sub->add_option("--real-scene", o->real_scene,
+                    "Scene file of the real surroundings, composited as ghosts under --scene's "
+                    "virtual objects (shadows and reflections on them); default for a recording: "
+                    "its NAME.scene.yaml when present; none: --scene alone");
     sub->add_option("--setup", o->setup,
                     "Tracking setup (docs/tracking.md#setup-files); default for a recording: its "
                     "tracking.yaml attachment");

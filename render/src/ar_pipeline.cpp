@@ -142,6 +142,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
                       "a rig's devices are live: pace fast applies to recordings only");
     std::unique_ptr<ArPipeline> p(new ArPipeline);
     p->graph_ = std::make_unique<Graph>();
+    p->live_ = !lossless;
     Graph& graph = *p->graph_;
 
     std::vector<DeviceConfig> configs;
@@ -306,8 +307,23 @@ bool ArPipeline::waitDone(std::chrono::nanoseconds timeout) const {
 }
 
 void ArPipeline::stop() {
-    if (graph_)
-        graph_->stop();
+    if (!graph_)
+        return;
+    // Live, upstream first: the devices, then the nodes that publish what they computed from
+    // their frames. Each frame published before its producer stopped is then already in the
+    // recorder's queue (or counted as dropped by it) when the graph closes the queues, which the
+    // recorder drains into the file: a frame is never published after its recorder stopped
+    // listening. (Lossless edges could block a source on a full queue: there the graph's own
+    // order, queues closed first, is the one that cannot deadlock.)
+    if (live_) {
+        for (Device* d : devices_)
+            d->stop();
+        if (tracking_)
+            tracking_->stop();
+        if (compositor_)
+            compositor_->stop();
+    }
+    graph_->stop();
 }
 
 Status ArPipeline::status() const {

@@ -141,7 +141,8 @@ CompositorNode::CompositorNode(CompositorOptions options, SceneDescription scene
       on_composite_(std::move(on_composite)),
       ladder_(qualityLadder(options_.render)),
       renderers_(ladder_.size()),
-      renderer_lights_version_(ladder_.size(), 0) {
+      renderer_lights_version_(ladder_.size(), 0),
+      quality_(static_cast<int>(ladder_.size()), options_.lossless ? 0 : options_.target_fps) {
     latencies_ms_.reserve(kLatencyWindow);
     stats_.quality_steps = static_cast<int>(ladder_.size());
     stats_.quality_label = ladder_.front().label();
@@ -266,6 +267,12 @@ void CompositorNode::stop() {
         map_queue_->close();
     if (thread_.joinable())
         thread_.join();
+    // The synchronizer has stopped too: a set still waiting will never be composited.
+    std::lock_guard lock(mutex_);
+    if (mailbox_) {
+        mailbox_.reset();
+        ++stats_.skipped_at_stop;
+    }
 }
 
 bool CompositorNode::waitDone(std::chrono::nanoseconds timeout) const {
@@ -312,8 +319,10 @@ void CompositorNode::onSet(const SyncSet& set) {
         // Back-pressure: the synchronizer (and through its lossless edges the sources) waits
         // for the renderer.
         mailbox_cv_.wait(lock, [this] { return !mailbox_ || stop_; });
-        if (stop_)
+        if (stop_) {
+            ++stats_.skipped_at_stop;
             return;
+        }
     } else if (mailbox_) {
         ++stats_.skipped_superseded;
     }
@@ -360,6 +369,10 @@ void CompositorNode::run() {
         }
         mailbox_cv_.notify_all();
         result = composite(*set);
+        if (result.code() == ErrorCode::kCancelled) {
+            std::lock_guard lock(mutex_);
+            ++stats_.skipped_at_stop;
+        }
         if (!result)
             break;
     }
@@ -380,23 +393,26 @@ void CompositorNode::finish(Status status) {
     done_cv_.notify_all();
 }
 
-void CompositorNode::adjustQuality(double seconds) {
-    if (options_.lossless || options_.target_fps <= 0)
-        return;
-    const double period = 1.0 / options_.target_fps;
-    ema_s_ = frames_at_step_ == 0 ? seconds : 0.8 * ema_s_ + 0.2 * seconds;
+QualityController::QualityController(int steps, double target_fps)
+    : steps_(std::max(steps, 1)), target_fps_(target_fps) {}
+
+int QualityController::update(double render_seconds) {
+    if (target_fps_ <= 0)
+        return step_;
+    const double period = 1.0 / target_fps_;
+    ema_s_ = frames_at_step_ == 0 ? render_seconds : 0.8 * ema_s_ + 0.2 * render_seconds;
     ++frames_at_step_;
     frames_fast_ = ema_s_ < 0.45 * period ? frames_fast_ + 1 : 0;
-    const int last = static_cast<int>(ladder_.size()) - 1;
-    if (ema_s_ > 0.9 * period && step_ < last && frames_at_step_ >= 3) {
+    if (ema_s_ > 0.9 * period && step_ < steps_ - 1 && frames_at_step_ >= 3) {
         ++step_;
         frames_at_step_ = 0;
         frames_fast_ = 0;
-    } else if (step_ > 0 && frames_fast_ >= static_cast<int>(2 * options_.target_fps)) {
+    } else if (step_ > 0 && frames_fast_ >= static_cast<int>(2 * target_fps_)) {
         --step_;
         frames_at_step_ = 0;
         frames_fast_ = 0;
     }
+    return step_;
 }
 
 Status CompositorNode::composite(const Pending& set) {
@@ -466,7 +482,7 @@ Status CompositorNode::composite(const Pending& set) {
             return Status::ok();
         }
     }
-    const int step = step_;
+    const int step = quality_.step();
     if (has_pose) {
         auto r = renderer(step);
         if (!r)
@@ -490,6 +506,8 @@ Status CompositorNode::composite(const Pending& set) {
         MIXRAY_RETURN_IF_ERROR(renderer->render(in, layers_, &out.stats));
         out.rendered = true;
         out.layers = &layers_;
+        if (set.lights)
+            out.lights_used = &lights_;
     }
     // Without a pose the camera image goes on as the composite, so the stream has no holes.
     const ImageView src = out.rendered ? layers_.composite.view() : set.color.image();
@@ -528,12 +546,13 @@ Status CompositorNode::composite(const Pending& set) {
             stats_.render_ms_mean = render_ms_sum_ / static_cast<double>(stats_.rendered);
         }
     }
-    if (out.rendered)
-        adjustQuality(out.stats.seconds);
+    // Offline every frame is rendered at full quality: the ladder is for live runs only.
+    if (out.rendered && !options_.lossless)
+        quality_.update(out.stats.seconds);
     {
         std::lock_guard lock(mutex_);
-        stats_.quality_step = step_;
-        stats_.quality_label = ladder_[static_cast<size_t>(step_)].label();
+        stats_.quality_step = quality_.step();
+        stats_.quality_label = ladder_[static_cast<size_t>(quality_.step())].label();
     }
     if (on_composite_)
         on_composite_(out);

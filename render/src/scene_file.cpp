@@ -674,4 +674,64 @@ Result<SceneDescription> loadScene(const std::filesystem::path& path) {
     return parseSceneAt(text, name, std::move(base));
 }
 
+Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_path,
+                                       const std::filesystem::path& objects_path) {
+    namespace fs = std::filesystem;
+    auto real = loadScene(real_scene_path);
+    if (!real)
+        return real.status();
+    auto objects = loadScene(objects_path);
+    if (!objects)
+        return objects.status();
+    ComposedArScene out;
+    SceneDescription& scene = out.scene;
+    scene.source_path = real->source_path;
+    scene.materials = real->materials;
+    // Lights and a fixed camera only from the objects file: the real scene's are what tracking
+    // and light estimation measure.
+    scene.lights = objects->lights;
+    scene.camera = objects->camera;
+    for (SceneObject o : real->objects) {
+        o.role = ObjectRole::kGhost;
+        scene.objects.push_back(std::move(o));
+    }
+    // The composed scene's relative paths would resolve against the real scene's folder; make
+    // the real scene's textures absolute so the objects file's folder never matters for them.
+    for (auto& [name, m] : real->materials)
+        if (!m.albedo_texture.empty() && m.albedo_texture.is_relative())
+            scene.materials[name].albedo_texture =
+                fs::absolute(real->source_path.parent_path() / m.albedo_texture);
+    for (const auto& [name, m] : objects->materials) {
+        if (scene.materials.count(name))
+            return Status(ErrorCode::kInvalidArgument, objects_path.string() + ": material " +
+                                                           name + " is also defined in " +
+                                                           real_scene_path.string());
+        scene.materials[name] = m;
+        out.inserted.materials[name] = m;
+    }
+    for (SceneObject o : objects->objects) {
+        o.role = ObjectRole::kVirtual;
+        if (o.shape.type == ShapeType::kMesh && !o.shape.mesh.empty()) {
+            fs::path file = o.shape.mesh;
+            if (file.is_relative())
+                file = objects->source_path.parent_path() / file;
+            std::error_code ec;
+            if (!fs::exists(file, ec)) {
+                out.notes.push_back(file.string() + " not found (the shared data is not here); a " +
+                                    "sphere of its material stands in for " + o.name);
+                o.shape = Shape{};
+                o.shape.type = ShapeType::kSphere;
+                o.shape.radius = 0.04f;
+                o.T_anchor_object.translation().z() += 0.04;
+            } else {
+                o.shape.mesh = fs::absolute(file);
+            }
+        }
+        out.inserted.objects.push_back(o);
+        scene.objects.push_back(std::move(o));
+    }
+    MIXRAY_RETURN_IF_ERROR(scene.validate());
+    return out;
+}
+
 }  // namespace mixray::render

@@ -9,6 +9,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <thread>
 
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
@@ -354,6 +355,123 @@ TEST(ArPipeline, RefusesWhatItCannotBuild) {
     source.pace = ArSource::Pace::kFast;
     auto bad = ArPipeline::create(replayRegistry(), source, std::move(options));
     EXPECT_FALSE(bad.isOk());
+}
+
+// Real pace, looped, tracking and recording on, and a target rate no machine reaches: the
+// invariants that do not depend on the machine's speed. Every set the synchronizer gave is
+// composited or counted with its reason; every composite has a latency; the ladder went down;
+// every frame a recorded stream published is in the file, read back.
+TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
+    const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_real_pace.mkv";
+    auto reader = replay::openRecording(session());
+    ASSERT_TRUE(reader.isOk());
+    ArPipelineOptions options;
+    options.setup = sessionSetup(**reader);
+    options.scene = testScene();
+    options.render = testRenderOptions();
+    options.render.samples_per_pixel = 4;
+    options.target_fps = 1000;
+    options.record = out;
+    std::mutex mutex;
+    uint64_t callbacks = 0, with_latency = 0;
+    int lowest_rung = 0;
+    options.on_composite = [&](const CompositeFrame& f) {
+        std::lock_guard lock(mutex);
+        ++callbacks;
+        with_latency += f.latency_ms > 0;
+        lowest_rung = std::max(lowest_rung, f.quality_step);
+    };
+    ArSource source;
+    source.recording = session();
+    source.pace = ArSource::Pace::kReal;
+    source.loop = true;
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ASSERT_TRUE((*pipeline)->start().isOk());
+    // Past the end of the 1.2 s session, so the loop restarts it at least once, and until the
+    // ladder had the 3 rendered frames it needs to judge a rung (a slow machine takes longer).
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(40);
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    while ((*pipeline)->stats().compositor->rendered < 5 &&
+           std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_FALSE((*pipeline)->waitDone(std::chrono::milliseconds(1))) << "a looped source ended";
+    (*pipeline)->stop();
+    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    const ArPipelineStats stats = (*pipeline)->stats();
+    ASSERT_TRUE(stats.compositor.has_value());
+    const CompositorStats& c = *stats.compositor;
+    EXPECT_GT(c.composites, 0u);
+    EXPECT_EQ(c.composites + c.skipped_superseded + c.skipped_without_pose + c.publish_failures +
+                  c.skipped_at_stop,
+              c.sets);
+    EXPECT_EQ(callbacks, c.composites);
+    EXPECT_EQ(with_latency, c.composites);
+    EXPECT_EQ(c.latency.count, std::min<uint64_t>(c.composites, 1024));
+    EXPECT_GT(lowest_rung, 0) << "the ladder never went down at a target of 1000 fps";
+
+    // Every frame published on a recorded stream is in the file or counted as dropped by the
+    // recorder's live queue (a recorder behind the sources must not slow capture): none is lost
+    // silently. How many are dropped depends on the machine; bench pipeline reports it.
+    ASSERT_TRUE(stats.recorder.has_value());
+    auto recorded = replay::openRecording(out);
+    ASSERT_TRUE(recorded.isOk()) << recorded.status().toString();
+    std::map<std::string, uint64_t> in_file;
+    while (true) {
+        auto frame = (*recorded)->next();
+        if (!frame) {
+            EXPECT_EQ(frame.status().code(), ErrorCode::kEndOfStream) << frame.status().toString();
+            break;
+        }
+        ++in_file[(*recorded)->streams().at(frame->meta().stream).name];
+    }
+    Graph& graph = (*pipeline)->graph();
+    ASSERT_FALSE(stats.recorder->streams.empty());
+    uint64_t colour = 0;
+    for (const RecorderStreamStats& r : stats.recorder->streams) {
+        const auto id = graph.findStream(r.stream);
+        ASSERT_TRUE(id.has_value()) << r.stream;
+        EXPECT_EQ(in_file[r.stream], r.written) << r.stream;
+        EXPECT_EQ(r.written + r.dropped + r.discarded, graph.publishedCount(*id)) << r.stream;
+        if (r.stream == "kinect/color")
+            colour = graph.publishedCount(*id);
+    }
+    // More colour frames than the session has: the loop went round.
+    EXPECT_GT(colour, 36u);
+}
+
+// The ladder's rule alone, with made-up render times: down a rung at a time while frames are
+// too slow for the rate, back up a rung at a time after two seconds of fast frames.
+TEST(QualityController, GoesDownWhenFramesAreSlowAndBackUpWhenTheyAreFast) {
+    QualityController q(4, 30);
+    EXPECT_EQ(q.step(), 0);
+    const double period = 1.0 / 30;
+    int frames = 0;
+    while (q.step() < 3 && frames < 100) {
+        q.update(2 * period);
+        ++frames;
+    }
+    EXPECT_EQ(q.step(), 3);
+    EXPECT_LE(frames, 3 * 3 + 3);
+    for (int i = 0; i < 10; ++i)
+        EXPECT_EQ(q.update(2 * period), 3) << "there is no rung below the last";
+    // Frames a little under the period: no reason to move either way.
+    for (int i = 0; i < 200; ++i)
+        EXPECT_EQ(q.update(0.7 * period), 3);
+    // Fast frames: up one rung per two seconds' worth (60 frames at 30 fps), plus the time the
+    // average takes to fall.
+    frames = 0;
+    while (q.step() > 0 && frames < 1000) {
+        q.update(0.1 * period);
+        ++frames;
+    }
+    EXPECT_EQ(q.step(), 0);
+    EXPECT_GE(frames, 3 * 60);
+    EXPECT_LE(frames, 3 * 70);
+    // Without a target rate it never moves.
+    QualityController fixed(4, 0);
+    for (int i = 0; i < 100; ++i)
+        EXPECT_EQ(fixed.update(10.0), 0);
 }
 
 TEST(QualityLadder, GoesDownFromWhatWasAskedAndLeavesOutRungsThatChangeNothing) {

@@ -458,6 +458,94 @@ TEST(SceneFileTest, LoadErrors) {
         << corrupt.status().message();
 }
 
+// mixray demo and run composite virtual objects into a session's modelled real scene: the real
+// objects become ghosts whatever their role in the file, the real lights and camera are left to
+// tracking, and a missing mesh is replaced by a sphere with a note instead of failing the run.
+TEST(SceneFileTest, ComposeArSceneMakesTheRealSceneGhostsUnderTheVirtualObjects) {
+    const fs::path dir = test::tempDir() / "compose_ar_scene";
+    fs::create_directories(dir / "objects");
+    const fs::path real = dir / "room.scene.yaml";
+    std::ofstream(real) << R"(version: 1
+materials:
+  wood: { type: diffuse, albedo: [0.5, 0.4, 0.3] }
+objects:
+  - { name: table, role: ghost, shape: { plane: { size: [1, 1] } }, material: wood }
+  - { name: lamp, role: virtual, shape: { sphere: { radius: 0.1 } }, material: wood }
+lights:
+  - { name: sun, type: directional, direction: [0, 0, -1], irradiance: [1, 1, 1] }
+)";
+    const fs::path objects = dir / "objects" / "virtual.yaml";
+    std::ofstream(objects) << R"(version: 1
+materials:
+  clay: { type: diffuse, albedo: [0.7, 0.35, 0.2] }
+objects:
+  - { name: box, shape: { box: { size: [0.1, 0.1, 0.1] } }, material: clay }
+  - name: pot
+    shape: { mesh: { file: missing/pot.obj } }
+    material: clay
+    pose: { translation: [0.1, 0.2, 0] }
+)";
+    auto composed = composeArScene(real, objects);
+    ASSERT_TRUE(composed.isOk()) << composed.status().toString();
+    const SceneDescription& scene = composed->scene;
+    ASSERT_EQ(scene.objects.size(), 4u);
+    EXPECT_EQ(scene.objects[0].name, "table");
+    EXPECT_EQ(scene.objects[0].role, ObjectRole::kGhost);
+    EXPECT_EQ(scene.objects[1].name, "lamp");
+    EXPECT_EQ(scene.objects[1].role, ObjectRole::kGhost);
+    EXPECT_EQ(scene.objects[2].role, ObjectRole::kVirtual);
+    EXPECT_TRUE(scene.lights.empty());
+    EXPECT_FALSE(scene.camera.has_value());
+    EXPECT_EQ(scene.materials.size(), 2u);
+    // The missing mesh: a sphere of its material on the same spot, raised by its radius.
+    const SceneObject& pot = scene.objects[3];
+    EXPECT_EQ(pot.shape.type, ShapeType::kSphere);
+    EXPECT_FLOAT_EQ(pot.shape.radius, 0.04f);
+    EXPECT_EQ(pot.material, "clay");
+    EXPECT_NEAR(pot.T_anchor_object.translation().z(), 0.04, 1e-12);
+    EXPECT_NEAR(pot.T_anchor_object.translation().y(), 0.2, 1e-12);
+    ASSERT_EQ(composed->notes.size(), 1u);
+    EXPECT_NE(composed->notes[0].find("pot.obj"), std::string::npos) << composed->notes[0];
+    EXPECT_NE(composed->notes[0].find("pot"), std::string::npos);
+    // The inserted part is the virtual objects alone, with their own materials.
+    ASSERT_EQ(composed->inserted.objects.size(), 2u);
+    EXPECT_EQ(composed->inserted.objects[0].name, "box");
+    EXPECT_EQ(composed->inserted.materials.count("clay"), 1u);
+    EXPECT_EQ(composed->inserted.materials.count("wood"), 0u);
+
+    // A material defined in both files is refused, naming both files.
+    const fs::path clash = dir / "clash.yaml";
+    std::ofstream(clash) << R"(version: 1
+materials:
+  wood: { type: diffuse, albedo: [0.1, 0.1, 0.1] }
+objects:
+  - { name: block, shape: { box: { size: [0.1, 0.1, 0.1] } }, material: wood }
+)";
+    auto refused = composeArScene(real, clash);
+    ASSERT_FALSE(refused.isOk());
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find("clash.yaml"), std::string::npos);
+    EXPECT_NE(refused.status().message().find("room.scene.yaml"), std::string::npos);
+    // Either file missing: its load error.
+    EXPECT_EQ(composeArScene(dir / "none.yaml", objects).status().code(), ErrorCode::kNotFound);
+    EXPECT_EQ(composeArScene(real, dir / "none.yaml").status().code(), ErrorCode::kNotFound);
+}
+
+// The demo's own files compose (the session's real scene and the demo objects).
+TEST(SceneFileTest, ComposeArSceneOnTheDemoFixtures) {
+    auto composed = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
+                                   test::fixturesDir() / "scenes/sim_tabletop_demo.yaml");
+    ASSERT_TRUE(composed.isOk()) << composed.status().toString();
+    EXPECT_EQ(composed->inserted.objects.size(), 3u);
+    EXPECT_EQ(composed->scene.objects.size(), 9u);
+    for (const SceneObject& o : composed->scene.objects)
+        EXPECT_EQ(o.role, o.name == "teapot" || o.name == "glass_ball" || o.name == "clay_box"
+                              ? ObjectRole::kVirtual
+                              : ObjectRole::kGhost)
+            << o.name;
+    EXPECT_TRUE(composed->scene.lights.empty());
+}
+
 TEST(SceneFileTest, ValidateScenesBuiltInCode) {
     SceneDescription scene;
     scene.materials["m"].name = "m";

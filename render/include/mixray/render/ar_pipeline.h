@@ -132,6 +132,7 @@ private:
     tracking::TrackingNode* tracking_ = nullptr;
     CompositorNode* compositor_ = nullptr;
     Recorder* recorder_ = nullptr;
+    bool live_ = false;  // real pace: live edges
     std::string color_stream_;
     calibration::CameraModel camera_;
     std::chrono::steady_clock::time_point started_;

@@ -48,6 +48,26 @@ struct QualityStep {
 // no bounces; rungs that would change nothing are left out.
 std::vector<QualityStep> qualityLadder(const RenderOptions& best);
 
+// Picks the ladder rung that holds a frame rate from the render times it is told: down a rung
+// when frames take more than 90 % of the period (averaged, after 3 frames on a rung), up a rung
+// after 2 s worth of frames below 45 % of it. Plain value; thread-bound.
+class QualityController {
+public:
+    // `steps` rungs (rung 0 the best); target_fps <= 0: always rung 0.
+    QualityController(int steps, double target_fps);
+    // One frame at step() took `render_seconds`; returns the rung for the next frame.
+    int update(double render_seconds);
+    int step() const { return step_; }
+
+private:
+    int steps_ = 1;
+    double target_fps_ = 0;
+    int step_ = 0;
+    double ema_s_ = 0;
+    int frames_at_step_ = 0;
+    int frames_fast_ = 0;
+};
+
 struct CompositorOptions {
     std::string name = "compositor";
     std::string color_stream;            // rgb8 or bgr8; required
@@ -92,6 +112,9 @@ struct CompositeFrame {
     std::optional<PoseRecord> pose;
     std::optional<tracking::LightRecord> lights;
     bool rendered = false;  // false: the camera image passed through (no pose)
+    // The lights the renderer used, from the light stream; null when there is none (the scene's
+    // own lights). Valid during the callback only.
+    const std::vector<Light>* lights_used = nullptr;
     // The renderer's layers of a rendered frame (I_m, I_r, M with RenderOptions::keep_layers);
     // valid during the callback only.
     const RenderLayers* layers = nullptr;
@@ -119,8 +142,11 @@ struct CompositorStats {
     uint64_t skipped_superseded = 0;    // live: a newer set came before this one was started
     uint64_t skipped_without_pose = 0;  // skip_without_pose
     uint64_t publish_failures = 0;      // no free output buffer
-    SyncStats sync;                     // frames the synchronizer could not match, and why
-    LatencyPercentiles latency;         // over the last 1024 composites
+    uint64_t skipped_at_stop = 0;       // waiting or being rendered when stop() came
+    // Every set is accounted for: sets == composites + skipped_superseded +
+    // skipped_without_pose + publish_failures + skipped_at_stop (once stopped or done).
+    SyncStats sync;              // frames the synchronizer could not match, and why
+    LatencyPercentiles latency;  // over the last 1024 composites
     double render_ms_mean = 0;
     int quality_step = 0;
     int quality_steps = 1;
@@ -162,7 +188,6 @@ private:
     Status composite(const Pending& set);
     Result<Renderer*> renderer(int step);
     void drainEnvironmentMaps();
-    void adjustQuality(double seconds);
     void finish(Status status);
     WritableFrame acquire(BufferPool& pool);
 
@@ -197,10 +222,7 @@ private:
     std::vector<double> latencies_ms_;  // ring of the last kLatencyWindow
     size_t latency_next_ = 0;
     double render_ms_sum_ = 0;
-    int step_ = 0;
-    double ema_s_ = 0;
-    int frames_at_step_ = 0;
-    int frames_fast_ = 0;
+    QualityController quality_;
 };
 
 }  // namespace mixray::render

@@ -4,7 +4,9 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <string>
 #include <string_view>
+#include <vector>
 
 #include "mixray/graph/result.h"
 #include "mixray/render/scene.h"
@@ -30,5 +32,25 @@ Result<SceneDescription> parseScene(std::string_view text, std::string_view sour
 // absolute. kNotFound when the file does not exist, kIoError when it cannot be read,
 // kCorruptData for bad content. Never throws; reentrant.
 Result<SceneDescription> loadScene(const std::filesystem::path& path);
+
+// An AR scene put together from two files, as mixray demo and mixray run use it.
+struct ComposedArScene {
+    // The real scene's objects as ghosts (its lights and camera left out: those are estimated
+    // and tracked), the virtual objects with both files' materials, and the objects file's
+    // lights and fixed camera, if it has any.
+    SceneDescription scene;
+    // The virtual objects and their materials alone (what a simulator adds to render the truth).
+    SceneDescription inserted;
+    // What was substituted, one line each ("FILE not found; a metal sphere stands in for X").
+    std::vector<std::string> notes;
+};
+
+// Loads `real_scene_path` (the modelled real surroundings, e.g. a session's NAME.scene.yaml)
+// and `objects_path` (the virtual objects) and composes them. A virtual mesh whose file is
+// missing (shared data absent) becomes a sphere of its material, radius 4 cm, standing on
+// the same spot, with a note, so the demo runs without the shared data. Errors: the files' own
+// load errors; kInvalidArgument when a material name is in both files. Reentrant.
+Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_path,
+                                       const std::filesystem::path& objects_path);
 
 }  // namespace mixray::render
