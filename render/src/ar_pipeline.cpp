@@ -362,10 +362,14 @@ ArPipelineStats ArPipeline::stats() const {
         int total = 0;
         for (const auto& st : s.streams)
             total += st.device == d->name();
-        dev.state = total > 0 && counts.second == total ? "ended"
-                    : counts.first > 0                  ? "streaming"
-                    : counts.first < -500               ? "waiting"
-                                                        : "lost";
+        // The driver's word where it gives one (it knows a camera being reopened from a slow
+        // one); else judged from its streams.
+        const DeviceState said = d->state();
+        dev.state = said != DeviceState::kUnknown         ? toString(said)
+                    : total > 0 && counts.second == total ? "ended"
+                    : counts.first > 0                    ? "streaming"
+                    : counts.first < -500                 ? "waiting"
+                                                          : "lost";
         s.devices.push_back(std::move(dev));
     }
     for (const EdgeStats& e : graph_->edgeStats())
