@@ -399,10 +399,17 @@ ArPipelineStats ArPipeline::stats() const {
         const int total = totals[name];
         ArPipelineStats::Device dev;
         dev.name = name;
-        dev.state = counts.second == total ? "ended"
-                    : counts.first > 0     ? "streaming"
-                    : counts.first < -500  ? "waiting"
-                                           : "lost";
+        // The driver's word where it gives one (it knows a camera being reopened from a slow
+        // one); else, and for a recording standing in for its rig, judged from its streams.
+        DeviceState said = DeviceState::kUnknown;
+        for (const Device* d : devices_)
+            if (d->name() == name)
+                said = d->state();
+        dev.state = said != DeviceState::kUnknown ? std::string(toString(said))
+                    : counts.second == total      ? "ended"
+                    : counts.first > 0            ? "streaming"
+                    : counts.first < -500         ? "waiting"
+                                                  : "lost";
         s.devices.push_back(std::move(dev));
     }
     for (const EdgeStats& e : graph_->edgeStats())

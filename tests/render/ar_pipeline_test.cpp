@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <set>
@@ -294,6 +296,141 @@ TEST(ArPipeline, RecordsRawStreamsPosesLightsAndTheCompositeIntoOneRecording) {
     // Each estimator's answer, and the lights the compositor rendered with.
     EXPECT_EQ(groups, (std::set<std::string>{"render", "probe:probe_mirror", "probe:probe_diffuse",
                                              "environment"}));
+}
+
+// The bundled session played twice into one file, its environment camera silent in the second
+// pass (it died after its frame at 1.0 s) and the last colour frames black (the markers lost).
+fs::path sessionWithDeadEnvironmentCamera(size_t blank_last_colour_frames) {
+    const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_dead_env.mkv";
+    auto first = replay::openRecording(session());
+    EXPECT_TRUE(first.isOk());
+    RecordingHeader header;
+    header.streams = (*first)->streams();
+    header.attachments = (*first)->attachments();
+    header.tags = (*first)->tags();
+    auto writer = createMkvWriter(out, header);
+    EXPECT_TRUE(writer.isOk()) << writer.status().toString();
+    int64_t first_ns = -1;
+    int64_t last_ns = 0;
+    size_t colour_total = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+        // Frame by frame: the reader's pools hold a few frames per stream.
+        auto reader = replay::openRecording(session());
+        EXPECT_TRUE(reader.isOk());
+        size_t colour_seen = 0;
+        while (true) {
+            auto next = (*reader)->next();
+            if (!next) {
+                EXPECT_EQ(next.status().code(), ErrorCode::kEndOfStream)
+                    << next.status().toString();
+                break;
+            }
+            FrameRef frame = std::move(next).value();
+            const std::string& name = header.streams[frame.meta().stream].name;
+            if (pass == 0) {
+                if (first_ns < 0)
+                    first_ns = frame.meta().host_stamp_ns;
+                last_ns = std::max(last_ns, frame.meta().host_stamp_ns);
+                colour_total += name == "kinect/color";
+            } else {
+                if (name == "env/color")
+                    continue;
+                WritableFrame w = WritableFrame::reclaim(frame);
+                EXPECT_TRUE(w) << "the reader kept a handle on its frame";
+                const int64_t shift_ns = last_ns - first_ns + 33'333'333;
+                w.meta().host_stamp_ns += shift_ns;
+                w.meta().device_stamp_ns += shift_ns;
+                w.meta().sequence += 1000;
+                if (name == "kinect/color" &&
+                    ++colour_seen > colour_total - blank_last_colour_frames)
+                    std::memset(w.image().data, 0, w.image().desc.bufferBytes());
+                frame = std::move(w).publish();
+            }
+            EXPECT_TRUE((*writer)->write(frame).isOk());
+        }
+    }
+    EXPECT_TRUE((*writer)->close().isOk());
+    return out;
+}
+
+// Issue 13, faults while live: the environment camera dies while the colour camera goes on.
+// Every colour frame is still composited; the light records mark the environment group stale
+// once the camera has been silent longer than the limit, saying why, and the pose records say
+// why the marker pose is not current on the frames where the markers are not seen.
+TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
+    const fs::path input = sessionWithDeadEnvironmentCamera(4);
+    ASSERT_FALSE(HasFailure());
+    const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_dead_env_out.mkv";
+    auto reader = replay::openRecording(session());
+    ASSERT_TRUE(reader.isOk());
+    ArPipelineOptions options;
+    options.setup = sessionSetup(**reader);
+    options.scene = testScene();
+    options.render = testRenderOptions();
+    options.render.max_depth = 0;
+    options.record = out;
+    ASSERT_EQ(options.tracking.environment_max_age_ms, 1000);
+    ArSource source;
+    source.recording = input;
+    source.pace = ArSource::Pace::kFast;
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ASSERT_TRUE((*pipeline)->start().isOk());
+    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
+    (*pipeline)->stop();
+    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    // The composite goes on: one per colour frame, both passes.
+    EXPECT_EQ((*pipeline)->stats().compositor->composites, 72u);
+
+    auto recorded = replay::openRecording(out);
+    ASSERT_TRUE(recorded.isOk()) << recorded.status().toString();
+    std::map<std::string, StreamId> ids;
+    for (StreamId i = 0; i < (*recorded)->streams().size(); ++i)
+        ids[(*recorded)->streams()[i].name] = i;
+    int64_t last_env_ns = 0;
+    int silent_fresh = 0, silent_stale = 0, talking_aged = 0;
+    int pose_not_valid = 0;
+    while (true) {
+        auto frame = (*recorded)->next();
+        if (!frame)
+            break;
+        const StreamId s = frame->meta().stream;
+        if (s == ids["env/color"])
+            last_env_ns = std::max(last_env_ns, frame->meta().host_stamp_ns);
+        if (s == ids["tracking/pose"]) {
+            auto pose = decodePoseRecord(frame->image());
+            ASSERT_TRUE(pose.isOk());
+            if (pose->status != PoseStatus::kValid) {
+                ++pose_not_valid;
+                EXPECT_FALSE(pose->reason.empty()) << "a pose that is not current says why";
+            }
+        }
+        if (s != ids["tracking/lights"])
+            continue;
+        auto lights = tracking::decodeLightRecord(frame->image());
+        ASSERT_TRUE(lights.isOk()) << lights.status().toString();
+        const int64_t silent_ns = frame->meta().host_stamp_ns - last_env_ns;
+        for (const auto& g : lights->groups) {
+            if (g.name != "environment")
+                continue;
+            if (silent_ns > 1'050'000'000) {
+                if (g.stale && g.reason.find("the environment camera sent no image for") == 0)
+                    ++silent_stale;
+                else
+                    ++silent_fresh;
+                // Its last lights are kept, from the last image it sent.
+                EXPECT_FALSE(g.lights.empty());
+                EXPECT_LE(g.good_stamp_ns, last_env_ns);
+            } else if (silent_ns < 950'000'000 &&
+                       g.reason.find("sent no image") != std::string::npos) {
+                ++talking_aged;
+            }
+        }
+    }
+    EXPECT_GE(silent_stale, 5) << "the dead camera's estimate was never marked stale";
+    EXPECT_EQ(silent_fresh, 0) << "a dead camera's estimate claimed to be current";
+    EXPECT_EQ(talking_aged, 0) << "an estimate marked stale while its camera still sent images";
+    EXPECT_GE(pose_not_valid, 1) << "the blacked-out frames still gave a current pose";
 }
 
 TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {

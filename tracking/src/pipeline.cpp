@@ -212,9 +212,16 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
         }
         out.sun = sun_;
     }
-    if (environment_estimator_)
+    if (environment_estimator_) {
         out.environment = environment_estimator_->latest();
-    else if (setup_.environment)
+        // stamp_ns is the newest environment image's, fresh or not: silence is its age.
+        const int64_t silent_ns = stamp - out.environment.stamp_ns;
+        if (options_.environment_max_age_ms > 0 && out.environment.stamp_ns > 0 &&
+            silent_ns > options_.environment_max_age_ms * 1'000'000)
+            out.environment.keep("the environment camera sent no image for " +
+                                     std::to_string(silent_ns / 1'000'000) + " ms",
+                                 stamp);
+    } else if (setup_.environment)
         out.environment.keep("the recording has no stream " + setup_.environment->stream, stamp);
 
     // Strengths of the lights whose directions are known, from a diffuse probe.

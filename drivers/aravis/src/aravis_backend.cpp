@@ -593,6 +593,15 @@ AravisStats AravisDevice::stats() const {
     return s;
 }
 
+DeviceState AravisDevice::state() const {
+    std::lock_guard lock(mutex_);
+    if (stats_.connected)
+        return DeviceState::kStreaming;
+    if (stats_.connection_losses == 0)
+        return DeviceState::kUnknown;
+    return stop_requested_ ? DeviceState::kLost : DeviceState::kReconnecting;
+}
+
 Result<std::string> AravisDevice::feature(const std::string& name) const {
     const std::string context = "aravis device '" + name_ + "': feature " + name;
     std::lock_guard lock(mutex_);

@@ -3,6 +3,22 @@
 
 namespace mixray {
 
+const char* toString(DeviceState state) {
+    switch (state) {
+        case DeviceState::kStreaming:
+            return "streaming";
+        case DeviceState::kLost:
+            return "lost";
+        case DeviceState::kReconnecting:
+            return "reconnecting";
+        case DeviceState::kEnded:
+            return "ended";
+        case DeviceState::kUnknown:
+            break;
+    }
+    return "unknown";
+}
+
 Status BackendRegistry::add(std::unique_ptr<DeviceBackend> backend) {
     if (!backend)
         return {ErrorCode::kInvalidArgument, "null backend"};

@@ -577,6 +577,17 @@ Status OpenNI2Device::status() const {
     return status_;
 }
 
+DeviceState OpenNI2Device::state() const {
+    if (impl_->is_file)
+        return finished_ ? DeviceState::kEnded : DeviceState::kUnknown;
+    const Status s = status();
+    if (s.code() == ErrorCode::kUnavailable)
+        return options_.reconnect && capturing_ ? DeviceState::kReconnecting : DeviceState::kLost;
+    if (!s.isOk())
+        return DeviceState::kLost;
+    return capturing_ ? DeviceState::kStreaming : DeviceState::kUnknown;
+}
+
 void OpenNI2Device::setError(Status status) {
     std::lock_guard lock(mutex_);
     if (status_.isOk())
@@ -752,6 +763,7 @@ Status OpenNI2Device::start() {
     }
     stop_requested_ = false;
     finished_ = false;
+    capturing_ = true;
     capture_ = CaptureThreads::run([this] { run(); });
     return Status::ok();
 }
@@ -1002,6 +1014,7 @@ void OpenNI2Device::run() {
         }
     }
     finished_ = true;
+    capturing_ = false;
 }
 
 Result<std::vector<DeviceDescriptor>> OpenNI2Backend::enumerate() {

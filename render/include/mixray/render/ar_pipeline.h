@@ -75,7 +75,10 @@ struct ArPipelineStats {
     };
     struct Device {
         std::string name;
-        std::string state;  // "streaming", "waiting" (nothing yet), "lost" (silent > 1 s), "ended"
+        // What the device says (Device::state(): "streaming", "reconnecting", "lost",
+        // "ended"); for devices that do not say, judged from their streams: "streaming",
+        // "waiting" (nothing yet), "lost" (silent > 1 s), "ended" (every stream ended).
+        std::string state;
     };
     std::vector<Stream> streams;
     std::vector<Device> devices;

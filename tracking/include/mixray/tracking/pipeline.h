@@ -54,6 +54,10 @@ struct PipelineOptions {
     // Offline (recordings): wait for each environment frame's estimate, so a run is
     // reproducible. Live it would not wait.
     bool wait_for_environment = true;
+    // The environment estimate is marked stale, with the reason, once its camera has sent no
+    // image for this long before a colour frame (the camera died or was unplugged: its last
+    // lights are kept but no longer claimed as current). 0: never (default 1000).
+    int64_t environment_max_age_ms = 1000;
     // Where the rig stands (its rig file's site:) and UTC minus the host clock: with both, each
     // colour frame also gets the sun's direction.
     std::optional<RigSite> site;

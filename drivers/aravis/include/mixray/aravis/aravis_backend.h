@@ -163,6 +163,9 @@ public:
     // the camera is lost.
     Status softwareTrigger();
     AravisStats stats() const;
+    // kStreaming while connected; kReconnecting once the camera stopped answering while the
+    // capture thread tries to reopen it; kLost when it was stopped while the camera was gone.
+    DeviceState state() const override;
 
     // The camera's current value of the GenICam feature `name`, read through Aravis (for an
     // enumeration its entry name: "On", "Line0"). kNotFound when the camera has no such

@@ -32,10 +32,26 @@ struct DeviceConfig {
     std::vector<std::string> streams;            // streams to enable; empty: all
 };
 
+// What a device says of itself while the graph runs. The drivers know more than the streams
+// show: a camera that stopped sending may be a slow one or one being reopened.
+enum class DeviceState {
+    kUnknown,       // the device does not say: consumers judge from its streams' activity
+    kStreaming,     // connected and delivering (or about to: started, nothing lost)
+    kLost,          // gone and not coming back by itself (its streams end or stay silent)
+    kReconnecting,  // gone; the device is trying to reopen it and its streams resume after
+    kEnded,         // every stream ended (a recording or a finite source reached its end)
+};
+
+// "unknown", "streaming", "lost", "reconnecting", "ended": the words the live view shows.
+const char* toString(DeviceState state);
+
 // A source node backed by one physical or replayed device.
 class Device : public Node {
 public:
     virtual DeviceDescriptor descriptor() const = 0;
+    // Its state now. Thread-safe in every implementation: status lines and the live view call
+    // it from their own threads. The default says nothing (kUnknown).
+    virtual DeviceState state() const { return DeviceState::kUnknown; }
 };
 
 // One device family. Implementations live in drivers/<backend>/ and are registered by apps.

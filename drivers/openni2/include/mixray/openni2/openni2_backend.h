@@ -159,6 +159,10 @@ public:
     Status error() const { return status(); }
     // Times a lost device was reopened.
     uint64_t reconnects() const { return reconnects_.load(); }
+    // Live devices: kStreaming while the capture loop runs and the device is there,
+    // kReconnecting while it is lost and looked for, kLost when it is lost and not looked for
+    // (reconnect=false, or stopped meanwhile). Recordings: kEnded at their end, else kUnknown.
+    DeviceState state() const override;
 
 private:
     friend class OpenNI2Backend;
@@ -186,6 +190,7 @@ private:
     std::shared_ptr<CaptureJob> capture_;  // the capture loop, on a kept thread
     std::atomic<bool> stop_requested_{false};
     std::atomic<bool> finished_{false};
+    std::atomic<bool> capturing_{false};  // between start() and the capture loop's end
     std::atomic<uint64_t> published_{0};
     std::atomic<uint64_t> dropped_{0};
     std::atomic<uint64_t> reconnects_{0};

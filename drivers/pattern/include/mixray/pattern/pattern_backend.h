@@ -115,6 +115,10 @@ public:
     uint64_t droppedFrames() const { return dropped_.load(); }  // drop_ratio losses
     uint64_t poolExhausted() const { return exhausted_.load(); }
     bool finished() const { return finished_.load(); }
+    // kEnded once finished(); until then kUnknown: its streams' activity tells the rest.
+    DeviceState state() const override {
+        return finished() ? DeviceState::kEnded : DeviceState::kUnknown;
+    }
 
 private:
     void run();

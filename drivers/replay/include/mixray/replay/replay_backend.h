@@ -87,6 +87,10 @@ public:
     Status status() const;
     // True once the playback thread has ended its streams (end of data, error or stop()).
     bool finished() const { return finished_.load(); }
+    // kEnded once finished(); until then kUnknown: its streams' activity tells the rest.
+    DeviceState state() const override {
+        return finished() ? DeviceState::kEnded : DeviceState::kUnknown;
+    }
     // Frames published so far, and completed passes over the recording (loop).
     uint64_t publishedFrames() const { return published_.load(); }
     uint64_t passes() const { return passes_.load(); }
