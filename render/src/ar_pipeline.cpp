@@ -160,7 +160,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
             c.options["stamps"] = "arrival";
             // Live consumers (tracking, compositor, recorder, view) each hold a few frames of a
             // stream; the device must not run out of buffers before they drop old ones.
-            c.options["buffers"] = "16";
+            c.options["buffers"] = "24";
         }
         c.options["loop"] = source.loop ? "true" : "false";
         configs.push_back(std::move(c));
@@ -274,6 +274,15 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         RecorderOptions r;
         r.path = options.record;
         r.policy = lossless ? QueuePolicy::kLossless : QueuePolicy::kLive;
+        // Live, FFV1 would take a core of the two the pipeline runs on: store the frames
+        // uncompressed (lossless too, bound by the disk); `mixray convert` compresses later.
+        // Clusters close every second instead of every frame (a crash loses at most that), and
+        // the queues ride out the disk's hiccups.
+        if (!lossless) {
+            r.writer.compression = MkvCompression::kNone;
+            r.writer.flush_every_frame = false;
+            r.queue_capacity = 8;
+        }
         r.attachments = options.record_attachments;
         r.tags = options.record_tags;
         auto recorder = std::make_unique<Recorder>(std::move(r));

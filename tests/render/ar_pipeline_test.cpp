@@ -611,6 +611,41 @@ TEST(QualityController, GoesDownWhenFramesAreSlowAndBackUpWhenTheyAreFast) {
         EXPECT_EQ(fixed.update(10.0), 0);
 }
 
+TEST(TrackingPipeline, ProbesAreEstimatedAtMostOncePerIntervalLive) {
+    // Offline every colour frame estimates the probes; with an interval (live), the last
+    // estimates stand in between, fresh, and tracking itself still runs on every frame.
+    for (const int64_t interval_ms : {int64_t{0}, int64_t{500}}) {
+        SCOPED_TRACE("probe_interval_ms " + std::to_string(interval_ms));
+        auto reader = replay::openRecording(session());
+        ASSERT_TRUE(reader.isOk());
+        tracking::PipelineOptions options;
+        options.probe_interval_ms = interval_ms;
+        auto pipeline = tracking::TrackingPipeline::create(sessionSetup(**reader),
+                                                           (*reader)->streams(), options);
+        ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+        int tracked = 0;
+        int64_t probe_updates = 0;
+        while (true) {
+            auto frame = (*reader)->next();
+            if (!frame)
+                break;
+            auto out = (*pipeline)->push(*frame);
+            ASSERT_TRUE(out.isOk());
+            if (!*out)
+                continue;
+            ++tracked;
+            probe_updates = (*out)->probes.at(0).updates;
+            EXPECT_TRUE((*out)->probes.at(0).value.has_value());
+        }
+        EXPECT_EQ(tracked, 36);
+        // 36 frames over 1.17 s: every one, or one per started 500 ms.
+        if (interval_ms == 0)
+            EXPECT_EQ(probe_updates, 36);
+        else
+            EXPECT_EQ(probe_updates, 3);
+    }
+}
+
 TEST(QualityLadder, GoesDownFromWhatWasAskedAndLeavesOutRungsThatChangeNothing) {
     RenderOptions best;
     best.samples_per_pixel = 4;

@@ -174,7 +174,14 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
     const bool fresh_pose =
         out.track.state == TrackState::kTracking && out.track.pose.value.has_value();
     start = std::chrono::steady_clock::now();
-    for (size_t i = 0; i < probes_.size(); ++i) {
+    // Between two probe estimates (probe_interval_ms) the last ones stand as they are.
+    const bool probe_due = options_.probe_interval_ms <= 0 || !probed_ ||
+                           stamp - last_probe_stamp_ns_ >= options_.probe_interval_ms * 1'000'000;
+    if (probe_due && fresh_pose) {
+        probed_ = true;
+        last_probe_stamp_ns_ = stamp;
+    }
+    for (size_t i = 0; i < probes_.size() && probe_due; ++i) {
         const LightProbe& probe = setup_.probes[i];
         if (!fresh_pose) {
             probes_[i].keep("no fresh camera pose (" + out.track.pose.reason + ")", stamp);
@@ -230,7 +237,9 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
     for (size_t i = 0; i < probes_.size(); ++i)
         if (setup_.probes[i].material == ProbeMaterial::kDiffuse)
             diffuse = &setup_.probes[i];
-    if (diffuse && fresh_pose && !directions.empty()) {
+    if (!probe_due) {
+        // The last fit stands until the next probe estimate.
+    } else if (diffuse && fresh_pose && !directions.empty()) {
         std::vector<Eigen::Vector3d> to_light;
         for (const EstimatedLight& l : directions)
             to_light.push_back(l.to_light_world);

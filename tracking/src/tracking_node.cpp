@@ -10,6 +10,9 @@
 namespace mixray::tracking {
 namespace {
 
+// Live, the probes are estimated about 5 times a second (PipelineOptions::probe_interval_ms).
+constexpr int64_t kLiveProbeIntervalMs = 200;
+
 constexpr auto kPollInterval = std::chrono::milliseconds(5);
 
 }  // namespace
@@ -43,6 +46,8 @@ Status TrackingNode::connect(Graph& graph) {
     graph_ = &graph;
     PipelineOptions pipeline_options = options_.pipeline;
     pipeline_options.wait_for_environment = options_.lossless;
+    if (!options_.lossless && pipeline_options.probe_interval_ms == 0)
+        pipeline_options.probe_interval_ms = kLiveProbeIntervalMs;
     auto pipeline = TrackingPipeline::create(options_.setup, graph.streams(), pipeline_options);
     if (!pipeline)
         return pipeline.status().withContext(options_.name);

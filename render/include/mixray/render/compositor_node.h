@@ -97,8 +97,8 @@ struct CompositorOptions {
     // How colour and depth are matched (kHost for recordings replayed as fast as possible,
     // kCommon for live devices); pose and light records carry their colour frame's stamps.
     SyncTimeBase time_base = SyncTimeBase::kHost;
-    size_t queue_capacity = 8;  // per input edge
-    size_t output_buffers = 6;
+    size_t queue_capacity = 8;   // per input edge
+    size_t output_buffers = 12;  // live: the recorder and the view hold some too
 
     Status validate() const;
 };

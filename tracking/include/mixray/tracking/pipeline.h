@@ -58,6 +58,11 @@ struct PipelineOptions {
     // image for this long before a colour frame (the camera died or was unplugged: its last
     // lights are kept but no longer claimed as current). 0: never (default 1000).
     int64_t environment_max_age_ms = 1000;
+    // Estimate the probes' lights and fit the light strengths at most this often, keeping the
+    // last estimates in between: lights change slowly and the probes cost several times the
+    // marker tracking, so live this keeps tracking at the camera's rate. 0: every colour frame
+    // (offline, the default). TrackingNode sets 200 ms when it runs live unless told otherwise.
+    int64_t probe_interval_ms = 0;
     // Where the rig stands (its rig file's site:) and UTC minus the host clock: with both, each
     // colour frame also gets the sun's direction.
     std::optional<RigSite> site;
@@ -109,6 +114,8 @@ private:
     Estimate<IntensityFit> intensities_;
     Estimate<EstimatedLight> sun_;
     uint64_t frames_ = 0;
+    int64_t last_probe_stamp_ns_ = 0;
+    bool probed_ = false;
 };
 
 }  // namespace mixray::tracking
