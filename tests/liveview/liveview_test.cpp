@@ -16,20 +16,9 @@
 #include <set>
 #include <thread>
 
-#if defined(__SANITIZE_ADDRESS__)
-#define MIXRAY_LIVEVIEW_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MIXRAY_LIVEVIEW_ASAN 1
-#endif
-#endif
-#if MIXRAY_LIVEVIEW_ASAN
-// The sanitizer runtime's own function (GCC ships no header declaring it).
-extern "C" size_t __sanitizer_get_current_allocated_bytes();
-#endif
-
 #include "headless_chromium.h"
 #include "image_to_jpeg.h"
+#include "memory_in_use.h"
 #include "mixray/graph/graph.h"
 #include "mixray/liveview/live_view.h"
 #include "mixray/pattern/pattern_backend.h"
@@ -554,19 +543,6 @@ TEST(LiveView, SeveralClientsGetEveryTileAtTheRateLimitWithStatusAndOverlays) {
     }
 }
 
-// The process's memory in use: RSS, or under AddressSanitizer its live heap bytes (its
-// quarantine keeps freed blocks resident, so RSS grows there with every frame freed).
-uint64_t memoryInUse() {
-#if MIXRAY_LIVEVIEW_ASAN
-    return __sanitizer_get_current_allocated_bytes();
-#else
-    std::ifstream statm("/proc/self/statm");
-    uint64_t pages = 0, resident = 0;
-    statm >> pages >> resident;
-    return resident * static_cast<uint64_t>(sysconf(_SC_PAGESIZE));
-#endif
-}
-
 TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
     test::runWithin(60s, "the stalled-client test", [](test::WatchdogStage& stage) {
         LiveViewOptions o = anyPort();
@@ -591,7 +567,7 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         });
         stage.set("waiting for the stalled client's buffers to fill");
         std::this_thread::sleep_for(1500ms);
-        const uint64_t memory_before = memoryInUse();
+        const uint64_t memory_before = test::memoryInUse();
         const uint64_t published_before = rig.device->publishedFrames();
         const int frames_before = frames.load();
         const auto t0 = Clock::now();
@@ -607,7 +583,7 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
         const uint64_t published = rig.device->publishedFrames() - published_before;
         const int received = frames.load() - frames_before;
-        const uint64_t memory_after = memoryInUse();
+        const uint64_t memory_after = test::memoryInUse();
         const LiveViewStats stats = rig.view->stats();
 
         // The camera kept its rate (2 streams at 30 fps) and lost nothing.

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "kinect_usb_emulator.h"
+#include "memory_in_use.h"
 #include "mixray/graph/graph.h"
 #include "mixray/graph/rig.h"
 #include "mixray/openni2/openni2_backend.h"
@@ -744,14 +745,6 @@ TEST(FreenectOpenNI2Backend, EndsTheStreamsOfAnUnpluggedKinectWithoutReconnect) 
     ASSERT_TRUE(kinect->replugCamera(tree("kinect_v1.umockdev"), &why)) << why;
 }
 
-size_t residentBytes() {
-    std::ifstream statm("/proc/self/statm");
-    size_t pages = 0;
-    size_t resident = 0;
-    statm >> pages >> resident;
-    return resident * static_cast<size_t>(sysconf(_SC_PAGESIZE));
-}
-
 // Polls `done` until it holds or `seconds` pass: an upper bound against hangs.
 template <typename F>
 bool eventually(F done, int seconds) {
@@ -861,12 +854,12 @@ objects:
         ASSERT_TRUE(eventually([&] { return composites(pipeline) >= while_lost + 10; }, 30))
             << "composites did not resume: " << pipeline.stats().json();
         if (cycle == 0)
-            rss_after_first_return = residentBytes();
+            rss_after_first_return = test::memoryInUse();
     }
     // Resident memory is reported, not bounded: it grows by tens of MB per unplug and replug
     // here (OpenNI2, the libfreenect plug-in and the umockdev emulator below the backend, whose
     // pools and the pipeline's are reused); the GigE Vision test bounds the pipeline's own.
-    const size_t rss_back = residentBytes();
+    const size_t rss_back = test::memoryInUse();
     RecordProperty(
         "rss_growth_second_replug_mb",
         std::to_string(

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "gv_simulator.h"
+#include "memory_in_use.h"
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/graph/rig.h"
 #include "mixray/render/ar_pipeline.h"
@@ -68,14 +69,6 @@ int64_t hostNowNs() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(
                std::chrono::steady_clock::now().time_since_epoch())
         .count();
-}
-
-size_t residentBytes() {
-    std::ifstream statm("/proc/self/statm");
-    size_t pages = 0;
-    size_t resident = 0;
-    statm >> pages >> resident;
-    return resident * static_cast<size_t>(sysconf(_SC_PAGESIZE));
 }
 
 // Polls `done` until it holds or `seconds` pass: an upper bound against hangs.
@@ -172,11 +165,11 @@ TEST(ArPipelineFaults, GigEVisionCameraKilledAndRestartedWhileCompositingAndReco
         ASSERT_TRUE(eventually([&] { return composites(*pipeline) >= while_lost + 10; }, 30))
             << "composites did not resume: " << pipeline->stats().json();
         if (cycle == 0)
-            rss_after_first_return = residentBytes();
+            rss_after_first_return = test::memoryInUse();
     }
     // A second loss and return costs no memory the first did not: buffers come from the same
     // pools, queues are bounded.
-    const size_t rss_after_second_return = residentBytes();
+    const size_t rss_after_second_return = test::memoryInUse();
     EXPECT_LT(rss_after_second_return, rss_after_first_return + (16u << 20))
         << "resident memory grew from " << rss_after_first_return << " to "
         << rss_after_second_return << " bytes over one loss and return";
