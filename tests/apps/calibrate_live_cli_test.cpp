@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
+#include <regex>
 #include <set>
 #include <thread>
 
@@ -88,7 +89,20 @@ TEST(CalibrateLiveCli, CtrlCEndsTheSessionRecordsAndSolves) {
          "--solve", "--camera", "kinect/color", "-o", (dir / "out").string()},
         dir / "output.txt");
     ASSERT_GT(p.pid, 0);
-    std::this_thread::sleep_for(std::chrono::seconds(6));
+    // Until the session kept a few views of the camera to solve (a slow machine, or a sanitizer
+    // build, takes longer to get there), then Ctrl-C.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(90);
+    const std::regex kept(R"(kinect/color ([0-9]+) kept)");
+    while (std::chrono::steady_clock::now() < deadline) {
+        const std::string text = test::readText(dir / "output.txt");
+        int most = 0;
+        for (auto it = std::sregex_iterator(text.begin(), text.end(), kept);
+             it != std::sregex_iterator(); ++it)
+            most = std::max(most, std::stoi((*it)[1]));
+        if (most >= 6)
+            break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
     kill(p.pid, SIGINT);
     const test::CliRun run = test::waitMixray(p);
     std::printf("%s", run.output.c_str());
