@@ -160,7 +160,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
             c.options["stamps"] = "arrival";
             // Live consumers (tracking, compositor, recorder, view) each hold a few frames of a
             // stream; the device must not run out of buffers before they drop old ones.
-            c.options["buffers"] = "24";
+            c.options["buffers"] = "32";
         }
         c.options["loop"] = source.loop ? "true" : "false";
         configs.push_back(std::move(c));

@@ -198,16 +198,16 @@ Status CompositorNode::connect(Graph& graph) {
     addInput(options_.pose_stream, pose_index_);
     addInput(options_.light_stream, light_index_);
     // Live, every frame held here is a device buffer held: keep only what matching needs, which
-    // is the colour frames of the last ~quarter second: a frame's pose and lights come from the
+    // is the colour frames of the last half second: a frame's pose and lights come from the
     // tracking node that long after it at worst, and a frame dropped before they come can never
-    // form a set (on a slow machine no composite at all would be made).
+    // form a set (on a slow machine, or under a sanitizer, no composite at all would be made).
     const size_t capacity = options_.lossless ? options_.queue_capacity : 3;
     sync.queue = {capacity, options_.lossless ? QueuePolicy::kLossless : QueuePolicy::kLive,
                   options_.name};
     sync.sync.time_base = options_.time_base;
     // Frames of one instant: under half a colour period apart.
     sync.sync.max_skew_ns = static_cast<int64_t>(0.45e9 / fps);
-    sync.sync.queue_size = static_cast<uint32_t>(options_.lossless ? options_.queue_capacity : 8);
+    sync.sync.queue_size = static_cast<uint32_t>(options_.lossless ? options_.queue_capacity : 16);
     for (const std::string& name : sync.streams) {
         const auto id = graph.findStream(name);
         if (!id)
