@@ -854,12 +854,12 @@ objects:
         ASSERT_TRUE(eventually([&] { return composites(pipeline) >= while_lost + 10; }, 30))
             << "composites did not resume: " << pipeline.stats().json();
         if (cycle == 0)
-            rss_after_first_return = test::memoryInUse();
+            rss_after_first_return = ::mixray::test::memoryInUse();
     }
     // Resident memory is reported, not bounded: it grows by tens of MB per unplug and replug
     // here (OpenNI2, the libfreenect plug-in and the umockdev emulator below the backend, whose
     // pools and the pipeline's are reused); the GigE Vision test bounds the pipeline's own.
-    const size_t rss_back = test::memoryInUse();
+    const size_t rss_back = ::mixray::test::memoryInUse();
     RecordProperty(
         "rss_growth_second_replug_mb",
         std::to_string(
