@@ -51,4 +51,24 @@ void registerRecordingFormats() {
          }});
 }
 
+Result<std::unique_ptr<render::ArPipeline>> recordingPipeline(const std::string& recording,
+                                                              render::ArPipelineOptions options) {
+    render::ArSource source;
+    source.recording = recording;
+    source.pace = render::ArSource::Pace::kFast;
+    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(options));
+    if (!pipeline)
+        return pipeline.status().withContext(recording);
+    return pipeline;
+}
+
+Status runPipeline(render::ArPipeline& pipeline, const std::function<bool()>& stop_early) {
+    MIXRAY_RETURN_IF_ERROR(pipeline.start());
+    while (!pipeline.waitDone(std::chrono::milliseconds(50)))
+        if (stop_early())
+            break;
+    pipeline.stop();
+    return pipeline.status();
+}
+
 }  // namespace mixray::cli

@@ -1,7 +1,12 @@
 // The device backends this build of mixray offers, in one registry.
 #pragma once
 
+#include <functional>
+#include <memory>
+#include <string>
+
 #include "mixray/graph/device.h"
+#include "mixray/render/ar_pipeline.h"
 
 namespace mixray::cli {
 
@@ -11,5 +16,15 @@ BackendRegistry makeBackendRegistry();
 // Teaches replay::openRecording() (mixray info, convert, the replay backend) the recording
 // formats that backends read: OpenNI .oni files through the openni2 backend.
 void registerRecordingFormats();
+
+// A recording through the AR pipeline as fast as the pipeline takes it (every frame: mixray
+// demo, track and render), its devices opened through makeBackendRegistry(). Errors name the
+// recording.
+Result<std::unique_ptr<render::ArPipeline>> recordingPipeline(const std::string& recording,
+                                                              render::ArPipelineOptions options);
+
+// Starts `pipeline`, waits until it is done or `stop_early` says so (polled every 50 ms), and
+// stops it: the start error, else the pipeline's own status.
+Status runPipeline(render::ArPipeline& pipeline, const std::function<bool()>& stop_early);
 
 }  // namespace mixray::cli

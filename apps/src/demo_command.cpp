@@ -374,21 +374,14 @@ int runDemo(const DemoOptions& options) {
             enough = true;
     };
 
-    render::ArSource source;
-    source.recording = options.session;
-    source.pace = render::ArSource::Pace::kFast;
-    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    auto pipeline = recordingPipeline(options.session, std::move(ar));
     if (!pipeline)
-        return fail("demo", pipeline.status().withContext(options.session));
-    if (Status s = (*pipeline)->start(); !s)
-        return fail("demo", s);
-    while (!(*pipeline)->waitDone(std::chrono::milliseconds(50)))
-        if (interrupt.raised() || enough || failed)
-            break;
-    (*pipeline)->stop();
+        return fail("demo", pipeline.status());
+    const Status ran =
+        runPipeline(**pipeline, [&] { return interrupt.raised() || enough || failed; });
     status.finish();
     if (result)
-        result = (*pipeline)->status();
+        result = ran;
     Status closed = (*video)->close();
     if (result)
         result = closed;

@@ -112,9 +112,6 @@ int runRender(const RenderCommandOptions& options) {
             ar.T_world_anchor.try_emplace(light.anchor, Eigen::Isometry3d::Identity());
     ar.scene = std::move(scene).value();
 
-    render::ArSource source;
-    source.recording = options.session;
-    source.pace = render::ArSource::Pace::kFast;
     // From here on a signal stops the work (the frame in progress within a tile) and the video
     // is closed with the frames done, so it plays.
     InterruptFlag interrupt;
@@ -172,9 +169,9 @@ int runRender(const RenderCommandOptions& options) {
         if (options.max_frames > 0 && frames >= options.max_frames)
             enough = true;
     };
-    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    auto pipeline = recordingPipeline(options.session, std::move(ar));
     if (!pipeline)
-        return fail("render", pipeline.status().withContext(options.session));
+        return fail("render", pipeline.status());
     const Graph& graph = (*pipeline)->graph();
     const StreamInfo color_info = graph.stream(*graph.findStream((*pipeline)->colorStream()));
     const double fps = color_info.nominal_fps > 0 ? color_info.nominal_fps : 30.0;
@@ -188,15 +185,11 @@ int runRender(const RenderCommandOptions& options) {
     if (!made)
         return fail("render", made.status());
     video = std::move(made).value();
-    if (Status s = (*pipeline)->start(); !s)
-        return fail("render", s);
-    while (!(*pipeline)->waitDone(std::chrono::milliseconds(50)))
-        if (interrupt.raised() || enough || failed)
-            break;
-    (*pipeline)->stop();
+    const Status ran =
+        runPipeline(**pipeline, [&] { return interrupt.raised() || enough || failed; });
     status.finish();
     if (result)
-        result = (*pipeline)->status();
+        result = ran;
     Status closed = video->close();
     // A signal also ends the frame in progress: the renderer drops it whole.
     const bool stopped = interrupt.raised();

@@ -305,21 +305,14 @@ int runTrack(const TrackCommandOptions& options) {
         if (options.max_frames > 0 && frames.size() >= options.max_frames)
             enough = true;
     };
-    render::ArSource source;
-    source.recording = options.session;
-    source.pace = render::ArSource::Pace::kFast;
-    auto pipeline = render::ArPipeline::create(makeBackendRegistry(), source, std::move(ar));
+    auto pipeline = recordingPipeline(options.session, std::move(ar));
     if (!pipeline)
-        return fail("track", pipeline.status().withContext(options.session));
-    if (Status s = (*pipeline)->start(); !s)
-        return fail("track", s);
-    while (!(*pipeline)->waitDone(std::chrono::milliseconds(50)))
-        if (interrupt.raised() || enough || failed)
-            break;
-    (*pipeline)->stop();
+        return fail("track", pipeline.status());
+    const Status ran =
+        runPipeline(**pipeline, [&] { return interrupt.raised() || enough || failed; });
     status.finish();
     if (result)
-        result = (*pipeline)->status();
+        result = ran;
     if (video) {
         Status closed = video->close();
         if (result)
