@@ -336,6 +336,46 @@ TEST(ReplayDevice, OriginalPaceTakesTheRecordingsDuration) {
     }
 }
 
+TEST(ReplayDevice, ArrivalStampsKeepTheRecordingsTimingWhenDeliveryIsLate) {
+    // Two frames of one instant, then two 50 ms apart; a consumer that takes 300 ms per frame
+    // makes the replay deliver late. The host stamps are still the recording's instants on the
+    // host clock (frames of one instant keep one stamp); the lateness is in graph_stamp_ns.
+    const std::vector<int64_t> stamps{7'000'000'000, 7'000'000'000, 7'050'000'000, 7'100'000'000};
+    auto device =
+        openReplayDevice(std::make_unique<FakeReader>(stamps), config({{"stamps", "arrival"}}));
+    ASSERT_TRUE(device) << device.status().toString();
+    Graph graph;
+    ASSERT_TRUE(graph.addNode(std::move(*device)));
+    auto queue = *graph.subscribe(0, {1, QueuePolicy::kLossless, "slow"});
+    const auto monotonicNs = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+            .count();
+    };
+    const int64_t before = monotonicNs();
+    ASSERT_TRUE(graph.start());
+    std::vector<test::OwnedFrame> frames;
+    while (auto frame = queue->pop(std::chrono::seconds(10))) {
+        frames.push_back({frame->meta(), Image::copyOf(frame->image())});
+        std::this_thread::sleep_for(milliseconds(300));
+    }
+    const int64_t after = monotonicNs();
+    graph.stop();
+    ASSERT_EQ(frames.size(), 4u);
+    EXPECT_EQ(frames[0].meta.host_stamp_ns, frames[1].meta.host_stamp_ns);
+    for (size_t i : {2, 3})
+        EXPECT_NEAR(
+            static_cast<double>(frames[i].meta.host_stamp_ns - frames[0].meta.host_stamp_ns),
+            50e6 * static_cast<double>(i - 1), 1.0);
+    for (const auto& f : frames) {
+        EXPECT_GE(f.meta.host_stamp_ns, before);
+        EXPECT_LE(f.meta.host_stamp_ns, after);
+        EXPECT_GE(f.meta.graph_stamp_ns, f.meta.host_stamp_ns);
+    }
+    // The last frame waited behind the slow consumer (its predecessor's publish blocked until
+    // the consumer took the second frame, at about 300 ms), well past its 100 ms.
+    EXPECT_GT(frames[3].meta.graph_stamp_ns - frames[3].meta.host_stamp_ns, 100'000'000);
+}
+
 TEST(ReplayDevice, StopInterruptsPacingAndBlockedPublishes) {
     auto device = openReplayDevice(
         std::make_unique<FakeReader>(std::vector<int64_t>{0, 60'000'000'000}), config({}));

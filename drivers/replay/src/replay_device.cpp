@@ -527,9 +527,19 @@ void ReplayDevice::run() {
         timespec now{};
         clock_gettime(CLOCK_MONOTONIC, &now);
         out_meta.graph_stamp_ns = static_cast<int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-        // As a live device delivers it: stamped on the host when it "arrives" (now).
+        // As a live device stamps it: on the host clock, at the instant the recording's timing
+        // says it arrives (steady_clock is CLOCK_MONOTONIC). Not when this thread got round to
+        // it: on a loaded machine the colour and depth of one instant leave a decode apart, and
+        // stamped then they would no longer look like one instant to the synchronizer. How late
+        // the frame really is stays in graph_stamp_ns, which latency is measured from.
         if (options_.arrival_stamps)
-            out_meta.host_stamp_ns = out_meta.graph_stamp_ns;
+            out_meta.host_stamp_ns =
+                std::chrono::duration_cast<std::chrono::nanoseconds>(
+                    (wall0 +
+                     std::chrono::nanoseconds(std::llround(
+                         static_cast<double>(out_meta.host_stamp_ns - stamp0) / options_.speed)))
+                        .time_since_epoch())
+                    .count();
 
         // Forward the reader's buffer itself when this is its only handle; otherwise (or to
         // convert depth units) fill one of our own.

@@ -29,8 +29,10 @@ namespace mixray::replay {
 //                or the recorded names themselves ("kinect/color"), as the rig that made the
 //                recording published them: a recording standing in for its rig
 //   stamps       recorded | arrival (default recorded; arrival only with pace=original): host
-//                stamps as recorded, or the host time each frame is published, as a live
-//                device stamps its frames (latency measured from capture is then real)
+//                stamps as recorded, or the host time each frame is due to arrive by the
+//                recording's timing, as a live device stamps its frames (frames captured
+//                together keep one stamp however late the replay delivers them; the delivery
+//                time is FrameMetadata::graph_stamp_ns)
 // A rig file's per-stream mode requests ("depth.width", ".height", ".fps", ".format") are
 // accepted when they describe what was recorded (a recording cannot change its mode); they are
 // checked by openReplayDevice(), which knows the recording.
