@@ -131,7 +131,30 @@ Result<std::unique_ptr<CompositorNode>> CompositorNode::create(CompositorOptions
     auto first = node->renderer(0);
     if (!first)
         return first.status();
+    if (!node->options_.lossless)
+        MIXRAY_RETURN_IF_ERROR(node->warmUp());
     return node;
+}
+
+Status CompositorNode::warmUp() {
+    // Live, every rung the ladder may step to is built and has rendered once before the first
+    // frame comes: a renderer's first frame builds its camera-ray cache and thread state, which
+    // took 50 to 150 ms of one frame's latency (each step down the ladder at start-up was
+    // such a frame). A grey image seen from the identity pose; the output is thrown away.
+    Image grey(
+        ImageDesc::packed(PixelFormat::kRGB8, options_.camera.width, options_.camera.height));
+    std::fill(grey.bytes().begin(), grey.bytes().end(), uint8_t{128});
+    RenderInputs in;
+    in.camera_image = grey.view();
+    in.camera = options_.camera;
+    in.T_world_anchor = options_.T_world_anchor;
+    for (int step = 0; step < static_cast<int>(ladder_.size()); ++step) {
+        auto r = renderer(step);
+        if (!r)
+            return r.status();
+        MIXRAY_RETURN_IF_ERROR((*r)->render(in, layers_).withContext(options_.name + ": warm-up"));
+    }
+    return Status::ok();
 }
 
 CompositorNode::CompositorNode(CompositorOptions options, SceneDescription scene,

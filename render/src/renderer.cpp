@@ -164,6 +164,21 @@ struct RayCache {
     uint64_t seed = 0;
     std::vector<Vec3> directions;         // ((y * width + x) * samples + s)
     std::vector<detail::TileCone> cones;  // per tile of options.tile_size
+    // The z of the unit ray through each pixel's centre (y * width + x), exactly as
+    // rayDistanceAt() computes it; NaN where it has none in front of the camera.
+    std::vector<double> centre_cos;
+
+    // rayDistanceAt(depth, x, y) for a depth image registered to `model`, from the cache:
+    // the same value, without a lens unprojection per pixel per frame.
+    std::optional<float> rayDistanceAt(const DepthView& depth, int x, int y) const {
+        const std::optional<float> z = depth.zAt(x, y);
+        if (!z)
+            return std::nullopt;
+        const double c = centre_cos[static_cast<size_t>(y) * model.width + x];
+        if (!(c > 0))
+            return std::nullopt;
+        return static_cast<float>(*z / c);
+    }
 };
 
 // Per-frame tracing context: read-only during the parallel loop.
@@ -889,13 +904,16 @@ void EmbreeRenderer::updateRayCache(const calibration::CameraModel& camera) {
     if (!rays_.directions.empty() && sameModel(rays_.model, camera) && rays_.samples == spp &&
         rays_.seed == options_.seed)
         return;
-    rays_ = {camera, spp, options_.seed, {}, {}};
+    rays_ = {camera, spp, options_.seed, {}, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
     rays_.directions.resize(static_cast<size_t>(w) * camera.height * spp);
+    rays_.centre_cos.resize(static_cast<size_t>(w) * camera.height);
     tbb::parallel_for(0, camera.height, [&](int y) {
         for (int x = 0; x < w; ++x) {
             const size_t pixel = static_cast<size_t>(y) * w + x;
+            const auto centre = camera.unproject(Eigen::Vector2d(x, y));
+            rays_.centre_cos[pixel] = centre ? centre->z() : NAN;
             optics::Rng rng(hashIndex(options_.seed, pixel, 0x5eed));
             for (int k = 0; k < spp; ++k) {
                 // Stratified jitter; one sample sits exactly on the pixel centre.
@@ -980,7 +998,7 @@ void EmbreeRenderer::depthRegions(const Frame& f, detail::FootprintScene& fp) co
             float margin = 0;
             for (int y = ty * ts; y < std::min(h, (ty + 1) * ts); ++y)
                 for (int x = tx * ts; x < std::min(w, (tx + 1) * ts); ++x) {
-                    const std::optional<float> dist = rayDistanceAt(*f.depth, x, y);
+                    const std::optional<float> dist = rays_.rayDistanceAt(*f.depth, x, y);
                     if (!dist)
                         continue;
                     for (int k = 0; k < spp; ++k) {
@@ -1289,7 +1307,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                             (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
                 const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
                 const std::optional<float> depth_limit =
-                    f.depth ? rayDistanceAt(*f.depth, x, y) : std::nullopt;
+                    f.depth ? rays_.rayDistanceAt(*f.depth, x, y) : std::nullopt;
                 // Whether virtual content can touch this pixel.
                 bool influenced = false;
                 std::fill(scratch.have_surface.begin(), scratch.have_surface.end(), 0);

@@ -1,12 +1,16 @@
 // The tracking half of the AR pipeline (mixray/tracking/pipeline.h).
 #include "mixray/tracking/pipeline.h"
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <ctime>
 #include <iomanip>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
 namespace mixray::tracking {
 namespace {
@@ -113,6 +117,93 @@ Result<std::optional<int64_t>> recordingUtcOffset(const RecordingReader& reader)
     return std::optional<int64_t>(offset);
 }
 
+// The probe estimates of the newest frame handed over, on a thread of its own. The pipeline's
+// own probes_ and intensities_ are left alone: the worker keeps the current ones.
+class TrackingPipeline::ProbeWorker {
+public:
+    ProbeWorker(const TrackingPipeline& pipeline, size_t probes) : pipeline_(pipeline) {
+        current_.probes.resize(probes);
+        thread_ = std::thread([this] { run(); });
+    }
+    ~ProbeWorker() {
+        {
+            std::lock_guard lock(mutex_);
+            stop_ = true;
+        }
+        cv_.notify_all();
+        thread_.join();
+    }
+    ProbeWorker(const ProbeWorker&) = delete;
+    ProbeWorker& operator=(const ProbeWorker&) = delete;
+
+    // Copies the image; a job not yet started is replaced by the newer one.
+    void submit(const ImageView& color, const Eigen::Isometry3d& T_world_camera, int64_t stamp,
+                const TrackedFrame& frame) {
+        Job job;
+        job.color = Image::copyOf(color);
+        job.T_world_camera = T_world_camera;
+        job.stamp = stamp;
+        job.environment = frame.environment;
+        job.sun = frame.sun;
+        {
+            std::lock_guard lock(mutex_);
+            pending_ = std::move(job);
+        }
+        cv_.notify_all();
+    }
+    // A frame without a fresh pose: the estimates stand, marked stale with the reason.
+    void keep(const std::string& why, int64_t stamp, bool diffuse) {
+        std::lock_guard lock(mutex_);
+        for (size_t i = 0; i < current_.probes.size(); ++i)
+            current_.probes[i].keep(why, stamp);
+        if (diffuse)
+            current_.intensities.keep("no fresh camera pose", stamp);
+    }
+    void latest(TrackedFrame& out) const {
+        std::lock_guard lock(mutex_);
+        out.probes = current_.probes;
+        out.intensities = current_.intensities;
+    }
+
+private:
+    struct Job {
+        Image color;
+        Eigen::Isometry3d T_world_camera;
+        int64_t stamp = 0;
+        Estimate<EnvironmentEstimate> environment;
+        Estimate<EstimatedLight> sun;
+    };
+    void run() {
+        std::unique_lock lock(mutex_);
+        while (true) {
+            cv_.wait(lock, [this] { return stop_ || pending_; });
+            if (stop_)
+                return;
+            Job job = std::move(*pending_);
+            pending_.reset();
+            TrackedFrame frame;
+            frame.probes = current_.probes;
+            frame.intensities = current_.intensities;
+            frame.environment = std::move(job.environment);
+            frame.sun = std::move(job.sun);
+            lock.unlock();
+            pipeline_.estimateProbes(job.color.view(), job.T_world_camera, job.stamp, frame);
+            lock.lock();
+            current_.probes = std::move(frame.probes);
+            current_.intensities = std::move(frame.intensities);
+        }
+    }
+
+    const TrackingPipeline& pipeline_;
+    mutable std::mutex mutex_;
+    std::condition_variable cv_;
+    std::optional<Job> pending_;
+    TrackedFrame current_;
+    bool stop_ = false;
+    std::thread thread_;
+};
+
+TrackingPipeline::TrackingPipeline() = default;
 TrackingPipeline::~TrackingPipeline() = default;
 
 Result<std::unique_ptr<TrackingPipeline>> TrackingPipeline::create(
@@ -145,6 +236,9 @@ Result<std::unique_ptr<TrackingPipeline>> TrackingPipeline::create(
     }
     p->probes_.resize(options.probes ? setup.probes.size() : 0);
     p->setup_ = std::move(setup);
+    if (options.async_probes && !p->probes_.empty()) {
+        p->probe_worker_ = std::make_unique<ProbeWorker>(*p, p->probes_.size());
+    }
     return p;
 }
 
@@ -173,29 +267,6 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
 
     const bool fresh_pose =
         out.track.state == TrackState::kTracking && out.track.pose.value.has_value();
-    start = std::chrono::steady_clock::now();
-    // Between two probe estimates (probe_interval_ms) the last ones stand as they are.
-    const bool probe_due = options_.probe_interval_ms <= 0 || !probed_ ||
-                           stamp - last_probe_stamp_ns_ >= options_.probe_interval_ms * 1'000'000;
-    if (probe_due && fresh_pose) {
-        probed_ = true;
-        last_probe_stamp_ns_ = stamp;
-    }
-    for (size_t i = 0; i < probes_.size() && probe_due; ++i) {
-        const LightProbe& probe = setup_.probes[i];
-        if (!fresh_pose) {
-            probes_[i].keep("no fresh camera pose (" + out.track.pose.reason + ")", stamp);
-            continue;
-        }
-        auto lights = estimateProbeLights(frame.image(), setup_.camera.model, *out.track.pose.value,
-                                          probe, setup_.probe_options);
-        if (lights)
-            probes_[i].update(std::move(lights).value(), stamp);
-        else
-            probes_[i].keep(probe.name + ": " + lights.status().message(), stamp);
-    }
-    out.probe_ms = millisecondsSince(start);
-    out.probes = probes_;
     if (options_.site) {
         if (!options_.utc_minus_host_ns && options_.utc_first_frame_ns)
             options_.utc_minus_host_ns = *options_.utc_first_frame_ns - stamp;
@@ -231,31 +302,83 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
     } else if (setup_.environment)
         out.environment.keep("the recording has no stream " + setup_.environment->stream, stamp);
 
+    start = std::chrono::steady_clock::now();
+    // Between two probe estimates (probe_interval_ms) the last ones stand as they are.
+    const bool probe_due = options_.probe_interval_ms <= 0 || !probed_ ||
+                           stamp - last_probe_stamp_ns_ >= options_.probe_interval_ms * 1'000'000;
+    if (probe_due && fresh_pose) {
+        probed_ = true;
+        last_probe_stamp_ns_ = stamp;
+    }
+    const bool diffuse =
+        std::any_of(setup_.probes.begin(), setup_.probes.end(),
+                    [](const LightProbe& p) { return p.material == ProbeMaterial::kDiffuse; }) &&
+        !probes_.empty();
+    if (probe_due && !fresh_pose) {
+        const std::string why = "no fresh camera pose (" + out.track.pose.reason + ")";
+        if (probe_worker_) {
+            probe_worker_->keep(why, stamp, diffuse);
+        } else {
+            for (auto& p : probes_)
+                p.keep(why, stamp);
+            if (diffuse)
+                intensities_.keep("no fresh camera pose", stamp);
+        }
+    } else if (probe_due && probe_worker_) {
+        probe_worker_->submit(frame.image(), *out.track.pose.value, stamp, out);
+    } else if (probe_due && !probes_.empty()) {
+        out.probes = std::move(probes_);
+        out.intensities = std::move(intensities_);
+        estimateProbes(frame.image(), *out.track.pose.value, stamp, out);
+        probes_ = out.probes;
+        intensities_ = out.intensities;
+    }
+    // Between estimates (and live, until the worker finishes) the last ones stand.
+    if (probe_worker_) {
+        probe_worker_->latest(out);
+    } else {
+        out.probes = probes_;
+        out.intensities = intensities_;
+    }
+    out.probe_ms = millisecondsSince(start);
+    return std::optional<TrackedFrame>(std::move(out));
+}
+
+void TrackingPipeline::estimateProbes(const ImageView& color,
+                                      const Eigen::Isometry3d& T_world_camera, int64_t stamp,
+                                      TrackedFrame& frame) const {
+    for (size_t i = 0; i < frame.probes.size(); ++i) {
+        const LightProbe& probe = setup_.probes[i];
+        auto lights = estimateProbeLights(color, setup_.camera.model, T_world_camera, probe,
+                                          setup_.probe_options);
+        if (lights)
+            frame.probes[i].update(std::move(lights).value(), stamp);
+        else
+            frame.probes[i].keep(probe.name + ": " + lights.status().message(), stamp);
+    }
     // Strengths of the lights whose directions are known, from a diffuse probe.
-    const std::vector<EstimatedLight> directions = lightDirections(out);
     const LightProbe* diffuse = nullptr;
-    for (size_t i = 0; i < probes_.size(); ++i)
+    for (size_t i = 0; i < frame.probes.size(); ++i)
         if (setup_.probes[i].material == ProbeMaterial::kDiffuse)
             diffuse = &setup_.probes[i];
-    if (!probe_due) {
-        // The last fit stands until the next probe estimate.
-    } else if (diffuse && fresh_pose && !directions.empty()) {
-        std::vector<Eigen::Vector3d> to_light;
-        for (const EstimatedLight& l : directions)
-            to_light.push_back(l.to_light_world);
-        IntensityFitOptions fit_options;
-        fit_options.albedo = diffuse->albedo;
-        auto fit = fitLightIntensities(frame.image(), setup_.camera.model, *out.track.pose.value,
-                                       *diffuse, to_light, fit_options);
-        if (fit)
-            intensities_.update(std::move(fit).value(), stamp);
-        else
-            intensities_.keep(fit.status().message(), stamp);
-    } else if (diffuse) {
-        intensities_.keep(fresh_pose ? "no light directions yet" : "no fresh camera pose", stamp);
+    if (!diffuse)
+        return;
+    const std::vector<EstimatedLight> directions = lightDirections(frame);
+    if (directions.empty()) {
+        frame.intensities.keep("no light directions yet", stamp);
+        return;
     }
-    out.intensities = intensities_;
-    return std::optional<TrackedFrame>(std::move(out));
+    std::vector<Eigen::Vector3d> to_light;
+    for (const EstimatedLight& l : directions)
+        to_light.push_back(l.to_light_world);
+    IntensityFitOptions fit_options;
+    fit_options.albedo = diffuse->albedo;
+    auto fit = fitLightIntensities(color, setup_.camera.model, T_world_camera, *diffuse, to_light,
+                                   fit_options);
+    if (fit)
+        frame.intensities.update(std::move(fit).value(), stamp);
+    else
+        frame.intensities.keep(fit.status().message(), stamp);
 }
 
 std::vector<EstimatedLight> TrackingPipeline::lightDirections(const TrackedFrame& frame) const {

@@ -48,6 +48,8 @@ Status TrackingNode::connect(Graph& graph) {
     pipeline_options.wait_for_environment = options_.lossless;
     if (!options_.lossless && pipeline_options.probe_interval_ms == 0)
         pipeline_options.probe_interval_ms = kLiveProbeIntervalMs;
+    // Live, tracking keeps the camera's rate while the probes are estimated beside it.
+    pipeline_options.async_probes = !options_.lossless;
     auto pipeline = TrackingPipeline::create(options_.setup, graph.streams(), pipeline_options);
     if (!pipeline)
         return pipeline.status().withContext(options_.name);

@@ -187,6 +187,7 @@ private:
     void run();
     Status composite(const Pending& set);
     Result<Renderer*> renderer(int step);
+    Status warmUp();
     void drainEnvironmentMaps();
     void finish(Status status);
     WritableFrame acquire(BufferPool& pool);

@@ -45,7 +45,7 @@ struct TrackedFrame {
     // Irradiance of the lights (directions from lights()) fitted to a diffuse probe.
     Estimate<IntensityFit> intensities;
     double track_ms = 0;  // marker tracking of this frame
-    double probe_ms = 0;  // probe light estimation of this frame
+    double probe_ms = 0;  // probe light estimation of this frame (async: handing it over)
 };
 
 struct PipelineOptions {
@@ -63,6 +63,11 @@ struct PipelineOptions {
     // marker tracking, so live this keeps tracking at the camera's rate. 0: every colour frame
     // (offline, the default). TrackingNode sets 200 ms when it runs live unless told otherwise.
     int64_t probe_interval_ms = 0;
+    // Estimate the probes' lights (and fit the strengths) on a thread of their own, newest
+    // frame wins, instead of in push(): push() then returns the latest finished estimates, and
+    // tracking never waits for the probes. Live only: what a frame gets then depends on
+    // timing. TrackingNode sets it when it runs live.
+    bool async_probes = false;
     // Where the rig stands (its rig file's site:) and UTC minus the host clock: with both, each
     // colour frame also gets the sun's direction.
     std::optional<RigSite> site;
@@ -101,8 +106,13 @@ public:
     std::vector<EstimatedLight> renderLights(const TrackedFrame& frame) const;
 
 private:
-    TrackingPipeline() = default;
+    class ProbeWorker;
+    TrackingPipeline();
     std::vector<EstimatedLight> lightDirections(const TrackedFrame& frame) const;
+    // The probes' lights and the strengths fit from the colour image of a frame with a fresh
+    // pose; `frame` brings the environment and sun estimates the fit takes directions from.
+    void estimateProbes(const ImageView& color, const Eigen::Isometry3d& T_world_camera,
+                        int64_t stamp, TrackedFrame& frame) const;
 
     TrackingSetup setup_;
     PipelineOptions options_;
@@ -112,6 +122,7 @@ private:
     std::unique_ptr<AsyncEnvironmentEstimator> environment_estimator_;
     std::vector<Estimate<ProbeResult>> probes_;
     Estimate<IntensityFit> intensities_;
+    std::unique_ptr<ProbeWorker> probe_worker_;  // async_probes
     Estimate<EstimatedLight> sun_;
     uint64_t frames_ = 0;
     int64_t last_probe_stamp_ns_ = 0;
