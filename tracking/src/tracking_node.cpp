@@ -74,17 +74,24 @@ Status TrackingNode::connect(Graph& graph) {
 
     const StreamInfo color = graph.stream(color_);
     const double fps = color.nominal_fps > 0 ? color.nominal_fps : 30;
+    // Live, a pose or light record waits in the compositor's synchronizer for its colour frame
+    // (up to half a second, 16 records) while the recorder and the view hold a few more: with
+    // the colour frame's 8, one frame in four found the pool empty and went unpublished.
+    // Records are small; a second and a half of them costs a few hundred kilobytes.
+    const size_t record_buffers =
+        options_.lossless ? options_.output_buffers
+                          : std::max(options_.output_buffers, static_cast<size_t>(1.5 * fps));
     StreamInfo pose = makePoseStreamInfo(options_.pose_stream, color.name, fps, false);
     pose.device = options_.name;
     pose.clock_domain = color.clock_domain;
-    auto pose_out = addPooledStream(graph, pose, options_.output_buffers);
+    auto pose_out = addPooledStream(graph, pose, record_buffers);
     if (!pose_out)
         return pose_out.status();
     pose_out_ = std::move(pose_out).value();
     StreamInfo lights = makeLightStreamInfo(options_.light_stream, color.name, fps);
     lights.device = options_.name;
     lights.clock_domain = color.clock_domain;
-    auto light_out = addPooledStream(graph, lights, options_.output_buffers);
+    auto light_out = addPooledStream(graph, lights, record_buffers);
     if (!light_out)
         return light_out.status();
     light_out_ = std::move(light_out).value();

@@ -86,6 +86,8 @@ Status Recorder::connect(Graph& graph) {
         }
         Input input;
         input.graph_id = *id;
+        const double fps = graph.stream(*id).nominal_fps;
+        input.min_period_ns = fps > 0 ? static_cast<int64_t>(0.8e9 / fps) : 0;
         header_.streams.push_back(graph.stream(*id));
         inputs_.push_back(std::move(input));
         RecorderStreamStats stats;
@@ -165,6 +167,7 @@ bool Recorder::pullHeads(bool wait) {
         if (frame) {
             input.head = std::move(*frame);
             input.head_since = Clock::now();
+            input.last_stamp_ns = input.head.meta().host_stamp_ns;
             got = true;
         }
     }
@@ -199,7 +202,6 @@ void Recorder::run() {
     while (true) {
         pullHeads(false);
         size_t best = inputs_.size();
-        bool all_present = true;
         bool all_finished = true;
         for (size_t i = 0; i < inputs_.size(); ++i) {
             const Input& input = inputs_[i];
@@ -210,13 +212,20 @@ void Recorder::run() {
                     best = i;
                 }
             } else if (!input.finished) {
-                all_present = false;
                 all_finished = false;
             }
         }
         if (all_finished)
             break;
         if (best < inputs_.size()) {
+            // Every stream without a head either ended or cannot bring an older frame (a
+            // slow stream, such as a fish-eye at 2 fps, holds the others back only for frames
+            // within one of its periods).
+            const int64_t best_stamp = inputs_[best].head.meta().host_stamp_ns;
+            const bool all_present =
+                std::all_of(inputs_.begin(), inputs_.end(), [best_stamp](const Input& input) {
+                    return input.head || input.finished || !input.mayPrecede(best_stamp);
+                });
             bool failed = false;
             {
                 std::lock_guard lock(stats_mutex_);

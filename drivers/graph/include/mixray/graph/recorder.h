@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -99,6 +100,16 @@ private:
         FrameRef head;  // popped, waiting for its turn
         std::chrono::steady_clock::time_point head_since;
         bool finished = false;
+        // The stream's frames come at least this far apart (80 % of its nominal period; 0:
+        // unknown), and the last one popped had this host stamp: until then plus the period,
+        // the stream cannot bring a frame that should be written before another stream's.
+        int64_t min_period_ns = 0;
+        std::optional<int64_t> last_stamp_ns;
+        // Whether its next frame may be older than `stamp_ns` (host time base).
+        bool mayPrecede(int64_t stamp_ns) const {
+            return !last_stamp_ns || min_period_ns == 0 ||
+                   *last_stamp_ns + min_period_ns <= stamp_ns;
+        }
     };
 
     void run();
