@@ -114,6 +114,62 @@ TEST_F(RecorderTest, RecordsAllStreamsLosslesslyInHostStampOrder) {
     }
 }
 
+TEST_F(RecorderTest, ASlowStreamHoldsBackOnlyFramesWithinOneOfItsPeriods) {
+    // A 30 fps camera and a 2 fps fish-eye. Once the fish-eye's frame at 0 is written, its
+    // next cannot come before 0.4 s (80 % of its period): the camera's frames until then are
+    // written at once, without waiting for the reorder window (here an hour); later ones wait
+    // for the fish-eye's next frame, which puts them back in order.
+    const auto path = test::tempDir() / "slow_stream.mkv";
+    Graph graph;
+    StreamInfo camera_info = test::makeStream("cam/color", PixelFormat::kRGB8, 8, 6);
+    camera_info.nominal_fps = 30;
+    StreamInfo fisheye_info = test::makeStream("env/color", PixelFormat::kRGB8, 8, 6);
+    fisheye_info.nominal_fps = 2;
+    const StreamId camera = addStream(graph, camera_info);
+    const StreamId fisheye = addStream(graph, fisheye_info);
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLossless;
+    options.queue_capacity = 64;
+    options.reorder_window = std::chrono::hours(1);
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+    const int64_t period = 33'333'333;
+    publish(graph, fisheye, 0, 0);
+    publish(graph, camera, 0, 1'000'000);  // after it: both heads there, the fish-eye's goes
+    const auto written = [rec] {
+        const RecorderStats stats = rec->stats();
+        return stats.streams[0].written + stats.streams[1].written;
+    };
+    const auto waitWritten = [&](uint64_t n) {
+        for (int i = 0; i < 1000 && written() < n; ++i)
+            std::this_thread::sleep_for(milliseconds(10));
+        return written();
+    };
+    // Camera frames 1..11 (up to 0.368 s) come before the fish-eye's next can.
+    for (int i = 1; i < 12; ++i)
+        publish(graph, camera, i, 1'000'000 + i * period);
+    EXPECT_EQ(waitWritten(13), 13u);
+    // 0.401 s and on: the fish-eye may bring an older frame, so they wait for it.
+    for (int i = 12; i < 15; ++i)
+        publish(graph, camera, i, 1'000'000 + i * period);
+    std::this_thread::sleep_for(milliseconds(300));
+    EXPECT_EQ(written(), 13u);
+    // It brings one at 0.5 s: the three older camera frames go, it waits for the camera's next.
+    publish(graph, fisheye, 1, 500'000'000);
+    EXPECT_EQ(waitWritten(16), 16u);
+    graph.stop();
+    EXPECT_EQ(rec->stats().frames_dropped, 0u);
+
+    Status end;
+    auto frames = readRecording(path, &end);
+    ASSERT_EQ(frames.size(), 17u);
+    for (size_t i = 1; i < frames.size(); ++i)
+        EXPECT_LE(frames[i - 1].meta().host_stamp_ns, frames[i].meta().host_stamp_ns) << i;
+}
+
 TEST_F(RecorderTest, RecordsAChosenSubsetWithItsOwnStreamIds) {
     const auto path = test::tempDir() / "subset.mkv";
     Graph graph;
