@@ -184,6 +184,12 @@ public:
     void shutdown() override;
 
     void errorText(const std::string& text) { getServices().errorLoggerAppend("%s", text.c_str()); }
+    // Held around every libfreenect call that does USB I/O or walks the context's device list
+    // (listing, opening, closing, starting and stopping streams), from whichever thread:
+    // libfreenect's context is not thread-safe, and OpenNI2 opens a camera on its caller's
+    // thread while the event thread lists the bus after a hot-plug. Not held while the event
+    // thread runs libusb's events, which a control transfer in another thread may wait on.
+    std::mutex& usbMutex() { return usb_mutex_; }
 
 private:
     static int LIBUSB_CALL onHotplug(libusb_context* context, libusb_device* device,
@@ -195,6 +201,7 @@ private:
 
     libusb_context* usb_ = nullptr;
     freenect_context* context_ = nullptr;
+    std::mutex usb_mutex_;
     libusb_hotplug_callback_handle hotplug_ = 0;
     bool have_hotplug_ = false;
     std::mutex cameras_mutex_;
@@ -342,6 +349,7 @@ Device::~Device() {
         stopStream(*s);
         delete s;
     }
+    std::lock_guard lock(driver_.usbMutex());
     freenect_close_device(device_);
 }
 
@@ -426,6 +434,7 @@ OniStatus Device::setProperty(int id, const void* data, int size) {
 }
 
 int Device::startDepth() {
+    std::lock_guard lock(driver_.usbMutex());
     const freenect_frame_mode mode = freenect_find_depth_mode(
         FREENECT_RESOLUTION_MEDIUM, registration_ ? FREENECT_DEPTH_REGISTERED : FREENECT_DEPTH_MM);
     if (freenect_set_depth_mode(device_, mode) < 0)
@@ -451,6 +460,7 @@ OniStatus Device::startStream(Stream& stream) {
     if (depth) {
         result = startDepth();
     } else {
+        std::lock_guard lock(driver_.usbMutex());
         const freenect_frame_mode mode = freenect_find_video_mode(
             FREENECT_RESOLUTION_MEDIUM,
             stream.type() == ONI_SENSOR_COLOR ? FREENECT_VIDEO_RGB : FREENECT_VIDEO_IR_10BIT);
@@ -477,6 +487,7 @@ void Device::stopStream(Stream& stream) {
             return;
         slot = nullptr;
     }
+    std::lock_guard lock(driver_.usbMutex());
     if (depth) {
         freenect_stop_depth(device_);
     } else {
@@ -552,6 +563,7 @@ int LIBUSB_CALL Driver::onHotplug(libusb_context* /*context*/, libusb_device* /*
 bool Driver::enumerate(bool departures) {
     if (!context_)
         return true;
+    std::unique_lock usb_lock(usb_mutex_);
     freenect_device_attributes* list = nullptr;
     const int count = freenect_list_device_attributes(context_, &list);
     std::vector<std::string> serials;
@@ -576,6 +588,7 @@ bool Driver::enumerate(bool departures) {
     }
     if (n >= 0)
         libusb_free_device_list(devices, 1);
+    usb_lock.unlock();
 
     std::vector<const OniDeviceInfo*> arrived;
     std::vector<OniDeviceInfo> left;
@@ -648,6 +661,7 @@ oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*
     }
     // By serial, which names the camera whatever else is plugged in since it was listed.
     freenect_device* device = nullptr;
+    std::unique_lock usb_lock(usb_mutex_);
     const int result =
         freenect_open_device_by_camera_serial(context_, &device, camera->serial.c_str());
     if (result < 0 || !device) {
@@ -655,6 +669,7 @@ oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*
         // failed; only closing it releases the camera and unlinks it from the context.
         if (device)
             freenect_close_device(device);
+        usb_lock.unlock();
         errorText("libfreenect could not open the Kinect with serial " + camera->serial + " (" +
                   std::to_string(result) + ")");
         return nullptr;
@@ -662,7 +677,7 @@ oni::driver::DeviceBase* Driver::deviceOpen(const char* uri, const char* /*mode*
     auto* opened = new (std::nothrow) Device(*this, device, *camera);
     if (!opened)
         freenect_close_device(device);
-    return opened;
+    return opened;  // the Device constructor does no I/O
 }
 
 void Driver::deviceClose(oni::driver::DeviceBase* device) {
