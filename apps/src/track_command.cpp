@@ -305,6 +305,7 @@ int runTrack(const TrackCommandOptions& options) {
         if (options.max_frames > 0 && frames.size() >= options.max_frames)
             enough = true;
     };
+    ar.max_color_frames = options.max_frames;
     auto pipeline = recordingPipeline(options.session, std::move(ar));
     if (!pipeline)
         return fail("track", pipeline.status());

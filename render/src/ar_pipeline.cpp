@@ -189,6 +189,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         t.setup = *options.setup;
         t.pipeline = options.tracking;
         t.lossless = lossless;
+        t.max_color_frames = options.max_color_frames;
         auto node = tracking::TrackingNode::create(std::move(t), options.on_tracked);
         if (!node)
             return node.status();

@@ -236,9 +236,14 @@ bool TrackingNode::track(const FrameRef& color) {
     publishEnvironmentMap(f);
     publishPose(f);
     publishLights(f);
-    std::lock_guard lock(mutex_);
-    ++stats_.color_frames;
-    return true;
+    {
+        std::lock_guard lock(mutex_);
+        ++stats_.color_frames;
+        if (options_.max_color_frames == 0 || stats_.color_frames < options_.max_color_frames)
+            return true;
+    }
+    finish(Status::ok());
+    return false;
 }
 
 void TrackingNode::publishPose(const TrackedFrame& f) {

@@ -61,6 +61,8 @@ struct ArPipelineOptions {
     std::map<std::string, std::string> record_tags;
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
     tracking::TrackedFrameCallback on_tracked;
+    // Track this many colour frames and no more (0: all; TrackingNodeOptions::max_color_frames).
+    uint64_t max_color_frames = 0;
     CompositeCallback on_composite;
 };
 

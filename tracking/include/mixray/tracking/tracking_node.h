@@ -34,6 +34,9 @@ struct TrackingNodeOptions {
     std::string environment_map_stream = "tracking/environment_map";
     size_t queue_capacity = 8;  // per input edge
     size_t output_buffers = 8;  // per output stream's pool
+    // Track this many colour frames, then end the output streams as if the colour stream had
+    // ended (0: all): what was tracked is exactly what was published, and recorded.
+    uint64_t max_color_frames = 0;
 
     Status validate() const;
 };
