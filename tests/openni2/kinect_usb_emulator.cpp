@@ -25,11 +25,22 @@ struct IsoUrb {
     uint8_t endpoint = 0;
     size_t packet_room = 0;  // bytes per packet slot in the buffer
     gulong client = 0;       // the URB's address in the client
+    // The open file it was submitted on (umockdev has one client per connection). As the
+    // kernel does, only that file reaps or discards it: libusb opens the camera more than
+    // once (listing serials while a handle streams), and a URB reaped through another handle
+    // would complete a transfer libusb then frees twice.
+    UMockdevIoctlClient* owner = nullptr;
+};
+
+// A URB finished and waiting to be reaped by the file it was submitted on.
+struct DoneUrb {
+    UMockdevIoctlClient* owner = nullptr;
+    UMockdevIoctlData* urb = nullptr;  // owned ref
 };
 
 struct KinectUsbEmulator::State {
     mutable std::mutex mutex;
-    std::deque<UMockdevIoctlData*> completed;  // URBs to reap, oldest first (owned refs)
+    std::deque<DoneUrb> completed;  // URBs to reap, oldest first
     std::vector<std::string> requests;
     std::vector<uint8_t> reply;  // the camera's answer to the last command, until read
     std::map<uint16_t, uint16_t> registers;
@@ -315,7 +326,7 @@ void fillIso(KinectUsbEmulator::State& s, IsoUrb& u) {
 // SUBMITURB. Control URBs complete at once (the reply is written into the client's buffer when
 // the ioctl completes) and wait for REAPURB in `completed`; isochronous URBs wait in `iso`
 // until their packets are due (frame k of a stream at start + k / 30 s).
-int submit(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
+int submit(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoctlData* arg) {
     GError* error = nullptr;
     const gulong client_urb = *reinterpret_cast<gulong*>(arg->data);
     UMockdevIoctlData* urb_data = umockdev_ioctl_data_resolve(arg, 0, sizeof(usbdevfs_urb), &error);
@@ -368,6 +379,7 @@ int submit(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
         u.endpoint = urb->endpoint;
         u.packet_room = static_cast<size_t>(urb->buffer_length / urb->number_of_packets);
         u.client = client_urb;
+        u.owner = owner;
         s.iso.push_back(u);
         return 0;
     }
@@ -384,20 +396,24 @@ int submit(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
     } else {
         urb->actual_length = urb->status == 0 ? static_cast<int>(length) : 0;
     }
-    s.completed.push_back(static_cast<UMockdevIoctlData*>(g_object_ref(urb_data)));
+    s.completed.push_back({owner, static_cast<UMockdevIoctlData*>(g_object_ref(urb_data))});
     return 0;
 }
 
 // The next URB to hand back: a discarded one, a completed control transfer, or the oldest
 // isochronous URB whose packets are due (and only while its stream is switched on).
-UMockdevIoctlData* nextReapable(KinectUsbEmulator::State& s) {
-    if (!s.completed.empty()) {
-        UMockdevIoctlData* urb = s.completed.front();
-        s.completed.pop_front();
+UMockdevIoctlData* nextReapable(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner) {
+    for (auto it = s.completed.begin(); it != s.completed.end(); ++it) {
+        if (it->owner != owner)
+            continue;
+        UMockdevIoctlData* urb = it->urb;
+        s.completed.erase(it);
         return urb;
     }
     const int64_t now = monotonicNs();
     for (auto it = s.iso.begin(); it != s.iso.end(); ++it) {
+        if (it->owner != owner)
+            continue;
         auto& st = s.streams[it->endpoint];
         const StreamFormat f = formatOf(s, it->endpoint);
         if (!f.valid)
@@ -418,8 +434,8 @@ UMockdevIoctlData* nextReapable(KinectUsbEmulator::State& s) {
 }
 
 // REAPURB(NDELAY): hands back the client's address of a finished URB.
-int reap(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
-    UMockdevIoctlData* urb = nextReapable(s);
+int reap(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoctlData* arg) {
+    UMockdevIoctlData* urb = nextReapable(s, owner);
     if (!urb)
         return EAGAIN;
     GError* error = nullptr;
@@ -436,10 +452,10 @@ int reap(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
 
 // DISCARDURB: an isochronous URB in flight is given back, cancelled (-ENOENT), at the next
 // reap; anything else has completed already (EINVAL, as the kernel says).
-int discard(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
+int discard(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoctlData* arg) {
     const gulong client_urb = *reinterpret_cast<gulong*>(arg->data);
     for (auto it = s.iso.begin(); it != s.iso.end(); ++it) {
-        if (it->client != client_urb)
+        if (it->client != client_urb || it->owner != owner)
             continue;
         auto* urb = reinterpret_cast<usbdevfs_urb*>(it->urb->data);
         urb->status = -ENOENT;
@@ -447,7 +463,7 @@ int discard(KinectUsbEmulator::State& s, UMockdevIoctlData* arg) {
         for (int i = 0; i < urb->number_of_packets; ++i)
             urb->iso_frame_desc[i].actual_length = 0;
         --s.streams[it->endpoint].in_flight;
-        s.completed.push_back(it->urb);
+        s.completed.push_back({owner, it->urb});
         s.iso.erase(it);
         return 0;
     }
@@ -464,7 +480,9 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
         // Unplugged: URBs the kernel gave back can still be reaped; then, and for everything
         // else, ENODEV.
         const bool reaping = request == USBDEVFS_REAPURB || request == USBDEVFS_REAPURBNDELAY;
-        switch (s.unplugged && !(reaping && !s.completed.empty()) ? 0ul : request) {
+        const bool reapable = std::any_of(s.completed.begin(), s.completed.end(),
+                                          [client](const DoneUrb& d) { return d.owner == client; });
+        switch (s.unplugged && !(reaping && reapable) ? 0ul : request) {
             case 0:
                 err = ENODEV;
                 break;
@@ -490,14 +508,14 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
                 err = ENODATA;  // no kernel driver bound to the camera's interface
                 break;
             case USBDEVFS_SUBMITURB:
-                err = submit(s, arg);
+                err = submit(s, client, arg);
                 break;
             case USBDEVFS_REAPURB:
             case USBDEVFS_REAPURBNDELAY:
-                err = reap(s, arg);
+                err = reap(s, client, arg);
                 break;
             case USBDEVFS_DISCARDURB:
-                err = discard(s, arg);
+                err = discard(s, client, arg);
                 break;
             default:
                 err = ENOTTY;
@@ -505,6 +523,29 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
     }
     umockdev_ioctl_client_complete(client, err ? -1 : 0, err);
     return TRUE;
+}
+
+// A closed file's URBs are gone with it, as the kernel discards them.
+void onClientVanished(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpointer user) {
+    auto& s = *static_cast<KinectUsbEmulator::State*>(user);
+    std::lock_guard lock(s.mutex);
+    for (auto it = s.completed.begin(); it != s.completed.end();) {
+        if (it->owner == client) {
+            g_object_unref(it->urb);
+            it = s.completed.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    for (auto it = s.iso.begin(); it != s.iso.end();) {
+        if (it->owner == client) {
+            --s.streams[it->endpoint].in_flight;
+            g_object_unref(it->urb);
+            it = s.iso.erase(it);
+        } else {
+            ++it;
+        }
+    }
 }
 
 }  // namespace
@@ -535,6 +576,7 @@ bool KinectUsbEmulator::attach(std::string* why) {
     UMockdevIoctlBase* base = umockdev_ioctl_base_new();
     handler_ = base;
     g_signal_connect(base, "handle-ioctl", G_CALLBACK(onIoctl), state_.get());
+    g_signal_connect(base, "client-vanished", G_CALLBACK(onClientVanished), state_.get());
     GError* error = nullptr;
     if (!umockdev_testbed_attach_ioctl(testbed, kCameraNode, base, &error)) {
         if (why)
@@ -571,7 +613,7 @@ void KinectUsbEmulator::unplugCamera() {
             urb->actual_length = 0;
             for (int i = 0; i < urb->number_of_packets; ++i)
                 urb->iso_frame_desc[i].actual_length = 0;
-            state_->completed.push_back(u.urb);
+            state_->completed.push_back({u.owner, u.urb});
         }
         state_->iso.clear();
     }
@@ -608,8 +650,8 @@ bool KinectUsbEmulator::replugCamera(const std::string& tree, std::string* why) 
     }
     {
         std::lock_guard lock(state_->mutex);
-        for (UMockdevIoctlData* urb : state_->completed)
-            g_object_unref(urb);
+        for (const DoneUrb& d : state_->completed)
+            g_object_unref(d.urb);
         state_->completed.clear();
         state_->streams.clear();
         state_->registers.clear();
@@ -627,8 +669,8 @@ KinectUsbEmulator::~KinectUsbEmulator() {
             (void)umockdev_testbed_detach_ioctl(testbed, kCameraNode, nullptr);
         g_object_unref(handler_);
     }
-    for (UMockdevIoctlData* urb : state_->completed)
-        g_object_unref(urb);
+    for (const DoneUrb& d : state_->completed)
+        g_object_unref(d.urb);
     for (const IsoUrb& u : state_->iso)
         g_object_unref(u.urb);
     if (testbed)

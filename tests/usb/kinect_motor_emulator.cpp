@@ -32,8 +32,11 @@ struct KinectMotorEmulator::State {
     uint8_t tilt_status = 0;
     bool follow_tilt = true;
     bool unplugged = false;
-    uint32_t claimed = 0;                 // bit per interface
-    std::deque<unsigned long> completed;  // client addresses of URBs ready to reap
+    uint32_t claimed = 0;  // bit per interface
+    // URBs ready to reap: the open file each was submitted on (umockdev has one client per
+    // connection) and its address there. As the kernel does, only that file reaps it: a URB
+    // reaped through another handle of the same device would complete a transfer twice.
+    std::deque<std::pair<UMockdevIoctlClient*, unsigned long>> completed;
     std::vector<ControlRequest> requests;
     uint64_t state_reads = 0;
     std::vector<unsigned long> unknown;
@@ -83,7 +86,7 @@ int control(State& s, const uint8_t* setup, uint8_t* data, int capacity, int* ac
     return -EPIPE;
 }
 
-int submit(State& s, UMockdevIoctlData* arg) {
+int submit(State& s, UMockdevIoctlClient* client, UMockdevIoctlData* arg) {
     UMockdevIoctlData* urb_data = resolve(arg, 0, sizeof(usbdevfs_urb));
     if (!urb_data)
         return EFAULT;
@@ -99,7 +102,7 @@ int submit(State& s, UMockdevIoctlData* arg) {
     int actual = 0;
     urb->status = control(s, buffer->data, buffer->data + 8, urb->buffer_length - 8, &actual);
     urb->actual_length = actual;
-    s.completed.push_back(urb_data->client_addr);
+    s.completed.emplace_back(client, urb_data->client_addr);
     return 0;
 }
 
@@ -132,17 +135,19 @@ int handle(State& s, unsigned long request, UMockdevIoctlClient* client) {
             return 0;
         }
         case USBDEVFS_SUBMITURB:
-            return submit(s, arg);
+            return submit(s, client, arg);
         case USBDEVFS_REAPURB:
         case USBDEVFS_REAPURBNDELAY: {
             // URBs complete at submission, so a blocking reap has nothing to wait for either.
-            if (s.completed.empty())
+            const auto mine = std::find_if(s.completed.begin(), s.completed.end(),
+                                           [client](const auto& c) { return c.first == client; });
+            if (mine == s.completed.end())
                 return EAGAIN;
             UMockdevIoctlData* slot = resolve(arg, 0, sizeof(void*));
             if (!slot)
                 return EFAULT;
-            const unsigned long address = s.completed.front();
-            s.completed.pop_front();
+            const unsigned long address = mine->second;
+            s.completed.erase(mine);
             std::memcpy(slot->data, &address, sizeof address);
             return 0;
         }
@@ -169,6 +174,13 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
     }
     umockdev_ioctl_client_complete(client, err ? -1 : 0, err);
     return TRUE;
+}
+
+// A closed file's URBs are gone with it, as the kernel discards them.
+void onClientVanished(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpointer user) {
+    State& s = *static_cast<Handler*>(user)->state;
+    std::lock_guard lock(s.mutex);
+    std::erase_if(s.completed, [client](const auto& c) { return c.first == client; });
 }
 
 void freeHandler(gpointer data, GClosure* /*closure*/) {
@@ -200,6 +212,8 @@ std::unique_ptr<KinectMotorEmulator> KinectMotorEmulator::create(UMockdevTestbed
     e->handler_ = umockdev_ioctl_base_new();
     g_signal_connect_data(e->handler_, "handle-ioctl", G_CALLBACK(onIoctl), new Handler{e->state_},
                           freeHandler, static_cast<GConnectFlags>(0));
+    g_signal_connect_data(e->handler_, "client-vanished", G_CALLBACK(onClientVanished),
+                          new Handler{e->state_}, freeHandler, static_cast<GConnectFlags>(0));
     GError* error = nullptr;
     if (!umockdev_testbed_attach_ioctl(testbed, kDevNode, e->handler_, &error)) {
         if (why)
