@@ -589,6 +589,10 @@ bool KinectUsbEmulator::attach(std::string* why) {
 
 bool KinectUsbEmulator::plug(const std::string& tree, std::string* why) {
     auto* testbed = static_cast<UMockdevTestbed*>(testbed_);
+    // The camera's ioctl socket first: a thread listing the bus finds the node as soon as it
+    // exists, and umockdev's preload ends the process when the node it opens has no socket.
+    if (!handler_ && !attach(why))
+        return false;
     GError* error = nullptr;
     if (!umockdev_testbed_add_from_file(testbed, tree.c_str(), &error)) {
         if (why)
@@ -596,8 +600,6 @@ bool KinectUsbEmulator::plug(const std::string& tree, std::string* why) {
         g_clear_error(&error);
         return false;
     }
-    if (!handler_ && !attach(why))
-        return false;
     umockdev_testbed_uevent(testbed, kCameraSysfs, "add");
     return true;
 }
