@@ -28,7 +28,9 @@ struct IsoUrb {
     // The open file it was submitted on (umockdev has one client per connection). As the
     // kernel does, only that file reaps or discards it: libusb opens the camera more than
     // once (listing serials while a handle streams), and a URB reaped through another handle
-    // would complete a transfer libusb then frees twice.
+    // would complete a transfer libusb then frees twice. (umockdev 0.17 does not say when a
+    // file closes; libusb reaps every URB of a handle before closing it, and replugCamera()
+    // drops what an unplug left.)
     UMockdevIoctlClient* owner = nullptr;
 };
 
@@ -525,29 +527,6 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
     return TRUE;
 }
 
-// A closed file's URBs are gone with it, as the kernel discards them.
-void onClientVanished(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpointer user) {
-    auto& s = *static_cast<KinectUsbEmulator::State*>(user);
-    std::lock_guard lock(s.mutex);
-    for (auto it = s.completed.begin(); it != s.completed.end();) {
-        if (it->owner == client) {
-            g_object_unref(it->urb);
-            it = s.completed.erase(it);
-        } else {
-            ++it;
-        }
-    }
-    for (auto it = s.iso.begin(); it != s.iso.end();) {
-        if (it->owner == client) {
-            --s.streams[it->endpoint].in_flight;
-            g_object_unref(it->urb);
-            it = s.iso.erase(it);
-        } else {
-            ++it;
-        }
-    }
-}
-
 }  // namespace
 
 std::unique_ptr<KinectUsbEmulator> KinectUsbEmulator::create(const std::string& tree,
@@ -576,7 +555,6 @@ bool KinectUsbEmulator::attach(std::string* why) {
     UMockdevIoctlBase* base = umockdev_ioctl_base_new();
     handler_ = base;
     g_signal_connect(base, "handle-ioctl", G_CALLBACK(onIoctl), state_.get());
-    g_signal_connect(base, "client-vanished", G_CALLBACK(onClientVanished), state_.get());
     GError* error = nullptr;
     if (!umockdev_testbed_attach_ioctl(testbed, kCameraNode, base, &error)) {
         if (why)

@@ -176,13 +176,6 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
     return TRUE;
 }
 
-// A closed file's URBs are gone with it, as the kernel discards them.
-void onClientVanished(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpointer user) {
-    State& s = *static_cast<Handler*>(user)->state;
-    std::lock_guard lock(s.mutex);
-    std::erase_if(s.completed, [client](const auto& c) { return c.first == client; });
-}
-
 void freeHandler(gpointer data, GClosure* /*closure*/) {
     delete static_cast<Handler*>(data);
 }
@@ -212,8 +205,6 @@ std::unique_ptr<KinectMotorEmulator> KinectMotorEmulator::create(UMockdevTestbed
     e->handler_ = umockdev_ioctl_base_new();
     g_signal_connect_data(e->handler_, "handle-ioctl", G_CALLBACK(onIoctl), new Handler{e->state_},
                           freeHandler, static_cast<GConnectFlags>(0));
-    g_signal_connect_data(e->handler_, "client-vanished", G_CALLBACK(onClientVanished),
-                          new Handler{e->state_}, freeHandler, static_cast<GConnectFlags>(0));
     GError* error = nullptr;
     if (!umockdev_testbed_attach_ioctl(testbed, kDevNode, e->handler_, &error)) {
         if (why)
