@@ -16,12 +16,14 @@
 #include <fstream>
 #include <sstream>
 
+#include "umockdev_ioctl_data.h"
+
 namespace mixray::openni2::test {
 
 // An isochronous URB waiting for its packets.
 struct IsoUrb {
     UMockdevIoctlData* urb = nullptr;     // owned ref
-    UMockdevIoctlData* buffer = nullptr;  // the URB's child
+    UMockdevIoctlData* buffer = nullptr;  // the URB's child (the URB holds it)
     uint8_t endpoint = 0;
     size_t packet_room = 0;  // bytes per packet slot in the buffer
     gulong client = 0;       // the URB's address in the client
@@ -329,13 +331,11 @@ void fillIso(KinectUsbEmulator::State& s, IsoUrb& u) {
 // the ioctl completes) and wait for REAPURB in `completed`; isochronous URBs wait in `iso`
 // until their packets are due (frame k of a stream at start + k / 30 s).
 int submit(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoctlData* arg) {
-    GError* error = nullptr;
     const gulong client_urb = *reinterpret_cast<gulong*>(arg->data);
-    UMockdevIoctlData* urb_data = umockdev_ioctl_data_resolve(arg, 0, sizeof(usbdevfs_urb), &error);
-    if (!urb_data) {
-        g_clear_error(&error);
+    mixray::test::IoctlDataRef urb_data =
+        mixray::test::resolveIoctlData(arg, 0, sizeof(usbdevfs_urb));
+    if (!urb_data)
         return EFAULT;
-    }
     auto* urb = reinterpret_cast<usbdevfs_urb*>(urb_data->data);
     if (urb->type == USBDEVFS_URB_TYPE_ISO) {
         if ((urb->endpoint != 0x81 && urb->endpoint != 0x82) || urb->number_of_packets <= 0 ||
@@ -345,28 +345,27 @@ int submit(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoct
         // The packet descriptors follow the URB: fetch it again with them (the first view only
         // told how many there are; reloading the argument drops it).
         const size_t packets = static_cast<size_t>(urb->number_of_packets);
+        urb_data.reset();
         *reinterpret_cast<gulong*>(arg->data) = client_urb;
+        GError* error = nullptr;
         if (!umockdev_ioctl_data_reload(arg, &error)) {
             g_clear_error(&error);
             return EFAULT;
         }
-        urb_data = umockdev_ioctl_data_resolve(
-            arg, 0, sizeof(usbdevfs_urb) + packets * sizeof(usbdevfs_iso_packet_desc), &error);
-        if (!urb_data) {
-            g_clear_error(&error);
+        urb_data = mixray::test::resolveIoctlData(
+            arg, 0, sizeof(usbdevfs_urb) + packets * sizeof(usbdevfs_iso_packet_desc));
+        if (!urb_data)
             return EFAULT;
-        }
         urb = reinterpret_cast<usbdevfs_urb*>(urb_data->data);
     } else if (urb->type != USBDEVFS_URB_TYPE_CONTROL || (urb->endpoint & 0x7f) != 0 ||
                urb->buffer_length < 8) {
         return EINVAL;
     }
-    UMockdevIoctlData* buffer = umockdev_ioctl_data_resolve(
-        urb_data, offsetof(usbdevfs_urb, buffer), static_cast<gsize>(urb->buffer_length), &error);
-    if (!buffer) {
-        g_clear_error(&error);
+    // The URB keeps its buffer (a child of its data) alive as long as it lives itself.
+    const mixray::test::IoctlDataRef buffer = mixray::test::resolveIoctlData(
+        urb_data.get(), offsetof(usbdevfs_urb, buffer), static_cast<size_t>(urb->buffer_length));
+    if (!buffer)
         return EFAULT;
-    }
     if (urb->type == USBDEVFS_URB_TYPE_ISO) {
         auto& st = s.streams[urb->endpoint];
         if (st.in_flight == 0) {  // a stream (re)starts at a frame boundary
@@ -376,12 +375,12 @@ int submit(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoct
         }
         ++st.in_flight;
         IsoUrb u;
-        u.urb = static_cast<UMockdevIoctlData*>(g_object_ref(urb_data));
-        u.buffer = buffer;
+        u.buffer = buffer.get();
         u.endpoint = urb->endpoint;
         u.packet_room = static_cast<size_t>(urb->buffer_length / urb->number_of_packets);
         u.client = client_urb;
         u.owner = owner;
+        u.urb = urb_data.release();
         s.iso.push_back(u);
         return 0;
     }
@@ -398,7 +397,7 @@ int submit(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoct
     } else {
         urb->actual_length = urb->status == 0 ? static_cast<int>(length) : 0;
     }
-    s.completed.push_back({owner, static_cast<UMockdevIoctlData*>(g_object_ref(urb_data))});
+    s.completed.push_back({owner, urb_data.release()});
     return 0;
 }
 
@@ -440,14 +439,13 @@ int reap(KinectUsbEmulator::State& s, UMockdevIoctlClient* owner, UMockdevIoctlD
     UMockdevIoctlData* urb = nextReapable(s, owner);
     if (!urb)
         return EAGAIN;
-    GError* error = nullptr;
-    UMockdevIoctlData* slot = umockdev_ioctl_data_resolve(arg, 0, sizeof(void*), &error);
+    const mixray::test::IoctlDataRef slot = mixray::test::resolveIoctlData(arg, 0, sizeof(void*));
     if (!slot) {
-        g_clear_error(&error);
         g_object_unref(urb);
         return EFAULT;
     }
-    umockdev_ioctl_data_set_ptr(slot, 0, urb);
+    // The slot takes a reference of its own, and writes the URB back when the reap completes.
+    umockdev_ioctl_data_set_ptr(slot.get(), 0, urb);
     g_object_unref(urb);
     return 0;
 }
@@ -489,10 +487,8 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
                 err = ENODEV;
                 break;
             case USBDEVFS_GET_CAPABILITIES: {
-                GError* error = nullptr;
-                UMockdevIoctlData* caps = umockdev_ioctl_data_resolve(arg, 0, 4, &error);
+                const mixray::test::IoctlDataRef caps = mixray::test::resolveIoctlData(arg, 0, 4);
                 if (!caps) {
-                    g_clear_error(&error);
                     err = EFAULT;
                     break;
                 }

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "test_data.h"
+#include "umockdev_ioctl_data.h"
 
 namespace mixray::usb::test {
 
@@ -46,12 +47,8 @@ namespace {
 
 using State = KinectMotorEmulator::State;
 
-UMockdevIoctlData* resolve(UMockdevIoctlData* data, size_t offset, size_t length) {
-    GError* error = nullptr;
-    UMockdevIoctlData* out = umockdev_ioctl_data_resolve(data, offset, length, &error);
-    g_clear_error(&error);
-    return out;
-}
+using mixray::test::IoctlDataRef;
+using mixray::test::resolveIoctlData;
 
 // The device's side of one control transfer; returns the URB status.
 int control(State& s, const uint8_t* setup, uint8_t* data, int capacity, int* actual) {
@@ -87,7 +84,7 @@ int control(State& s, const uint8_t* setup, uint8_t* data, int capacity, int* ac
 }
 
 int submit(State& s, UMockdevIoctlClient* client, UMockdevIoctlData* arg) {
-    UMockdevIoctlData* urb_data = resolve(arg, 0, sizeof(usbdevfs_urb));
+    const IoctlDataRef urb_data = resolveIoctlData(arg, 0, sizeof(usbdevfs_urb));
     if (!urb_data)
         return EFAULT;
     auto* urb = reinterpret_cast<usbdevfs_urb*>(urb_data->data);
@@ -95,8 +92,8 @@ int submit(State& s, UMockdevIoctlClient* client, UMockdevIoctlData* arg) {
         return EINVAL;
     if (urb->buffer_length < 8)
         return EINVAL;
-    UMockdevIoctlData* buffer =
-        resolve(urb_data, offsetof(usbdevfs_urb, buffer), static_cast<size_t>(urb->buffer_length));
+    const IoctlDataRef buffer = resolveIoctlData(urb_data.get(), offsetof(usbdevfs_urb, buffer),
+                                                 static_cast<size_t>(urb->buffer_length));
     if (!buffer)
         return EFAULT;
     int actual = 0;
@@ -110,7 +107,7 @@ int handle(State& s, unsigned long request, UMockdevIoctlClient* client) {
     UMockdevIoctlData* arg = umockdev_ioctl_client_get_arg(client);
     switch (request) {
         case USBDEVFS_GET_CAPABILITIES: {
-            UMockdevIoctlData* caps = resolve(arg, 0, sizeof(uint32_t));
+            const IoctlDataRef caps = resolveIoctlData(arg, 0, sizeof(uint32_t));
             if (!caps)
                 return EFAULT;
             const uint32_t value = USBDEVFS_CAP_ZERO_PACKET | USBDEVFS_CAP_BULK_CONTINUATION |
@@ -120,7 +117,7 @@ int handle(State& s, unsigned long request, UMockdevIoctlClient* client) {
         }
         case USBDEVFS_CLAIMINTERFACE:
         case USBDEVFS_RELEASEINTERFACE: {
-            UMockdevIoctlData* number = resolve(arg, 0, sizeof(unsigned int));
+            const IoctlDataRef number = resolveIoctlData(arg, 0, sizeof(unsigned int));
             if (!number)
                 return EFAULT;
             unsigned int n = 0;
@@ -143,7 +140,7 @@ int handle(State& s, unsigned long request, UMockdevIoctlClient* client) {
                                            [client](const auto& c) { return c.first == client; });
             if (mine == s.completed.end())
                 return EAGAIN;
-            UMockdevIoctlData* slot = resolve(arg, 0, sizeof(void*));
+            const IoctlDataRef slot = resolveIoctlData(arg, 0, sizeof(void*));
             if (!slot)
                 return EFAULT;
             const unsigned long address = mine->second;

@@ -12,6 +12,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "umockdev_ioctl_data.h"
+
 namespace mixray::v4l2::test {
 
 struct Size {
@@ -98,15 +100,9 @@ struct Handler {
 
 // Resolves the ioctl argument as a T in the client's memory; null when umockdev cannot.
 template <typename T>
-T* argument(UMockdevIoctlClient* client, UMockdevIoctlData** data) {
-    GError* error = nullptr;
-    UMockdevIoctlData* arg = umockdev_ioctl_client_get_arg(client);
-    *data = umockdev_ioctl_data_resolve(arg, 0, sizeof(T), &error);
-    if (!*data) {
-        g_clear_error(&error);
-        return nullptr;
-    }
-    return reinterpret_cast<T*>((*data)->data);
+T* argument(UMockdevIoctlClient* client, mixray::test::IoctlDataRef* data) {
+    *data = mixray::test::resolveIoctlData(umockdev_ioctl_client_get_arg(client), 0, sizeof(T));
+    return *data ? reinterpret_cast<T*>((*data)->data) : nullptr;
 }
 
 int fillFormat(const UvcEmulator::State& s, v4l2_format* f) {
@@ -160,13 +156,10 @@ int dequeue(UvcEmulator::State& s, UMockdevIoctlData* data, v4l2_buffer* b) {
 
     // Point the argument at the client's buffer so that umockdev fetches it and writes it back.
     b->m.userptr = q.userptr;
-    GError* error = nullptr;
-    UMockdevIoctlData* pixels =
-        umockdev_ioctl_data_resolve(data, offsetof(v4l2_buffer, m), q.length, &error);
-    if (!pixels) {
-        g_clear_error(&error);
+    const mixray::test::IoctlDataRef pixels =
+        mixray::test::resolveIoctlData(data, offsetof(v4l2_buffer, m), q.length);
+    if (!pixels)
         return EFAULT;
-    }
     size_t used = 0;
     if (s.fourcc == V4L2_PIX_FMT_YUYV) {
         const int stride = static_cast<int>(s.bytesPerLine());
@@ -201,7 +194,7 @@ int dequeue(UvcEmulator::State& s, UMockdevIoctlData* data, v4l2_buffer* b) {
 }
 
 int handleCapture(UvcEmulator::State& s, unsigned long request, UMockdevIoctlClient* client) {
-    UMockdevIoctlData* data = nullptr;
+    mixray::test::IoctlDataRef data;
     switch (request) {
         case VIDIOC_QUERYCAP: {
             auto* cap = argument<v4l2_capability>(client, &data);
@@ -378,7 +371,7 @@ int handleCapture(UvcEmulator::State& s, unsigned long request, UMockdevIoctlCli
         }
         case VIDIOC_DQBUF: {
             auto* b = argument<v4l2_buffer>(client, &data);
-            return b ? dequeue(s, data, b) : EFAULT;
+            return b ? dequeue(s, data.get(), b) : EFAULT;
         }
         case VIDIOC_STREAMON:
         case VIDIOC_STREAMOFF: {
@@ -417,7 +410,7 @@ gboolean onIoctl(UMockdevIoctlBase* /*base*/, UMockdevIoctlClient* client, gpoin
         if (h->state->unplugged) {
             err = ENODEV;
         } else if (h->metadata_node) {
-            UMockdevIoctlData* data = nullptr;
+            mixray::test::IoctlDataRef data;
             auto* cap =
                 request == VIDIOC_QUERYCAP ? argument<v4l2_capability>(client, &data) : nullptr;
             if (cap) {
