@@ -7,20 +7,24 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <map>
 #include <mutex>
 #include <set>
 #include <thread>
 
+#include "memory_in_use.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
+#include "mixray/liveview/live_view.h"
 #include "mixray/render/scene_file.h"
 #include "mixray/replay/open_recording.h"
 #include "mixray/replay/replay_backend.h"
 #include "mixray/tracking/light_record.h"
 #include "mixray/tracking/pipeline.h"
 #include "test_data.h"
+#include "websocket_client.h"
 
 namespace mixray::render {
 namespace {
@@ -89,6 +93,27 @@ tracking::TrackingSetup sessionSetup(const RecordingReader& reader) {
     auto setup = tracking::findTrackingSetup(session(), reader, "");
     EXPECT_TRUE(setup.isOk()) << setup.status().toString();
     return std::move(setup).value();
+}
+
+// The whole pipeline on the bundled session: its tracking setup, the test scene and settings.
+ArPipelineOptions sessionPipelineOptions() {
+    ArPipelineOptions options;
+    auto reader = replay::openRecording(session());
+    EXPECT_TRUE(reader.isOk()) << reader.status().toString();
+    if (reader.isOk())
+        options.setup = sessionSetup(**reader);
+    options.scene = testScene();
+    options.render = testRenderOptions();
+    return options;
+}
+
+// The bundled session as the pipeline's source, at `pace`, once or `looped`.
+ArSource sessionSource(ArSource::Pace pace, bool looped = false) {
+    ArSource source;
+    source.recording = session();
+    source.pace = pace;
+    source.loop = looped;
+    return source;
 }
 
 // The loop the graph replaces: every frame in recording order; a colour frame is tracked and
@@ -172,12 +197,8 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
     const std::map<uint64_t, FrameResult> reference = referenceLoop();
     ASSERT_EQ(reference.size(), 36u);
 
-    auto reader = replay::openRecording(session());
-    ASSERT_TRUE(reader.isOk());
-    ArPipelineOptions options;
-    options.setup = sessionSetup(**reader);
-    options.scene = testScene();
-    options.render = testRenderOptions();
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
     std::mutex mutex;
     std::map<uint64_t, FrameResult> got;
     std::vector<tracking::LightRecord> light_records;
@@ -196,9 +217,7 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
         std::lock_guard lock(mutex);
         got[c.color.meta().sequence] = std::move(r);
     };
-    ArSource source;
-    source.recording = session();
-    source.pace = ArSource::Pace::kFast;
+    const ArSource source = sessionSource(ArSource::Pace::kFast);
     auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
     ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
     ASSERT_TRUE((*pipeline)->start().isOk());
@@ -238,17 +257,11 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
 
 TEST(ArPipeline, RecordsRawStreamsPosesLightsAndTheCompositeIntoOneRecording) {
     const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_record.mkv";
-    auto reader = replay::openRecording(session());
-    ASSERT_TRUE(reader.isOk());
-    ArPipelineOptions options;
-    options.setup = sessionSetup(**reader);
-    options.scene = testScene();
-    options.render = testRenderOptions();
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
     options.render.max_depth = 0;
     options.record = out;
-    ArSource source;
-    source.recording = session();
-    source.pace = ArSource::Pace::kFast;
+    const ArSource source = sessionSource(ArSource::Pace::kFast);
     auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
     ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
     ASSERT_TRUE((*pipeline)->start().isOk());
@@ -361,12 +374,8 @@ TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
     const fs::path input = sessionWithDeadEnvironmentCamera(4);
     ASSERT_FALSE(HasFailure());
     const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_dead_env_out.mkv";
-    auto reader = replay::openRecording(session());
-    ASSERT_TRUE(reader.isOk());
-    ArPipelineOptions options;
-    options.setup = sessionSetup(**reader);
-    options.scene = testScene();
-    options.render = testRenderOptions();
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
     options.render.max_depth = 0;
     options.record = out;
     ASSERT_EQ(options.tracking.environment_max_age_ms, 1000);
@@ -447,9 +456,7 @@ TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
         Eigen::AngleAxisd(-2.2, Eigen::Vector3d::UnitX()).toRotationMatrix();
     options.render = testRenderOptions();
     options.target_fps = -1;
-    ArSource source;
-    source.recording = session();
-    source.pace = ArSource::Pace::kReal;
+    const ArSource source = sessionSource(ArSource::Pace::kReal);
     auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
     ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
     ASSERT_TRUE((*pipeline)->start().isOk());
@@ -471,6 +478,97 @@ TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
         EXPECT_NE(json.find(key), std::string::npos) << key << " missing in " << json;
 }
 
+// Issue 13: a browser that stalls beside the whole pipeline at real pace (tracking, light
+// estimation, compositing, every tile of the bundled session in the view) neither slows the
+// composites nor grows memory, while another browser keeps receiving; stop() does not wait
+// for it.
+TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
+    using namespace std::chrono_literals;
+    using Clock = std::chrono::steady_clock;
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
+    options.target_fps = -1;
+    const ArSource source = sessionSource(ArSource::Pace::kReal, true);
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    ArPipeline& p = **pipeline;
+    liveview::LiveViewOptions view_options;
+    view_options.port = 0;
+    view_options.max_tile_fps = 30;  // every tile as fast as the camera: the mailboxes are busy
+    view_options.jpeg_quality = 95;
+    auto made = liveview::LiveView::create(view_options);
+    ASSERT_TRUE(made.isOk()) << made.status().toString();
+    liveview::LiveView* view = made->get();
+    view->setStatusProvider([&p] { return p.stats().json(); });
+    ASSERT_TRUE(p.graph().addNode(std::move(made).value()).isOk());
+    ASSERT_TRUE(p.start().isOk());
+
+    test::WsClient reading;
+    ASSERT_TRUE(reading.open(view->port()));
+    std::atomic<int> received{0};
+    std::atomic<bool> done{false};
+    std::thread drain([&] {
+        while (!done) {
+            auto m = reading.next(1000);
+            if (m && m->opcode == 2)
+                ++received;
+        }
+    });
+    const auto composites = [&p] {
+        const ArPipelineStats stats = p.stats();
+        return stats.compositor ? stats.compositor->composites : 0;
+    };
+    // Composites per second over `window`, and the most any client had queued meanwhile.
+    const auto measure = [&](std::chrono::milliseconds window, size_t* high, bool* stalled) {
+        const uint64_t before = composites();
+        const auto t0 = Clock::now();
+        while (Clock::now() - t0 < window) {
+            std::this_thread::sleep_for(100ms);
+            for (const liveview::ClientStats& c : view->stats().clients) {
+                *high = std::max(*high, c.queued_bytes);
+                *stalled = *stalled || c.stalled;
+            }
+        }
+        const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        return static_cast<double>(composites() - before) / seconds;
+    };
+    size_t high = 0;
+    bool saw_stalled = false;
+    std::this_thread::sleep_for(1500ms);  // past the start and the first probe estimates
+    const double rate_alone = measure(3000ms, &high, &saw_stalled);
+    EXPECT_FALSE(saw_stalled);
+
+    test::WsClient stalled;
+    ASSERT_TRUE(stalled.open(view->port(), 4096));  // handshake done, then never reads
+    std::this_thread::sleep_for(1500ms);            // until its socket buffers are full
+    const uint64_t memory_before = test::memoryInUse();
+    const int received_before = received.load();
+    const double rate_stalled = measure(3000ms, &high, &saw_stalled);
+    const uint64_t memory_after = test::memoryInUse();
+    const int received_meanwhile = received.load() - received_before;
+    const liveview::LiveViewStats view_stats = view->stats();
+
+    RecordProperty("composites_per_s_one_browser", std::to_string(rate_alone));
+    RecordProperty("composites_per_s_beside_a_stalled_one", std::to_string(rate_stalled));
+    ASSERT_TRUE(p.status().isOk()) << p.status().toString();
+    EXPECT_GT(rate_alone, 0) << p.stats().json();
+    // Half the rate at worst: the machine may be busy with other tests; a view that waited for
+    // the stalled browser would have stopped the composites.
+    EXPECT_GE(rate_stalled, 0.5 * rate_alone) << rate_alone << " composites/s with one browser, "
+                                              << rate_stalled << " with a stalled one beside it";
+    EXPECT_TRUE(saw_stalled);
+    EXPECT_LE(high, view_stats.queue_bound_bytes);
+    EXPECT_GT(received_meanwhile, 10) << "the reading browser got nothing";
+    EXPECT_LT(memory_after, memory_before + (16u << 20))
+        << "memory in use grew from " << memory_before << " to " << memory_after;
+
+    const auto s0 = Clock::now();
+    p.stop();
+    EXPECT_LT(std::chrono::duration<double>(Clock::now() - s0).count(), 5.0);
+    done = true;
+    drain.join();
+}
+
 TEST(ArPipeline, RefusesWhatItCannotBuild) {
     ArSource none;
     EXPECT_EQ(ArPipeline::create(replayRegistry(), none, {}).status().code(),
@@ -487,9 +585,7 @@ TEST(ArPipeline, RefusesWhatItCannotBuild) {
     ArPipelineOptions options;
     options.scene = testScene();
     options.pose_stream = "no/such/pose";
-    ArSource source;
-    source.recording = session();
-    source.pace = ArSource::Pace::kFast;
+    const ArSource source = sessionSource(ArSource::Pace::kFast);
     auto bad = ArPipeline::create(replayRegistry(), source, std::move(options));
     EXPECT_FALSE(bad.isOk());
 }
@@ -500,12 +596,8 @@ TEST(ArPipeline, RefusesWhatItCannotBuild) {
 // every frame a recorded stream published is in the file, read back.
 TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
     const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_real_pace.mkv";
-    auto reader = replay::openRecording(session());
-    ASSERT_TRUE(reader.isOk());
-    ArPipelineOptions options;
-    options.setup = sessionSetup(**reader);
-    options.scene = testScene();
-    options.render = testRenderOptions();
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
     options.render.samples_per_pixel = 4;
     options.target_fps = 1000;
     options.record = out;
@@ -518,10 +610,7 @@ TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
         with_latency += f.latency_ms > 0;
         lowest_rung = std::max(lowest_rung, f.quality_step);
     };
-    ArSource source;
-    source.recording = session();
-    source.pace = ArSource::Pace::kReal;
-    source.loop = true;
+    const ArSource source = sessionSource(ArSource::Pace::kReal, true);
     auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
     ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
     ASSERT_TRUE((*pipeline)->start().isOk());
