@@ -235,10 +235,8 @@ Status CompositorNode::connect(Graph& graph) {
         const auto id = graph.findStream(name);
         if (!id)
             return {ErrorCode::kNotFound, options_.name + ": no stream " + name};
-        const double f = graph.stream(*id).nominal_fps;
-        // Records published per colour frame come at its rate; a little under the nominal
-        // period, so that jitter never makes a set look provably complete too early.
-        sync.sync.min_period_ns.push_back(f > 0 ? static_cast<int64_t>(0.8e9 / f) : 0);
+        // Records published per colour frame come at its rate.
+        sync.sync.min_period_ns.push_back(minFramePeriodNs(graph.stream(*id)));
     }
     // Offline the renderer sets the pace: a source waiting on it is not a dead source.
     if (options_.lossless)

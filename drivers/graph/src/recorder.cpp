@@ -86,8 +86,7 @@ Status Recorder::connect(Graph& graph) {
         }
         Input input;
         input.graph_id = *id;
-        const double fps = graph.stream(*id).nominal_fps;
-        input.min_period_ns = fps > 0 ? static_cast<int64_t>(0.8e9 / fps) : 0;
+        input.min_period_ns = minFramePeriodNs(graph.stream(*id));
         header_.streams.push_back(graph.stream(*id));
         inputs_.push_back(std::move(input));
         RecorderStreamStats stats;

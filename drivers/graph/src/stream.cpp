@@ -1,4 +1,4 @@
-// Names of stream kinds.
+// Names of stream kinds; the least frame period a consumer may count on.
 #include "mixray/graph/stream.h"
 
 #include <array>
@@ -31,6 +31,10 @@ std::optional<StreamKind> streamKindFromString(std::string_view name) {
             return k;
     }
     return std::nullopt;
+}
+
+int64_t minFramePeriodNs(const StreamInfo& stream) {
+    return stream.nominal_fps > 0 ? static_cast<int64_t>(0.8e9 / stream.nominal_fps) : 0;
 }
 
 }  // namespace mixray

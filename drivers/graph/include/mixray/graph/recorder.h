@@ -100,8 +100,8 @@ private:
         FrameRef head;  // popped, waiting for its turn
         std::chrono::steady_clock::time_point head_since;
         bool finished = false;
-        // The stream's frames come at least this far apart (80 % of its nominal period; 0:
-        // unknown), and the last one popped had this host stamp: until then plus the period,
+        // The stream's frames come at least this far apart (minFramePeriodNs()), and the last
+        // one popped had this host stamp: until then plus the period,
         // the stream cannot bring a frame that should be written before another stream's.
         int64_t min_period_ns = 0;
         std::optional<int64_t> last_stamp_ns;

@@ -45,4 +45,10 @@ struct StreamInfo {
     std::map<std::string, std::string> tags;  // free-form metadata, recorded as Matroska tags
 };
 
+// The least time between two frames of `stream` that a consumer may count on when it decides
+// that no frame older than some stamp can still come: 80 % of the nominal period, so that
+// jitter never makes that look certain too early; 0 (nothing can be ruled out) when the rate is
+// unknown. The synchronizer's and the recorder's rule for a stream with nothing queued.
+int64_t minFramePeriodNs(const StreamInfo& stream);
+
 }  // namespace mixray
