@@ -23,7 +23,7 @@ json benchJson(const std::string& args) {
     return json::parse(run.output.substr(start + 1), nullptr, false);
 }
 
-TEST(BenchPipelineCli, FastPaceRendersTheSameImagesAsTheRendererAlone) {
+TEST(BenchPipelineCli, FastPaceRendersTheSameImagesAsTheRendererAloneWithAndWithoutEstimation) {
     const json j = benchJson("--pace fast --passes 1 --threads 2");
     ASSERT_TRUE(j.contains("fast")) << j.dump();
     const json& f = j["fast"];
@@ -34,6 +34,17 @@ TEST(BenchPipelineCli, FastPaceRendersTheSameImagesAsTheRendererAlone) {
     EXPECT_GT(f["renderer_alone_frames_per_s"].get<double>(), 0);
     EXPECT_NEAR(f["overhead"].get<double>(),
                 f["pipeline_s"].get<double>() / f["renderer_alone_s"].get<double>() - 1, 1e-9);
+    // The graph's own cost: the session's recorded poses and fixed lights instead of tracking
+    // and estimation, uncompressed frames instead of FFV1; the same images as the renderer's.
+    ASSERT_TRUE(f.contains("graph_only")) << f.dump();
+    const json& g = f["graph_only"];
+    EXPECT_EQ(g["pose_stream"], "truth/pose");
+    EXPECT_EQ(g["composites"].get<int>(), 36);
+    EXPECT_GT(g["rendered"].get<int>(), 30);
+    EXPECT_EQ(g["identical_composites"], g["rendered"]);
+    EXPECT_EQ(g["track_ms"].get<double>(), 0);
+    EXPECT_NEAR(g["overhead"].get<double>(),
+                g["pipeline_s"].get<double>() / g["renderer_alone_s"].get<double>() - 1, 1e-9);
     EXPECT_FALSE(j.contains("real"));
 }
 
