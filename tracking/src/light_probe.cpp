@@ -296,6 +296,12 @@ struct LambertFit {
     double cost = 0;
 };
 
+// One sample of the fit: the surface normal and the linear luminance seen there.
+struct FitSample {
+    Vector3d normal;
+    double y = 0;
+};
+
 double lambertModel(const LambertFit& f, const Vector3d& n) {
     double y = f.ambient;
     for (const Vector3d& b : f.b)
@@ -303,17 +309,17 @@ double lambertModel(const LambertFit& f, const Vector3d& n) {
     return y;
 }
 
-double lambertCost(const LambertFit& f, const std::vector<const Sample*>& samples) {
+double lambertCost(const LambertFit& f, const std::vector<FitSample>& samples) {
     double cost = 0;
-    for (const Sample* s : samples) {
-        const double r = lambertModel(f, s->normal_world) - detail::luminance(s->linear_rgb);
+    for (const FitSample& s : samples) {
+        const double r = lambertModel(f, s.normal) - s.y;
         cost += r * r;
     }
     return cost;
 }
 
-// Levenberg–Marquardt on (a, b_1, ..., b_k).
-LambertFit refineLambert(LambertFit f, const std::vector<const Sample*>& samples) {
+// Levenberg–Marquardt on (a, b_1, ..., b_k), at most `iterations` steps.
+LambertFit refineLambert(LambertFit f, const std::vector<FitSample>& samples, int iterations = 60) {
     const int k = static_cast<int>(f.b.size());
     const int m = 1 + 3 * k;
     auto pack = [&](const LambertFit& g) {
@@ -332,20 +338,40 @@ LambertFit refineLambert(LambertFit f, const std::vector<const Sample*>& samples
     };
     f.cost = lambertCost(f, samples);
     double lambda = 1e-3;
-    for (int iter = 0; iter < 60; ++iter) {
-        Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(m, m);
-        Eigen::VectorXd Jtr = Eigen::VectorXd::Zero(m);
-        Eigen::VectorXd row(m);
-        for (const Sample* s : samples) {
-            const Vector3d& n = s->normal_world;
-            row.setZero();
-            row[0] = 1;
-            for (int i = 0; i < k; ++i)
-                if (n.dot(f.b[static_cast<size_t>(i)]) > 0)
-                    row.segment<3>(1 + 3 * i) = n;
-            const double r = lambertModel(f, n) - detail::luminance(s->linear_rgb);
-            JtJ.selfadjointView<Eigen::Lower>().rankUpdate(row);
-            Jtr += r * row;
+    Eigen::MatrixXd JtJ(m, m);
+    Eigen::VectorXd Jtr(m);
+    std::vector<int> lit;  // the lights facing the sample
+    lit.reserve(static_cast<size_t>(k));
+    for (int iter = 0; iter < iterations; ++iter) {
+        // The Jacobian row of a sample is (1, n·[n·b_1 > 0], ..., n·[n·b_k > 0]): its products
+        // are blocks of n nᵀ between the lights it faces, accumulated directly (the lower
+        // triangle) instead of through a general rank update of a dynamic row.
+        JtJ.setZero();
+        Jtr.setZero();
+        for (const FitSample& s : samples) {
+            const Vector3d& n = s.normal;
+            lit.clear();
+            double model = f.ambient;
+            for (int i = 0; i < k; ++i) {
+                const double c = n.dot(f.b[static_cast<size_t>(i)]);
+                if (c > 0) {
+                    lit.push_back(i);
+                    model += c;
+                }
+            }
+            const double r = model - s.y;
+            JtJ(0, 0) += 1;
+            Jtr[0] += r;
+            if (lit.empty())
+                continue;
+            const Eigen::Matrix3d nn = n * n.transpose();
+            for (size_t a = 0; a < lit.size(); ++a) {
+                const int i = 1 + 3 * lit[a];
+                JtJ.block<3, 1>(i, 0) += n;
+                Jtr.segment<3>(i) += r * n;
+                for (size_t c = 0; c <= a; ++c)
+                    JtJ.block<3, 3>(i, 1 + 3 * lit[c]) += nn;
+            }
         }
         JtJ = JtJ.selfadjointView<Eigen::Lower>();
         bool improved = false;
@@ -379,13 +405,12 @@ double angleBetween(const Vector3d& a, const Vector3d& b) {
 // Lights one at a time: the first from the largest maximum-luminance component (the paper's
 // estimate), each further one from where the current fit leaves the most light unexplained;
 // every addition refits all of them and stays only if it explains a real part of the shading.
-LambertFit fitLambert(const std::vector<const Sample*>& samples, const Vector3d& first_normal,
+LambertFit fitLambert(const std::vector<FitSample>& samples, const Vector3d& first_normal,
                       const Vector3d& towards_camera, int max_lights) {
     double y_min = 1e300, y_max = 0;
-    for (const Sample* s : samples) {
-        const double y = detail::luminance(s->linear_rgb);
-        y_min = std::min(y_min, y);
-        y_max = std::max(y_max, y);
+    for (const FitSample& s : samples) {
+        y_min = std::min(y_min, s.y);
+        y_max = std::max(y_max, s.y);
     }
     LambertFit fit;
     fit.ambient = y_min;
@@ -398,13 +423,12 @@ LambertFit fitLambert(const std::vector<const Sample*>& samples, const Vector3d&
         std::vector<Vector3d> starts;
         Vector3d sum = Vector3d::Zero();
         double best = 0;
-        for (const Sample* s : samples)
-            best = std::max(best,
-                            detail::luminance(s->linear_rgb) - lambertModel(fit, s->normal_world));
-        for (const Sample* s : samples) {
-            const double r = detail::luminance(s->linear_rgb) - lambertModel(fit, s->normal_world);
+        for (const FitSample& s : samples)
+            best = std::max(best, s.y - lambertModel(fit, s.normal));
+        for (const FitSample& s : samples) {
+            const double r = s.y - lambertModel(fit, s.normal);
             if (r > 0.5 * best)
-                sum += r * s->normal_world;
+                sum += r * s.normal;
         }
         if (sum.norm() > 0)
             starts.push_back(sum.normalized());
@@ -414,11 +438,22 @@ LambertFit fitLambert(const std::vector<const Sample*>& samples, const Vector3d&
                 starts.push_back((elevation * towards_camera + std::cos(t) * e1 + std::sin(t) * e2)
                                      .normalized());
         }
-        std::optional<LambertFit> best_fit;
+        // A few steps from every start single out where the fit is going; only the most
+        // promising starts are refined to the end (most of the 17 converge to the same light).
+        constexpr int kScreeningSteps = 6;
+        constexpr size_t kRefinedStarts = 3;
+        std::vector<LambertFit> screened;
         for (const Vector3d& start : starts) {
             LambertFit trial = fit;
             trial.b.push_back(std::max(best, 1e-3) * start);
-            trial = refineLambert(trial, samples);
+            screened.push_back(refineLambert(std::move(trial), samples, kScreeningSteps));
+        }
+        std::stable_sort(screened.begin(), screened.end(),
+                         [](const LambertFit& a, const LambertFit& b) { return a.cost < b.cost; });
+        screened.resize(std::min(screened.size(), kRefinedStarts));
+        std::optional<LambertFit> best_fit;
+        for (LambertFit& trial : screened) {
+            trial = refineLambert(std::move(trial), samples);
             if (!best_fit || trial.cost < best_fit->cost)
                 best_fit = std::move(trial);
         }
@@ -468,7 +503,11 @@ std::vector<EstimatedLight> diffuseLights(const SampleGrid& grid, const std::vec
         weights.push_back(grid.samples[static_cast<size_t>(s)].luma);
     }
     const Vector3d first = weightedMeanDirection(normals, weights).first;
-    const LambertFit fit = fitLambert(samples, first, towards_camera, max_lights);
+    std::vector<FitSample> fit_samples;
+    fit_samples.reserve(samples.size());
+    for (const Sample* s : samples)
+        fit_samples.push_back({s->normal_world, detail::luminance(s->linear_rgb)});
+    const LambertFit fit = fitLambert(fit_samples, first, towards_camera, max_lights);
 
     // Colour: with the directions fixed each channel is linear in (ambient, strengths).
     const int k = static_cast<int>(fit.b.size());
