@@ -151,7 +151,9 @@ public:
         }
         cv_.notify_all();
     }
-    // A frame without a fresh pose: the estimates stand, marked stale with the reason.
+    // A frame without a fresh pose: the estimates stand, marked stale with the reason. A job
+    // already running may finish afterwards and replace them with fresh estimates of its older
+    // frame: they carry that frame's stamp, and the next frame without a pose marks them again.
     void keep(const std::string& why, int64_t stamp, bool diffuse) {
         std::lock_guard lock(mutex_);
         for (size_t i = 0; i < current_.probes.size(); ++i)
@@ -332,6 +334,8 @@ Result<std::optional<TrackedFrame>> TrackingPipeline::push(const FrameRef& frame
         estimateProbes(frame.image(), *out.track.pose.value, stamp, out);
         probes_ = out.probes;
         intensities_ = out.intensities;
+        out.probe_ms = millisecondsSince(start);
+        return std::optional<TrackedFrame>(std::move(out));
     }
     // Between estimates (and live, until the worker finishes) the last ones stand.
     if (probe_worker_) {
