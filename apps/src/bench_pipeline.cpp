@@ -28,6 +28,7 @@
 #include "mixray/render/ar_pipeline.h"
 #include "mixray/render/renderer.h"
 #include "mixray/render/scene_file.h"
+#include "mixray/replay/convert.h"
 #include "mixray/replay/open_recording.h"
 #include "mixray/tracking/pipeline.h"
 #include "test_data_paths.h"
@@ -300,23 +301,14 @@ Status writeUncompressedCopy(const fs::path& session, const fs::path& copy) {
     auto reader = replay::openRecording(session);
     if (!reader)
         return reader.status();
-    RecordingHeader header{(*reader)->streams(), (*reader)->attachments(), (*reader)->tags()};
     MkvWriterOptions writer_options;
     writer_options.compression = MkvCompression::kNone;
     writer_options.flush_every_frame = false;
-    auto writer = createMkvWriter(copy, header, writer_options);
+    auto writer = createMkvWriter(copy, replay::headerOf(**reader), writer_options);
     if (!writer)
         return writer.status();
-    while (true) {
-        auto frame = (*reader)->next();
-        if (!frame) {
-            if (frame.status().code() != ErrorCode::kEndOfStream)
-                return frame.status();
-            break;
-        }
-        MIXRAY_RETURN_IF_ERROR((*writer)->write(*frame));
-    }
-    return (*writer)->close();
+    auto converted = replay::convertRecording(**reader, **writer);
+    return converted ? Status::ok() : converted.status();
 }
 
 struct StreamCount {
