@@ -557,10 +557,11 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     RecordProperty("composites_per_s_beside_a_stalled_one", std::to_string(rate_stalled));
     ASSERT_TRUE(p.status().isOk()) << p.status().toString();
     EXPECT_GT(rate_alone, 0) << p.stats().json();
-    // Half the rate at worst: the machine may be busy with other tests; a view that waited for
-    // the stalled browser would have stopped the composites.
-    EXPECT_GE(rate_stalled, 0.5 * rate_alone) << rate_alone << " composites/s with one browser, "
-                                              << rate_stalled << " with a stalled one beside it";
+    // A view that waited for the stalled browser would stop the composites. A quarter of the
+    // rate at worst: on 2 cores a test started beside this one can take one of them (half the
+    // rate) and more in bursts; here the rates come out equal.
+    EXPECT_GE(rate_stalled, 0.25 * rate_alone) << rate_alone << " composites/s with one browser, "
+                                               << rate_stalled << " with a stalled one beside it";
     EXPECT_TRUE(saw_stalled);
     EXPECT_LE(high, view_stats.queue_bound_bytes);
     EXPECT_GT(received_meanwhile, 10) << "the reading browser got nothing";
