@@ -612,10 +612,10 @@ int runBenchPipeline(const BenchPipelineOptions& options) {
             const fs::path copy =
                 fs::temp_directory_path() /
                 ("mixray-bench-pipeline-" + std::to_string(getpid()) + "-raw.mkv");
-            Status copied = writeUncompressedCopy(options.session, copy);
-            Result<FastFigures> measured = copied;
-            if (copied)
-                measured = benchFast(options, copy, graphOnly(*inputs, fast->last_lights));
+            const Status copied = writeUncompressedCopy(options.session, copy);
+            Result<FastFigures> measured =
+                copied ? benchFast(options, copy, graphOnly(*inputs, fast->last_lights))
+                       : Result<FastFigures>(copied);
             std::error_code ec;
             fs::remove(copy, ec);
             if (!measured)
