@@ -2,11 +2,10 @@
 // thread, and keeps draining after a write error so live drivers are never held up.
 #include "mixray/graph/recorder.h"
 
-#include <sys/resource.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdio>
+
+#include "mixray/graph/thread_priority.h"
 
 namespace mixray {
 
@@ -202,12 +201,10 @@ void Recorder::writeFrame(size_t index, FrameRef frame) {
 
 void Recorder::run() {
     // Writing is throughput work with a queue to absorb delays; the threads that carry a frame
-    // to its composite are latency work. A slightly lower priority (nice 5: about a third of a
-    // normal thread's share when the cores are busy) lets them go first and the recorder catch
-    // up in between: with the live AR pipeline recording everything on 2 cores, p99 latency
-    // went from 58-100 ms to 56-66 ms over several runs, and the recorder still dropped nothing.
-    // Linux only (a thread's nice value is its own there); a refusal changes nothing else.
-    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
+    // to its composite are latency work, and go first: with the live AR pipeline recording
+    // everything on 2 cores, p99 latency went from 58-100 ms to 56-66 ms over several runs, and
+    // the recorder still dropped nothing.
+    runAsBackgroundThread();
     while (true) {
         pullHeads(false);
         size_t best = inputs_.size();
