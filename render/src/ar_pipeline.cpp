@@ -190,11 +190,10 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         t.pipeline = options.tracking;
         t.lossless = lossless;
         t.max_color_frames = options.max_color_frames;
-        auto node = tracking::TrackingNode::create(std::move(t), options.on_tracked);
-        if (!node)
-            return node.status();
-        p->tracking_ = node->get();
-        MIXRAY_RETURN_IF_ERROR(graph.addNode(std::move(node).value()));
+        auto nodes = tracking::TrackingNodes::add(graph, std::move(t), options.on_tracked);
+        if (!nodes)
+            return nodes.status();
+        p->tracking_ = std::move(nodes).value();
         pose_stream = p->tracking_->options().pose_stream;
         light_stream = p->tracking_->options().light_stream;
         if (p->tracking_->hasEnvironment())
@@ -475,7 +474,9 @@ std::string ArPipelineStats::json() const {
     if (tracking) {
         j["tracking"] = {{"color_frames", tracking->color_frames},
                          {"skipped", tracking->color_skipped},
-                         {"environment_frames", tracking->environment_frames}};
+                         {"light_records", tracking->light_records},
+                         {"environment_frames", tracking->environment_frames},
+                         {"environment_skipped", tracking->environment_skipped}};
     }
     if (recorder) {
         j["recorder"] = {{"written", recorder->frames_written},

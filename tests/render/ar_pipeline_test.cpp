@@ -116,33 +116,81 @@ ArSource sessionSource(ArSource::Pace pace, bool looped = false) {
     return source;
 }
 
-// The loop the graph replaces: every frame in recording order; a colour frame is tracked and
-// rendered when the next one arrives (by then its environment and depth frames were read).
+// Builds the pipeline, runs it until the source ended and everything downstream finished,
+// and stops it; fails the test on any error. `out` keeps it for its stats.
+void runToEnd(const ArSource& source, ArPipelineOptions options, std::unique_ptr<ArPipeline>& out,
+              std::chrono::seconds timeout = std::chrono::seconds(120)) {
+    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    out = std::move(pipeline).value();
+    ASSERT_TRUE(out->start().isOk());
+    ASSERT_TRUE(out->waitDone(timeout));
+    out->stop();
+    ASSERT_TRUE(out->status().isOk()) << out->status().toString();
+}
+
+// The loop the graph replaces, written with the library's building blocks: every frame in
+// recording order; a colour frame is tracked and rendered when the next one arrives (by then
+// its depth frame was read), lit by the fish-eye estimate of the newest environment image
+// stamped at or before it.
 std::map<uint64_t, FrameResult> referenceLoop() {
     std::map<uint64_t, FrameResult> out;
     auto reader = replay::openRecording(session());
     EXPECT_TRUE(reader.isOk());
     const tracking::TrackingSetup setup = sessionSetup(**reader);
-    auto pipeline = tracking::TrackingPipeline::create(setup, (*reader)->streams(), {});
-    EXPECT_TRUE(pipeline.isOk()) << pipeline.status().toString();
+    auto tracker =
+        tracking::MarkerTracker::create(setup.camera.model, setup.targets, setup.tracker);
+    EXPECT_TRUE(tracker.isOk()) << tracker.status().toString();
+    EXPECT_TRUE(setup.environment.has_value());
+    tracking::EnvironmentEstimator environment(setup.environment->camera, setup.environment->lights,
+                                               setup.environment->map_width);
     auto renderer = Renderer::create(testScene(), testRenderOptions());
     EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
-    StreamId depth_stream = kInvalidStream;
-    for (StreamId i = 0; i < (*reader)->streams().size(); ++i)
-        if ((*reader)->streams()[i].kind == StreamKind::kDepth)
+    StreamId depth_stream = kInvalidStream, color_stream = kInvalidStream,
+             env_stream = kInvalidStream;
+    for (StreamId i = 0; i < (*reader)->streams().size(); ++i) {
+        const StreamInfo& info = (*reader)->streams()[i];
+        if (info.kind == StreamKind::kDepth)
             depth_stream = i;
+        if (info.name == setup.camera.stream)
+            color_stream = i;
+        if (info.name == setup.environment->stream)
+            env_stream = i;
+    }
     FrameRef depth, pending;
+    std::vector<FrameRef> env_frames;
+    std::vector<tracking::Estimate<tracking::ProbeResult>> probes(setup.probes.size());
+    tracking::Estimate<tracking::IntensityFit> intensities;
     RenderLayers layers;
     std::vector<Light> last_lights;
     bool lights_set = false;
     const auto process = [&] {
-        auto tracked = (*pipeline)->push(pending);
-        ASSERT_TRUE(tracked.isOk() && tracked->has_value());
-        const TrackedFrame& f = **tracked;
+        const int64_t stamp = pending.meta().host_stamp_ns;
+        auto track = (*tracker)->track(pending.image(), stamp);
+        ASSERT_TRUE(track.isOk()) << track.status().toString();
+        while (!env_frames.empty() && env_frames.front().meta().host_stamp_ns <= stamp) {
+            environment.estimate(env_frames.front().image(),
+                                 env_frames.front().meta().host_stamp_ns);
+            env_frames.erase(env_frames.begin());
+        }
+        TrackedFrame f;
+        f.track = std::move(track).value();
+        f.environment = environment.latest();
+        f.probes = probes;
+        f.intensities = intensities;
+        if (f.track.state == tracking::TrackState::kTracking && f.track.pose.value) {
+            // The light node sees the pose through its record.
+            PoseRecord record;
+            record.setTransform(*f.track.pose.value);
+            tracking::estimateFrameProbes(setup, pending.image(), record.transform(), stamp, f);
+            probes = f.probes;
+            intensities = f.intensities;
+        }
         FrameResult r;
         r.pose = f.track.pose.value;
         r.pose_stale = f.track.pose.stale || f.track.state != tracking::TrackState::kTracking;
-        r.lights = (*pipeline)->renderLights(f);
+        r.lights = tracking::renderLights(setup, f);
+        // The map of the newest good environment image, as the map stream carries it.
         std::vector<Light> lights = lightsFromEstimates(
             r.lights, f.environment.value ? f.environment.value->environment_map : nullptr);
         if (!lights_set || lights.size() != last_lights.size() || [&] {
@@ -157,20 +205,20 @@ std::map<uint64_t, FrameResult> referenceLoop() {
             last_lights = lights;
             lights_set = true;
         }
-        ImageView composite = f.color.image();
+        ImageView composite = pending.image();
         if (f.track.pose.value) {
             RenderInputs in;
-            in.camera_image = f.color.image();
+            in.camera_image = pending.image();
             in.camera = setup.camera.model;
             in.T_world_cam = *f.track.pose.value;
-            if (depth && depth.meta().host_stamp_ns == f.color.meta().host_stamp_ns)
+            if (depth && depth.meta().host_stamp_ns == stamp)
                 in.depth_mm = depth.image();
             ASSERT_TRUE((*renderer)->render(in, layers).isOk());
             composite = layers.composite.view();
             r.rendered = true;
         }
         r.composite.assign(composite.data, composite.data + composite.size_bytes);
-        out[f.color.meta().sequence] = std::move(r);
+        out[pending.meta().sequence] = std::move(r);
         pending = FrameRef();
     };
     while (true) {
@@ -180,12 +228,12 @@ std::map<uint64_t, FrameResult> referenceLoop() {
         FrameRef frame = std::move(next).value();
         if (frame.meta().stream == depth_stream) {
             depth = frame;
-        } else if (frame.meta().stream == (*pipeline)->colorStream()) {
+        } else if (frame.meta().stream == color_stream) {
             if (pending)
                 process();
             pending = frame;
-        } else {
-            EXPECT_TRUE((*pipeline)->push(frame).isOk());
+        } else if (frame.meta().stream == env_stream) {
+            env_frames.push_back(frame);
         }
     }
     if (pending)
@@ -218,12 +266,8 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
         got[c.color.meta().sequence] = std::move(r);
     };
     const ArSource source = sessionSource(ArSource::Pace::kFast);
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ASSERT_TRUE((*pipeline)->start().isOk());
-    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
-    (*pipeline)->stop();
-    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_NO_FATAL_FAILURE(runToEnd(source, std::move(options), pipeline));
 
     ASSERT_EQ(got.size(), reference.size());
     int rendered = 0;
@@ -247,7 +291,7 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
         EXPECT_TRUE(have.composite == want.composite) << "composites differ";
     }
     EXPECT_GT(rendered, 30);
-    const ArPipelineStats stats = (*pipeline)->stats();
+    const ArPipelineStats stats = pipeline->stats();
     ASSERT_TRUE(stats.compositor.has_value());
     EXPECT_EQ(stats.compositor->composites, 36u);
     EXPECT_EQ(stats.compositor->skipped_superseded, 0u);
@@ -262,20 +306,17 @@ TEST(ArPipeline, RecordsRawStreamsPosesLightsAndTheCompositeIntoOneRecording) {
     options.render.max_depth = 0;
     options.record = out;
     const ArSource source = sessionSource(ArSource::Pace::kFast);
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ASSERT_TRUE((*pipeline)->start().isOk());
-    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
-    (*pipeline)->stop();
-    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_NO_FATAL_FAILURE(runToEnd(source, std::move(options), pipeline));
 
     auto recorded = replay::openRecording(out);
     ASSERT_TRUE(recorded.isOk()) << recorded.status().toString();
     std::map<std::string, StreamId> ids;
     for (StreamId i = 0; i < (*recorded)->streams().size(); ++i)
         ids[(*recorded)->streams()[i].name] = i;
-    for (const char* name : {"kinect/color", "kinect/depth", "env/color", "tracking/pose",
-                             "tracking/lights", "tracking/environment_map", "composite/color"})
+    for (const char* name :
+         {"kinect/color", "kinect/depth", "env/color", "tracking/pose", "tracking/lights",
+          "tracking/environment_lights", "tracking/environment_map", "composite/color"})
         EXPECT_TRUE(ids.count(name)) << name << " is not in the recording";
     std::map<StreamId, int> counts;
     std::set<std::string> groups;
@@ -382,14 +423,10 @@ TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
     ArSource source;
     source.recording = input;
     source.pace = ArSource::Pace::kFast;
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ASSERT_TRUE((*pipeline)->start().isOk());
-    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(120)));
-    (*pipeline)->stop();
-    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_NO_FATAL_FAILURE(runToEnd(source, std::move(options), pipeline));
     // The composite goes on: one per colour frame, both passes.
-    EXPECT_EQ((*pipeline)->stats().compositor->composites, 72u);
+    EXPECT_EQ(pipeline->stats().compositor->composites, 72u);
 
     auto recorded = replay::openRecording(out);
     ASSERT_TRUE(recorded.isOk()) << recorded.status().toString();
@@ -457,13 +494,10 @@ TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
     options.render = testRenderOptions();
     options.target_fps = -1;
     const ArSource source = sessionSource(ArSource::Pace::kReal);
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ASSERT_TRUE((*pipeline)->start().isOk());
-    ASSERT_TRUE((*pipeline)->waitDone(std::chrono::seconds(30)));
-    (*pipeline)->stop();
-    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
-    const ArPipelineStats stats = (*pipeline)->stats();
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_NO_FATAL_FAILURE(
+        runToEnd(source, std::move(options), pipeline, std::chrono::seconds(30)));
+    const ArPipelineStats stats = pipeline->stats();
     ASSERT_TRUE(stats.compositor.has_value());
     const CompositorStats& c = *stats.compositor;
     // Every set is composited or counted as skipped for a newer one: none vanishes.
@@ -617,20 +651,21 @@ TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
         lowest_rung = std::max(lowest_rung, f.quality_step);
     };
     const ArSource source = sessionSource(ArSource::Pace::kReal, true);
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ASSERT_TRUE((*pipeline)->start().isOk());
+    auto created = ArPipeline::create(replayRegistry(), source, std::move(options));
+    ASSERT_TRUE(created.isOk()) << created.status().toString();
+    const std::unique_ptr<ArPipeline> pipeline = std::move(created).value();
+    ASSERT_TRUE(pipeline->start().isOk());
     // Past the end of the 1.2 s session, so the loop restarts it at least once, and until the
     // ladder had the 3 rendered frames it needs to judge a rung (a slow machine takes longer).
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(40);
     std::this_thread::sleep_for(std::chrono::milliseconds(2500));
-    while ((*pipeline)->stats().compositor->rendered < 5 &&
+    while (pipeline->stats().compositor->rendered < 5 &&
            std::chrono::steady_clock::now() < deadline)
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    EXPECT_FALSE((*pipeline)->waitDone(std::chrono::milliseconds(1))) << "a looped source ended";
-    (*pipeline)->stop();
-    ASSERT_TRUE((*pipeline)->status().isOk()) << (*pipeline)->status().toString();
-    const ArPipelineStats stats = (*pipeline)->stats();
+    EXPECT_FALSE(pipeline->waitDone(std::chrono::milliseconds(1))) << "a looped source ended";
+    pipeline->stop();
+    ASSERT_TRUE(pipeline->status().isOk()) << pipeline->status().toString();
+    const ArPipelineStats stats = pipeline->stats();
     ASSERT_TRUE(stats.compositor.has_value());
     const CompositorStats& c = *stats.compositor;
     EXPECT_GT(c.composites, 0u);
@@ -657,7 +692,7 @@ TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
         }
         ++in_file[(*recorded)->streams().at(frame->meta().stream).name];
     }
-    Graph& graph = (*pipeline)->graph();
+    Graph& graph = pipeline->graph();
     ASSERT_FALSE(stats.recorder->streams.empty());
     uint64_t colour = 0;
     for (const RecorderStreamStats& r : stats.recorder->streams) {
@@ -706,38 +741,67 @@ TEST(QualityController, GoesDownWhenFramesAreSlowAndBackUpWhenTheyAreFast) {
         EXPECT_EQ(fixed.update(10.0), 0);
 }
 
-TEST(TrackingPipeline, ProbesAreEstimatedAtMostOncePerIntervalLive) {
-    // Offline every colour frame estimates the probes; with an interval (live), the last
+TEST(LightEstimationNode, EstimatesTheProbesAtMostOncePerInterval) {
+    // Offline every colour frame estimates the probes; with an interval (as live), the last
     // estimates stand in between, fresh, and tracking itself still runs on every frame.
     for (const int64_t interval_ms : {int64_t{0}, int64_t{500}}) {
         SCOPED_TRACE("probe_interval_ms " + std::to_string(interval_ms));
+        ArPipelineOptions options = sessionPipelineOptions();
+        ASSERT_TRUE(options.setup.has_value());
+        options.scene.reset();
+        options.tracking.probe_interval_ms = interval_ms;
+        std::vector<int64_t> probe_updates;  // written on the light node's thread only
+        options.on_tracked = [&](const TrackedFrame& f) {
+            EXPECT_TRUE(f.probes.at(0).value.has_value());
+            EXPECT_TRUE(f.track.pose.value.has_value());
+            probe_updates.push_back(f.probes.at(0).updates);
+        };
+        std::unique_ptr<ArPipeline> pipeline;
+        ASSERT_NO_FATAL_FAILURE(runToEnd(sessionSource(ArSource::Pace::kFast), std::move(options),
+                                         pipeline, std::chrono::seconds(60)));
+        ASSERT_EQ(probe_updates.size(), 36u);
+        // 36 frames over 1.17 s: every one, or one per started 500 ms.
+        EXPECT_EQ(probe_updates.back(), interval_ms == 0 ? 36 : 3);
+        EXPECT_EQ(pipeline->stats().tracking->light_records, 36u);
+    }
+}
+
+TEST(LightEstimationNode, OfflineEachFrameTakesTheNewestEnvironmentImageBeforeIt) {
+    // The fish-eye runs on a node of its own; offline a colour frame must still get the
+    // estimate of exactly the newest environment image stamped at or before it, every run.
+    std::vector<int64_t> env_stamps;
+    {
         auto reader = replay::openRecording(session());
         ASSERT_TRUE(reader.isOk());
-        tracking::PipelineOptions options;
-        options.probe_interval_ms = interval_ms;
-        auto pipeline = tracking::TrackingPipeline::create(sessionSetup(**reader),
-                                                           (*reader)->streams(), options);
-        ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-        int tracked = 0;
-        int64_t probe_updates = 0;
-        while (true) {
-            auto frame = (*reader)->next();
-            if (!frame)
-                break;
-            auto out = (*pipeline)->push(*frame);
-            ASSERT_TRUE(out.isOk());
-            if (!*out)
-                continue;
-            ++tracked;
-            probe_updates = (*out)->probes.at(0).updates;
-            EXPECT_TRUE((*out)->probes.at(0).value.has_value());
-        }
-        EXPECT_EQ(tracked, 36);
-        // 36 frames over 1.17 s: every one, or one per started 500 ms.
-        if (interval_ms == 0)
-            EXPECT_EQ(probe_updates, 36);
-        else
-            EXPECT_EQ(probe_updates, 3);
+        while (auto frame = (*reader)->next())
+            if ((*reader)->streams()[frame->meta().stream].name == "env/color")
+                env_stamps.push_back(frame->meta().host_stamp_ns);
+    }
+    ASSERT_EQ(env_stamps.size(), 3u);
+    for (int run = 0; run < 2; ++run) {
+        SCOPED_TRACE("run " + std::to_string(run));
+        ArPipelineOptions options = sessionPipelineOptions();
+        ASSERT_TRUE(options.setup.has_value());
+        options.scene.reset();
+        options.tracking.probes = false;  // only the fish-eye matters here
+        int frames = 0;
+        options.on_tracked = [&](const TrackedFrame& f) {
+            ++frames;
+            const int64_t stamp = f.color.meta().host_stamp_ns;
+            int64_t newest = 0;
+            for (int64_t e : env_stamps)
+                if (e <= stamp)
+                    newest = e;
+            EXPECT_EQ(f.environment.stamp_ns, newest) << "colour frame at " << stamp;
+            EXPECT_EQ(f.environment.value.has_value(), newest > 0);
+        };
+        std::unique_ptr<ArPipeline> pipeline;
+        ASSERT_NO_FATAL_FAILURE(runToEnd(sessionSource(ArSource::Pace::kFast), std::move(options),
+                                         pipeline, std::chrono::seconds(60)));
+        EXPECT_EQ(frames, 36);
+        const tracking::TrackingNodeStats stats = *pipeline->stats().tracking;
+        EXPECT_EQ(stats.environment_frames, 3u);
+        EXPECT_EQ(stats.light_records, 36u);
     }
 }
 

@@ -7,17 +7,18 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <iostream>
 #include <map>
 #include <numbers>
-#include <thread>
 #include <vector>
 
+#include "mixray/graph/graph.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/simulator.h"
+#include "mixray/tracking/environment_light_node.h"
+#include "mixray/tracking/light_record.h"
 #include "test_data.h"
 
 namespace mixray::tracking {
@@ -458,18 +459,16 @@ TEST(EnvironmentMap, LowerHemisphereMirrorsTheUpper) {
               ErrorCode::kInvalidArgument);
 }
 
-// ---- the asynchronous estimator ----
+// ---- the estimator, image after image ----
 
-TEST(AsyncEnvironmentEstimator, FreshThenStaleKeepsTheLastGoodValue) {
+TEST(EnvironmentEstimator, FreshThenStaleKeepsTheLastGoodValue) {
     const EnvironmentCamera camera = envCamera();
-    AsyncEnvironmentEstimator estimator(camera, {}, 64);
+    EnvironmentEstimator estimator(camera, {}, 64);
     Estimate<EnvironmentEstimate> e = estimator.latest();
     EXPECT_FALSE(e.value);
     EXPECT_TRUE(e.stale);
 
-    estimator.submit(firstEnv().view(), 100);
-    estimator.drain();
-    e = estimator.latest();
+    e = estimator.estimate(firstEnv().view(), 100);
     ASSERT_TRUE(e.value);
     EXPECT_FALSE(e.stale);
     EXPECT_TRUE(e.reason.empty());
@@ -480,9 +479,7 @@ TEST(AsyncEnvironmentEstimator, FreshThenStaleKeepsTheLastGoodValue) {
     EXPECT_EQ(e.value->environment_map->width, 64);
     EXPECT_LT(nearestDeg(e.value->lights, toLight(truth().lights[0])), 3.0);
 
-    estimator.submit(filled(camera.model, 0).view(), 200);
-    estimator.drain();
-    e = estimator.latest();
+    e = estimator.estimate(filled(camera.model, 0).view(), 200);
     ASSERT_TRUE(e.value) << "the last good value stays";
     EXPECT_TRUE(e.stale);
     EXPECT_NE(e.reason.find("black"), std::string::npos) << e.reason;
@@ -492,75 +489,152 @@ TEST(AsyncEnvironmentEstimator, FreshThenStaleKeepsTheLastGoodValue) {
     EXPECT_EQ(e.stale_updates, 1);
 
     Image depth(ImageDesc::packed(PixelFormat::kDepth16, 8, 8));
-    estimator.submit(depth.view(), 300);
-    estimator.drain();
-    e = estimator.latest();
+    e = estimator.estimate(depth.view(), 300);
     EXPECT_TRUE(e.stale);
     EXPECT_NE(e.reason.find("pixel format"), std::string::npos) << e.reason;
     EXPECT_EQ(e.good_stamp_ns, 100);
+    EXPECT_EQ(estimator.latest().stamp_ns, 300);
 }
 
-TEST(AsyncEnvironmentEstimator, NewestWinsUnderConcurrentSubmits) {
-    const EnvironmentCamera camera = envCamera();
-    const Image black = filled(camera.model, 0);
-    AsyncEnvironmentEstimator estimator(camera, {}, 32);
-    std::atomic<bool> done{false};
-    std::atomic<int64_t> reads{0};
-    std::thread reader([&] {
-        int64_t last = -1;
-        while (!done) {
-            const Estimate<EnvironmentEstimate> e = estimator.latest();
-            // Estimates only move forward.
-            EXPECT_GE(e.updates + e.stale_updates, last);
-            last = e.updates + e.stale_updates;
-            ++reads;
-        }
-    });
-    constexpr int kPerThread = 100;
-    std::vector<std::thread> submitters;
-    for (int k = 0; k < 2; ++k)
-        submitters.emplace_back([&, k] {
-            for (int i = 0; i < kPerThread; ++i)
-                estimator.submit(i % 2 == 0 ? firstEnv().view() : black.view(),
-                                 1 + k * kPerThread + i);
-        });
-    for (std::thread& t : submitters)
-        t.join();
-    // The last word: a good image.
-    estimator.submit(firstEnv().view(), 10000);
-    estimator.drain();
-    done = true;
-    reader.join();
-    const Estimate<EnvironmentEstimate> e = estimator.latest();
-    EXPECT_FALSE(e.stale);
-    EXPECT_EQ(e.stamp_ns, 10000);
-    EXPECT_GE(e.updates, 1);
-    EXPECT_LE(e.updates + e.stale_updates, 2 * kPerThread + 1);
-    EXPECT_GT(reads.load(), 0);
-}
-
-TEST(AsyncEnvironmentEstimator, DestroyedWhileRunning) {
-    for (int k = 0; k < 5; ++k) {
-        AsyncEnvironmentEstimator estimator(envCamera(), {}, 32);
-        for (int i = 0; i < 10; ++i)
-            estimator.submit(firstEnv().view(), i);
-        // Leaves the scope with a job running and one waiting.
-        EXPECT_LE(estimator.latest().updates, 10);
-    }
-    AsyncEnvironmentEstimator never_used(envCamera());
-    EXPECT_FALSE(never_used.latest().value);
-}
-
-TEST(AsyncEnvironmentEstimator, BadCameraGoesStaleWithTheReason) {
+TEST(EnvironmentEstimator, BadCameraGoesStaleWithTheReason) {
     EnvironmentCamera camera = envCamera();
     camera.room_radius_m = -1;
-    AsyncEnvironmentEstimator estimator(camera);
-    estimator.submit(firstEnv().view(), 7);
-    estimator.drain();
-    const Estimate<EnvironmentEstimate> e = estimator.latest();
+    EnvironmentEstimator estimator(camera);
+    const Estimate<EnvironmentEstimate> e = estimator.estimate(firstEnv().view(), 7);
     EXPECT_TRUE(e.stale);
     EXPECT_FALSE(e.value);
     EXPECT_NE(e.reason.find("room_radius_m"), std::string::npos) << e.reason;
+}
+
+// ---- the environment light node ----
+
+// The fish-eye stream of a graph the test publishes into, the node estimating it, and a
+// consumer of its light records and maps.
+struct EnvironmentGraph {
+    Graph graph;
+    PooledStream images;
+    EnvironmentLightNode* node = nullptr;
+    std::shared_ptr<FrameQueue> records, maps;
+    uint64_t published = 0;
+
+    explicit EnvironmentGraph(bool lossless) {
+        auto reader = openMkv(test::fixturesDir() / "sessions" / "sim_tabletop.mkv");
+        EXPECT_TRUE(reader.isOk()) << reader.status().toString();
+        StreamInfo env;
+        for (const StreamInfo& s : (*reader)->streams())
+            if (s.name == "env/color")
+                env = s;
+        auto setup =
+            findTrackingSetup(test::fixturesDir() / "sessions" / "sim_tabletop.mkv", **reader, "");
+        EXPECT_TRUE(setup.isOk()) << setup.status().toString();
+        auto options = std::make_shared<TrackingNodeOptions>();
+        options->setup = *setup;
+        options->setup.environment->map_width = 32;
+        options->lossless = lossless;
+        auto added = addPooledStream(graph, env, 8);
+        EXPECT_TRUE(added.isOk());
+        images = *added;
+        auto created = EnvironmentLightNode::create(options);
+        EXPECT_TRUE(created.isOk()) << created.status().toString();
+        node = created->get();
+        EXPECT_TRUE(graph.addNode(std::move(created).value()).isOk());
+        records = *graph.subscribe(*graph.findStream(options->environment_light_stream),
+                                   {64, QueuePolicy::kLossless, "test"});
+        maps = *graph.subscribe(*graph.findStream(options->environment_map_stream),
+                                {64, QueuePolicy::kLossless, "test"});
+        EXPECT_TRUE(graph.start().isOk());
+    }
+    ~EnvironmentGraph() { graph.stop(); }
+
+    // Publishes `image` stamped `stamp_ns`; false when the pool had no free buffer.
+    bool publish(const Image& image, int64_t stamp_ns, bool corrupt = false) {
+        FrameMetadata meta;
+        meta.stream = images.id;
+        meta.sequence = published;
+        meta.host_stamp_ns = meta.device_stamp_ns = stamp_ns;
+        meta.status = corrupt ? FrameStatus::kCorrupt : FrameStatus::kOk;
+        FrameRef frame = copyIntoPool(*images.pool, image.view(), meta);
+        if (!frame)
+            return false;
+        graph.publish(frame);
+        ++published;
+        return true;
+    }
+    // The node's records (and maps) once the stream ended.
+    std::vector<LightGroup> finish(std::vector<int64_t>* map_stamps = nullptr) {
+        graph.endStream(images.id);
+        EXPECT_TRUE(node->waitDone(std::chrono::seconds(20)));
+        std::vector<LightGroup> out;
+        while (auto frame = records->tryPop()) {
+            auto record = decodeLightRecord(frame->image());
+            EXPECT_TRUE(record.isOk()) << record.status().toString();
+            if (!record)
+                continue;
+            EXPECT_EQ(record->groups.size(), 1u);
+            EXPECT_EQ(frame->meta().host_stamp_ns, record->groups.at(0).stamp_ns);
+            out.push_back(record->groups.at(0));
+        }
+        while (auto frame = maps->tryPop())
+            if (map_stamps)
+                map_stamps->push_back(frame->meta().host_stamp_ns);
+        return out;
+    }
+};
+
+TEST(EnvironmentLightNode, LosslessEveryImageGivesARecordInOrderAndABadOneGoesStale) {
+    EnvironmentGraph g(true);
+    const Image black = filled(envCamera().model, 0);
+    ASSERT_TRUE(g.publish(firstEnv(), 100));
+    ASSERT_TRUE(g.publish(black, 200));
+    ASSERT_TRUE(g.publish(firstEnv(), 300, /*corrupt=*/true));
+    ASSERT_TRUE(g.publish(firstEnv(), 400));
+    std::vector<int64_t> map_stamps;
+    const std::vector<LightGroup> groups = g.finish(&map_stamps);
+    ASSERT_EQ(groups.size(), 4u);
+    const bool stale[] = {false, true, true, false};
+    const int64_t good[] = {100, 100, 100, 400};
+    for (size_t i = 0; i < 4; ++i) {
+        SCOPED_TRACE("image " + std::to_string(i));
+        EXPECT_EQ(groups[i].name, "environment");
+        EXPECT_EQ(groups[i].stamp_ns, static_cast<int64_t>(100 * (i + 1)));
+        EXPECT_EQ(groups[i].stale, stale[i]);
+        EXPECT_EQ(groups[i].good_stamp_ns, good[i]);
+        EXPECT_GE(groups[i].lights.size(), 2u) << "the last good lights stay";
+    }
+    EXPECT_NE(groups[1].reason.find("black"), std::string::npos) << groups[1].reason;
+    EXPECT_NE(groups[2].reason.find("corrupt"), std::string::npos) << groups[2].reason;
+    EXPECT_LT(nearestDeg(groups[3].lights, toLight(truth().lights[0])), 3.0);
+    // A map for each image that gave one.
+    EXPECT_EQ(map_stamps, (std::vector<int64_t>{100, 400}));
+    const EnvironmentLightStats stats = g.node->stats();
+    EXPECT_EQ(stats.environment_frames, 4u);
+    EXPECT_EQ(stats.environment_skipped, 0u);
+    EXPECT_EQ(stats.environment_maps, 2u);
+    EXPECT_EQ(stats.publish_failures, 0u);
+}
+
+TEST(EnvironmentLightNode, LiveTheNewestImageWins) {
+    EnvironmentGraph g(false);
+    const Image black = filled(envCamera().model, 0);
+    // Far faster than the node estimates: most images are replaced before it takes them.
+    for (int64_t stamp = 1; stamp <= 40; ++stamp)
+        g.publish(stamp % 2 ? black : firstEnv(), stamp);
+    ASSERT_TRUE(g.publish(firstEnv(), 1000));  // the last word, never replaced
+    const std::vector<LightGroup> groups = g.finish();
+    ASSERT_FALSE(groups.empty());
+    EXPECT_LT(groups.size(), g.published) << "every image estimated: nothing was replaced";
+    for (size_t i = 1; i < groups.size(); ++i)
+        EXPECT_GT(groups[i].stamp_ns, groups[i - 1].stamp_ns) << "records go forward";
+    EXPECT_EQ(groups.back().stamp_ns, 1000);
+    EXPECT_FALSE(groups.back().stale);
+    // What the node did not estimate, it skipped or its queue of one dropped.
+    uint64_t dropped = 0;
+    for (const EdgeStats& e : g.graph.edgeStats())
+        if (e.consumer == g.node->name())
+            dropped += e.queue.dropped;
+    const EnvironmentLightStats stats = g.node->stats();
+    EXPECT_EQ(stats.environment_frames, groups.size());
+    EXPECT_EQ(stats.environment_frames + stats.environment_skipped + dropped, g.published);
 }
 
 }  // namespace

@@ -18,7 +18,7 @@
 #include "mixray/graph/rig.h"
 #include "mixray/render/compositor_node.h"
 #include "mixray/render/scene.h"
-#include "mixray/tracking/tracking_node.h"
+#include "mixray/tracking/tracking_graph.h"
 
 namespace mixray::render {
 
@@ -121,7 +121,7 @@ public:
     ArPipelineStats stats() const;
 
     Graph& graph() { return *graph_; }
-    const tracking::TrackingNode* tracking() const { return tracking_; }
+    const tracking::TrackingNodes* tracking() const { return tracking_ ? &*tracking_ : nullptr; }
     const CompositorNode* compositor() const { return compositor_; }
     const std::string& colorStream() const { return color_stream_; }
     // The composite stream's name, empty without a scene.
@@ -134,7 +134,7 @@ private:
 
     std::unique_ptr<Graph> graph_;
     std::vector<Device*> devices_;
-    tracking::TrackingNode* tracking_ = nullptr;
+    std::optional<tracking::TrackingNodes> tracking_;
     CompositorNode* compositor_ = nullptr;
     Recorder* recorder_ = nullptr;
     bool live_ = false;  // real pace: live edges

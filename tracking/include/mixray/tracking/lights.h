@@ -120,27 +120,30 @@ struct EnvironmentEstimate {
     std::shared_ptr<const FloatImage> environment_map;
 };
 
-// Runs environment estimation on its own thread: submit() hands over the newest image without
-// waiting (a newer one replaces one not yet started), latest() returns the newest estimate at
-// once. Thread-safe.
-class AsyncEnvironmentEstimator {
+// Environment lights and map from one fish-eye image after another, each estimate keeping the
+// last good value when an image gives none. EnvironmentLightNode (environment_light_node.h)
+// runs it in the device graph, on a thread of its own. Thread-bound.
+class EnvironmentEstimator {
 public:
-    AsyncEnvironmentEstimator(EnvironmentCamera camera, EnvironmentLightOptions options = {},
-                              int map_width = 512);
-    ~AsyncEnvironmentEstimator();
-    AsyncEnvironmentEstimator(const AsyncEnvironmentEstimator&) = delete;
-    AsyncEnvironmentEstimator& operator=(const AsyncEnvironmentEstimator&) = delete;
+    EnvironmentEstimator(EnvironmentCamera camera, EnvironmentLightOptions options = {},
+                         int map_width = 512);
+    ~EnvironmentEstimator();
+    EnvironmentEstimator(const EnvironmentEstimator&) = delete;
+    EnvironmentEstimator& operator=(const EnvironmentEstimator&) = delete;
 
-    // Copies the image; returns at once.
-    void submit(const ImageView& env, int64_t stamp_ns);
-    // The newest estimate (stale with the reason when the newest image gave none).
-    Estimate<EnvironmentEstimate> latest() const;
-    // Blocks until every submitted image has been processed (tests, offline runs).
-    void drain();
+    // Estimates from the image at `stamp_ns` (fresh, or stale with the reason when the image
+    // gives none: over-exposed, black, a wrong pixel format, a camera the lens cannot map).
+    const Estimate<EnvironmentEstimate>& estimate(const ImageView& env, int64_t stamp_ns);
+    const Estimate<EnvironmentEstimate>& latest() const { return latest_; }
 
 private:
-    struct Impl;
-    std::unique_ptr<Impl> impl_;
+    struct Geometry;
+    EnvironmentCamera camera_;
+    EnvironmentLightOptions options_;
+    int map_width_ = 512;
+    // Built on the first image: the lens unprojection of every pixel is the costly part.
+    std::unique_ptr<Geometry> geometry_;
+    Estimate<EnvironmentEstimate> latest_;
 };
 
 }  // namespace mixray::tracking

@@ -1,0 +1,53 @@
+// What the tracking graph nodes share (node_support.h).
+#include "node_support.h"
+
+#include <algorithm>
+
+namespace mixray::tracking::detail {
+
+bool publishRecord(Graph& graph, const PooledStream& out, const uint8_t* bytes, size_t size,
+                   const FrameMetadata& meta, bool lossless, const std::atomic<bool>& stop) {
+    WritableFrame frame =
+        lossless ? acquireWaiting(*out.pool, [&stop] { return stop.load(); }) : out.pool->acquire();
+    if (!frame || size > frame.capacityBytes()) {
+        graph.countLost(out.id);
+        return false;
+    }
+    std::copy(bytes, bytes + size, frame.image().data);
+    frame.setPayloadBytes(size);
+    frame.meta() = meta;
+    frame.meta().stream = out.id;
+    graph.publish(std::move(frame).publish());
+    return true;
+}
+
+uint64_t skipToNewest(FrameQueue& queue, FrameRef& frame) {
+    uint64_t skipped = 0;
+    while (auto newer = queue.tryPop()) {
+        frame = std::move(*newer);
+        ++skipped;
+    }
+    return skipped;
+}
+
+Result<StreamId> findStream(const Graph& graph, const std::string& name, const std::string& use) {
+    if (auto id = graph.findStream(name))
+        return *id;
+    std::string names;
+    for (const StreamInfo& s : graph.streams())
+        names += (names.empty() ? "" : ", ") + s.name;
+    return Status(ErrorCode::kNotFound, "no stream " + name + " " + use + " (there are: " +
+                                            (names.empty() ? "none" : names) + ")");
+}
+
+std::optional<FrameRef> popUnlessStopped(FrameQueue& queue, const std::atomic<bool>& stop) {
+    while (!stop) {
+        if (auto frame = queue.pop(std::chrono::milliseconds(5)))
+            return frame;
+        if (queue.closed())
+            return queue.tryPop();  // the last frame may have come between the timeout and now
+    }
+    return std::nullopt;
+}
+
+}  // namespace mixray::tracking::detail
