@@ -473,20 +473,12 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         ASSERT_TRUE(stalled.open(port, 4096));  // handshake done, then never reads
         WsClient reader;
         ASSERT_TRUE(reader.open(port));
-        std::atomic<int> frames{0};
-        std::atomic<bool> done{false};
-        std::thread drain([&] {
-            while (!done) {
-                auto m = reader.next(1000);
-                if (m && m->opcode == 2)
-                    ++frames;
-            }
-        });
+        test::ImageMessageCounter frames(reader);
         stage.set("waiting for the stalled client's buffers to fill");
         std::this_thread::sleep_for(1500ms);
         const uint64_t memory_before = test::memoryInUse();
         const uint64_t published_before = rig.device->publishedFrames();
-        const int frames_before = frames.load();
+        const int frames_before = frames.count();
         const auto t0 = Clock::now();
         size_t high = 0;
         bool saw_stalled = false;
@@ -499,7 +491,7 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         }
         const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
         const uint64_t published = rig.device->publishedFrames() - published_before;
-        const int received = frames.load() - frames_before;
+        const int received = frames.count() - frames_before;
         const uint64_t memory_after = test::memoryInUse();
         const LiveViewStats stats = rig.view->stats();
 
@@ -530,8 +522,7 @@ TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {
         rig.view->stop();
         const double stop_s = std::chrono::duration<double>(Clock::now() - s0).count();
         EXPECT_LT(stop_s, 1.0);
-        done = true;
-        drain.join();
+        frames.stop();
     });
 }
 

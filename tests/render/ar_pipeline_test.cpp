@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -539,15 +538,7 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
 
     test::WsClient reading;
     ASSERT_TRUE(reading.open(view->port()));
-    std::atomic<int> received{0};
-    std::atomic<bool> done{false};
-    std::thread drain([&] {
-        while (!done) {
-            auto m = reading.next(1000);
-            if (m && m->opcode == 2)
-                ++received;
-        }
-    });
+    test::ImageMessageCounter received(reading);
     const auto composites = [&p] {
         const ArPipelineStats stats = p.stats();
         return stats.compositor ? stats.compositor->composites : 0;
@@ -581,10 +572,10 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     ASSERT_TRUE(stalled.open(view->port(), 4096));  // handshake done, then never reads
     std::this_thread::sleep_for(1500ms);            // until its socket buffers are full
     const uint64_t memory_before = test::memoryInUse();
-    const int received_before = received.load();
+    const int received_before = received.count();
     const double rate_stalled = measure(window, 0, &high, &saw_stalled).first;
     const uint64_t memory_after = test::memoryInUse();
-    const int received_meanwhile = received.load() - received_before;
+    const int received_meanwhile = received.count() - received_before;
     const liveview::LiveViewStats view_stats = view->stats();
 
     RecordProperty("composites_per_s_one_browser", std::to_string(rate_alone));
@@ -605,8 +596,7 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     const auto s0 = Clock::now();
     p.stop();
     EXPECT_LT(std::chrono::duration<double>(Clock::now() - s0).count(), 5.0);
-    done = true;
-    drain.join();
+    received.stop();
 }
 
 TEST(ArPipeline, RefusesWhatItCannotBuild) {

@@ -8,9 +8,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <thread>
 
 namespace mixray::test {
 
@@ -96,6 +98,35 @@ private:
         return true;
     }
     int fd_ = -1;
+};
+
+// Reads a client's messages on a thread of its own, counting the binary (image) ones, until
+// stop() or destruction: a failed assertion between start and stop leaves no thread running.
+class ImageMessageCounter {
+public:
+    explicit ImageMessageCounter(WsClient& client)
+        : thread_([this, &client] {
+              while (!done_) {
+                  auto m = client.next(1000);
+                  if (m && m->opcode == 2)
+                      ++count_;
+              }
+          }) {}
+    ~ImageMessageCounter() { stop(); }
+    ImageMessageCounter(const ImageMessageCounter&) = delete;
+    ImageMessageCounter& operator=(const ImageMessageCounter&) = delete;
+
+    int count() const { return count_.load(); }
+    void stop() {
+        done_ = true;
+        if (thread_.joinable())
+            thread_.join();
+    }
+
+private:
+    std::atomic<bool> done_{false};
+    std::atomic<int> count_{0};
+    std::thread thread_;  // last: it starts once the counters exist
 };
 
 }  // namespace mixray::test
