@@ -13,71 +13,17 @@
 #include <set>
 #include <thread>
 
-#include "memory_in_use.h"
+#include "ar_pipeline_test_util.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/pose.h"
-#include "mixray/liveview/live_view.h"
-#include "mixray/render/scene_file.h"
-#include "mixray/replay/open_recording.h"
-#include "mixray/replay/replay_backend.h"
 #include "mixray/tracking/light_record.h"
 #include "mixray/tracking/pipeline.h"
-#include "test_data.h"
-#include "websocket_client.h"
 
 namespace mixray::render {
 namespace {
 
 namespace fs = std::filesystem;
 using tracking::TrackedFrame;
-
-fs::path session() {
-    return test::fixturesDir() / "sessions/sim_tabletop.mkv";
-}
-
-// A virtual box and glass ball on the session's table (the table itself a ghost), no lights of
-// its own: they come from tracking.
-SceneDescription testScene() {
-    auto scene = parseScene(R"(version: 1
-materials:
-  table: { type: diffuse, albedo: [0.6, 0.6, 0.6] }
-  clay: { type: diffuse, albedo: [0.7, 0.35, 0.2] }
-  glass: { type: glass, ior: 1.5 }
-objects:
-  - name: table
-    role: ghost
-    shape: { box: { size: [1.2, 0.8, 0.02] } }
-    material: table
-    pose: { translation: [0, 0, -0.01] }
-  - name: box
-    shape: { box: { size: [0.04, 0.04, 0.07] } }
-    material: clay
-    pose: { translation: [-0.06, -0.1, 0.035] }
-  - name: ball
-    shape: { sphere: { radius: 0.035 } }
-    material: glass
-    pose: { translation: [0.08, 0.05, 0.035] }
-)",
-                            "test scene");
-    EXPECT_TRUE(scene.isOk()) << scene.status().toString();
-    return std::move(scene).value();
-}
-
-RenderOptions testRenderOptions() {
-    RenderOptions o;
-    o.samples_per_pixel = 1;
-    o.max_depth = 2;
-    o.soft_shadows = SoftShadowMethod::kAdaptive;
-    o.depth_secondary = DepthSecondaryRays::kNone;
-    o.threads = 2;
-    return o;
-}
-
-BackendRegistry replayRegistry() {
-    BackendRegistry registry;
-    EXPECT_TRUE(registry.add(std::make_unique<replay::ReplayBackend>()).isOk());
-    return registry;
-}
 
 // What one colour frame gave.
 struct FrameResult {
@@ -87,33 +33,6 @@ struct FrameResult {
     std::vector<tracking::EstimatedLight> lights;
     bool rendered = false;
 };
-
-tracking::TrackingSetup sessionSetup(const RecordingReader& reader) {
-    auto setup = tracking::findTrackingSetup(session(), reader, "");
-    EXPECT_TRUE(setup.isOk()) << setup.status().toString();
-    return std::move(setup).value();
-}
-
-// The whole pipeline on the bundled session: its tracking setup, the test scene and settings.
-ArPipelineOptions sessionPipelineOptions() {
-    ArPipelineOptions options;
-    auto reader = replay::openRecording(session());
-    EXPECT_TRUE(reader.isOk()) << reader.status().toString();
-    if (reader.isOk())
-        options.setup = sessionSetup(**reader);
-    options.scene = testScene();
-    options.render = testRenderOptions();
-    return options;
-}
-
-// The bundled session as the pipeline's source, at `pace`, once or `looped`.
-ArSource sessionSource(ArSource::Pace pace, bool looped = false) {
-    ArSource source;
-    source.recording = session();
-    source.pace = pace;
-    source.loop = looped;
-    return source;
-}
 
 // Builds the pipeline, runs it until the source ended and everything downstream finished,
 // and stops it; fails the test on any error. `out` keeps it for its stats.
@@ -509,94 +428,6 @@ TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
     const std::string json = stats.json();
     for (const char* key : {"\"latency_ms\"", "\"p99\"", "\"ladder\"", "\"devices\""})
         EXPECT_NE(json.find(key), std::string::npos) << key << " missing in " << json;
-}
-
-// Issue 13: a browser that stalls beside the whole pipeline at real pace (tracking, light
-// estimation, compositing, every tile of the bundled session in the view) neither slows the
-// composites nor grows memory, while another browser keeps receiving; stop() does not wait
-// for it.
-TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
-    using namespace std::chrono_literals;
-    using Clock = std::chrono::steady_clock;
-    ArPipelineOptions options = sessionPipelineOptions();
-    ASSERT_TRUE(options.setup.has_value());
-    options.target_fps = -1;
-    const ArSource source = sessionSource(ArSource::Pace::kReal, true);
-    auto pipeline = ArPipeline::create(replayRegistry(), source, std::move(options));
-    ASSERT_TRUE(pipeline.isOk()) << pipeline.status().toString();
-    ArPipeline& p = **pipeline;
-    liveview::LiveViewOptions view_options;
-    view_options.port = 0;
-    view_options.max_tile_fps = 30;  // every tile as fast as the camera: the mailboxes are busy
-    view_options.jpeg_quality = 95;
-    auto made = liveview::LiveView::create(view_options);
-    ASSERT_TRUE(made.isOk()) << made.status().toString();
-    liveview::LiveView* view = made->get();
-    view->setStatusProvider([&p] { return p.stats().json(); });
-    ASSERT_TRUE(p.graph().addNode(std::move(made).value()).isOk());
-    ASSERT_TRUE(p.start().isOk());
-
-    test::WsClient reading;
-    ASSERT_TRUE(reading.open(view->port()));
-    test::ImageMessageCounter received(reading);
-    const auto composites = [&p] {
-        const ArPipelineStats stats = p.stats();
-        return stats.compositor ? stats.compositor->composites : 0;
-    };
-    // Composites per second over `window`, and the most any client had queued meanwhile.
-    // Composites per second over at least `window` and at least `count` composites (a
-    // sanitizer build composites about one a second), and the most any client had queued.
-    const auto measure = [&](Clock::duration window, uint64_t count, size_t* high, bool* stalled) {
-        const uint64_t before = composites();
-        const auto t0 = Clock::now();
-        while (Clock::now() - t0 < window ||
-               (composites() - before < count && Clock::now() - t0 < 40s)) {
-            std::this_thread::sleep_for(100ms);
-            for (const liveview::ClientStats& c : view->stats().clients) {
-                *high = std::max(*high, c.queued_bytes);
-                *stalled = *stalled || c.stalled;
-            }
-        }
-        const auto seconds = Clock::now() - t0;
-        return std::make_pair(static_cast<double>(composites() - before) /
-                                  std::chrono::duration<double>(seconds).count(),
-                              seconds);
-    };
-    size_t high = 0;
-    bool saw_stalled = false;
-    std::this_thread::sleep_for(1500ms);  // past the start and the first probe estimates
-    const auto [rate_alone, window] = measure(3s, 8, &high, &saw_stalled);
-    EXPECT_FALSE(saw_stalled);
-
-    test::WsClient stalled;
-    ASSERT_TRUE(stalled.open(view->port(), 4096));  // handshake done, then never reads
-    std::this_thread::sleep_for(1500ms);            // until its socket buffers are full
-    const uint64_t memory_before = test::memoryInUse();
-    const int received_before = received.count();
-    const double rate_stalled = measure(window, 0, &high, &saw_stalled).first;
-    const uint64_t memory_after = test::memoryInUse();
-    const int received_meanwhile = received.count() - received_before;
-    const liveview::LiveViewStats view_stats = view->stats();
-
-    RecordProperty("composites_per_s_one_browser", std::to_string(rate_alone));
-    RecordProperty("composites_per_s_beside_a_stalled_one", std::to_string(rate_stalled));
-    ASSERT_TRUE(p.status().isOk()) << p.status().toString();
-    EXPECT_GT(rate_alone, 0) << p.stats().json();
-    // A view that waited for the stalled browser would stop the composites. A quarter of the
-    // rate at worst: on 2 cores a test started beside this one can take one of them (half the
-    // rate) and more in bursts; here the rates come out equal.
-    EXPECT_GE(rate_stalled, 0.25 * rate_alone) << rate_alone << " composites/s with one browser, "
-                                               << rate_stalled << " with a stalled one beside it";
-    EXPECT_TRUE(saw_stalled);
-    EXPECT_LE(high, view_stats.queue_bound_bytes);
-    EXPECT_GT(received_meanwhile, 10) << "the reading browser got nothing";
-    EXPECT_LT(memory_after, memory_before + (16u << 20))
-        << "memory in use grew from " << memory_before << " to " << memory_after;
-
-    const auto s0 = Clock::now();
-    p.stop();
-    EXPECT_LT(std::chrono::duration<double>(Clock::now() - s0).count(), 5.0);
-    received.stop();
 }
 
 TEST(ArPipeline, RefusesWhatItCannotBuild) {
