@@ -114,9 +114,7 @@ void EnvironmentLightNode::publishMap(const FrameRef& image,
     if (!estimate.value || !estimate.value->environment_map || estimate.good_stamp_ns <= 0 ||
         estimate.good_stamp_ns == published_map_stamp_ns_)
         return;
-    WritableFrame out = options_->lossless
-                            ? acquireWaiting(*map_out_.pool, [this] { return stop_.load(); })
-                            : map_out_.pool->acquire();
+    WritableFrame out = detail::acquireRecordBuffer(map_out_, options_->lossless, stop_);
     Result<size_t> bytes = Status(ErrorCode::kUnavailable, "no buffer");
     if (out) {
         bytes = encodeEnvironmentMapRecord(

@@ -305,10 +305,8 @@ void LightEstimationNode::runLossless() {
             if (!pose)
                 break;
         }
-        const uint64_t sequence = [&] {
-            auto record = decodePoseRecord(pose->image());
-            return record ? record->frame_sequence : pose->meta().sequence;
-        }();
+        const auto record = decodePoseRecord(pose->image());
+        const uint64_t sequence = record ? record->frame_sequence : pose->meta().sequence;
         // The pose's colour frame, and the one after it (or the end of the stream).
         while (!stop_) {
             while (!colors.empty() && colors.front().meta().sequence < sequence)
@@ -329,7 +327,7 @@ void LightEstimationNode::runLossless() {
         if (stop_ || !environmentUpTo(pose->meta().host_stamp_ns))
             break;
         const bool found = !colors.empty() && colors.front().meta().sequence == sequence;
-        estimate(*pose, found ? colors.front() : FrameRef());
+        estimate(*pose, record, found ? colors.front() : FrameRef());
     }
 }
 
@@ -358,15 +356,15 @@ void LightEstimationNode::runLive() {
         for (const FrameRef& c : colors)
             if (c && record && c.meta().sequence == record->frame_sequence)
                 color = c;
-        estimate(*pose, color);
+        estimate(*pose, record, color);
     }
 }
 
-void LightEstimationNode::estimate(const FrameRef& pose_frame, const FrameRef& color) {
+void LightEstimationNode::estimate(const FrameRef& pose_frame, const Result<PoseRecord>& pose,
+                                   const FrameRef& color) {
     const TrackingSetup& setup = options_->setup;
     const FrameMetadata& meta = pose_frame.meta();  // the colour frame's, on the pose stream
     const int64_t stamp = meta.host_stamp_ns;
-    auto pose = decodePoseRecord(pose_frame.image());
     const uint64_t sequence = pose ? pose->frame_sequence : meta.sequence;
     TrackedFrame f;
     f.color = color;

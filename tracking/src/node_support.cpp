@@ -5,10 +5,15 @@
 
 namespace mixray::tracking::detail {
 
+WritableFrame acquireRecordBuffer(const PooledStream& out, bool lossless,
+                                  const std::atomic<bool>& stop) {
+    return lossless ? acquireWaiting(*out.pool, [&stop] { return stop.load(); })
+                    : out.pool->acquire();
+}
+
 bool publishRecord(Graph& graph, const PooledStream& out, const uint8_t* bytes, size_t size,
                    const FrameMetadata& meta, bool lossless, const std::atomic<bool>& stop) {
-    WritableFrame frame =
-        lossless ? acquireWaiting(*out.pool, [&stop] { return stop.load(); }) : out.pool->acquire();
+    WritableFrame frame = acquireRecordBuffer(out, lossless, stop);
     if (!frame || size > frame.capacityBytes()) {
         graph.countLost(out.id);
         return false;

@@ -10,6 +10,11 @@
 
 namespace mixray::tracking::detail {
 
+// A buffer of `out` to write a record into. Lossless, waits for one until `stop`; live, a full
+// pool gives none (the record is dropped).
+WritableFrame acquireRecordBuffer(const PooledStream& out, bool lossless,
+                                  const std::atomic<bool>& stop);
+
 // Publishes `size` bytes as one frame of `out` with `meta` (its stream set to out's).
 // Lossless, waits for a buffer until `stop`; live, a full pool drops the record. False (the
 // record counted lost) when it was not published.

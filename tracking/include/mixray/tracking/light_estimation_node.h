@@ -61,8 +61,10 @@ private:
     // Lossless: applies the environment records of images stamped at or before `stamp`, once
     // every such image's record came; false when stopped first.
     bool environmentUpTo(int64_t stamp);
-    // Estimates and publishes the lights of the frame `pose` belongs to (`color` when known).
-    void estimate(const FrameRef& pose, const FrameRef& color);
+    // Estimates and publishes the lights of the frame a pose record belongs to (`color` when
+    // known): `pose_frame` carries the record `pose` decoded from it.
+    void estimate(const FrameRef& pose_frame, const Result<PoseRecord>& pose,
+                  const FrameRef& color);
 
     std::shared_ptr<const TrackingNodeOptions> options_;
     PipelineOptions pipeline_;  // options_->pipeline as this node runs it
