@@ -1,0 +1,232 @@
+// The Renderer's frame loop (embree_renderer.h): the frame set up, its tiles traced in parallel
+// (primary packets, the footprint test, the integrator per sample), the film filtered and
+// composited.
+#include "embree_renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <atomic>
+#include <chrono>
+
+#include "bare_trace.h"
+
+namespace mixray::render::detail {
+
+EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
+                               std::vector<ObjectData> objects, std::vector<LightData> lights,
+                               std::filesystem::path scene_source,
+                               std::optional<size_t> depth_object)
+    : options_(std::move(options)),
+      materials_(std::move(materials)),
+      objects_(std::move(objects)),
+      lights_(std::move(lights)),
+      scene_source_(std::move(scene_source)),
+      depth_object_(depth_object) {}
+
+Status EmbreeRenderer::init() {
+    auto built = EmbreeScene::build(objects_, options_.embree_isa);
+    if (!built)
+        return built.status();
+    scene_ = std::move(built).value();
+    integrator_.emplace(options_, materials_, objects_, *scene_, depth_object_);
+    return Status::ok();
+}
+
+Status EmbreeRenderer::setLights(const std::vector<Light>& lights) {
+    SceneDescription check;  // the scene's own checks, on the lights alone
+    check.lights = lights;
+    MIXRAY_RETURN_IF_ERROR(check.validate());
+    auto loaded = loadLights(scene_source_, lights);
+    if (!loaded)
+        return loaded.status();
+    lights_ = std::move(loaded).value();
+    return Status::ok();
+}
+
+BareTraceTimes EmbreeRenderer::traceBare(const RayLog& log, int repeats) const {
+    return traceBareEmbree(scene_->all(), scene_->ghosts(), log, options_.threads, repeats);
+}
+
+Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    MIXRAY_RETURN_IF_ERROR(checkInputs(in));
+    const auto cancelled = [] {
+        return Status(ErrorCode::kCancelled,
+                      "render: stopped on request before the frame was done");
+    };
+    if (in.stop.stop_requested())
+        return cancelled();
+    Frame f;
+    MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
+
+    prepareFootprint(f);
+
+    const int w = in.camera.width, h = in.camera.height;
+    const int spp = options_.samples_per_pixel;
+    const bool keep = options_.keep_layers;
+    const int ts = options_.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    const int tiles = tiles_x * tiles_y;
+    Film& b = film_;
+    b.beginFrame(w, h, ts, keep);
+    const bool use_mask = options_.screen_footprint && options_.only_virtual_footprint && !keep;
+
+    std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
+    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
+    // Set by the first tile that sees the stop request; the tiles after it return at once. A
+    // skipped tile keeps its last frame's pixels and dirty flag, so the next frame clears it.
+    std::atomic<bool> stopped{false};
+    const DifferentialIntegrator& integrator = *integrator_;
+    const auto renderTile = [&](int tile) {
+        if (stopped.load(std::memory_order_relaxed) || in.stop.stop_requested()) {
+            stopped.store(true, std::memory_order_relaxed);
+            return;
+        }
+        if (b.tile_dirty[static_cast<size_t>(tile)])
+            b.clearTile(tile);
+        if (use_mask && !tile_mask_[static_cast<size_t>(tile)])
+            return;
+        RayList* log = tile_logs.empty() ? nullptr : &tile_logs[static_cast<size_t>(tile)];
+        const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+        const int x1 = std::min(w, x0 + ts), y1 = std::min(h, y0 + ts);
+        TileScratch& scratch =
+            scratch_[static_cast<size_t>(tbb::this_task_arena::current_thread_index())];
+        scratch.surfaces.resize(static_cast<size_t>(spp));
+        scratch.have_surface.resize(static_cast<size_t>(spp));
+        primaryHits(*scene_, rays_, f, x0, y0, x1, y1, scratch.hits, scratch.dirs, log);
+        Counters counters;
+        uint64_t tile_traced = 0, tile_primary = 0;
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
+                const size_t pixel = static_cast<size_t>(y) * w + x;
+                Hit* hits = scratch.hits.data() +
+                            (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
+                const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
+                const std::optional<float> depth_limit =
+                    f.depth ? rays_.rayDistanceAt(*f.depth, x, y) : std::nullopt;
+                // Whether virtual content can touch this pixel.
+                bool influenced = false;
+                std::fill(scratch.have_surface.begin(), scratch.have_surface.end(), 0);
+                for (int k = 0; k < spp; ++k) {
+                    if (!rays_.directions[pixel * spp + k].allFinite())
+                        continue;
+                    ++tile_primary;
+                    hits[k] = integrator.finishPrimaryHit(f, hits[k], dirs[k], depth_limit);
+                    if (!hits[k].valid || influenced)
+                        continue;
+                    if (objects_[hits[k].object].role == ObjectRole::kVirtual) {
+                        influenced = true;
+                        continue;
+                    }
+                    const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
+                        integrator.surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                    scratch.have_surface[static_cast<size_t>(k)] = 1;
+                    influenced = integrator.ghostInfluenced(f, s, dirs[k]);
+                }
+                if (!influenced && !keep && options_.only_virtual_footprint)
+                    continue;
+                // Shade.
+                ++tile_traced;
+                int n_virtual = 0;
+                Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
+                     rsum = Vec3::Zero();
+                bool penumbra = false;
+                for (int k = 0; k < spp; ++k) {
+                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters,
+                                   log};
+                    Pair p;
+                    bool is_virtual = false;
+                    if (!hits[k].valid) {
+                        if (rays_.directions[pixel * spp + k].allFinite())
+                            p.m = p.r = integrator.environment(f, dirs[k]);
+                    } else {
+                        const Surface s =
+                            scratch.have_surface[static_cast<size_t>(k)]
+                                ? scratch.surfaces[static_cast<size_t>(k)]
+                                : integrator.surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        is_virtual = s.object->role == ObjectRole::kVirtual;
+                        if (is_virtual) {
+                            p.m = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
+                            if (keep)
+                                p.r =
+                                    integrator.trace(f, f.t_world_cam, dirs[k], 0, Mode::kReal, st)
+                                        .r;
+                        } else {
+                            p = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kBoth, st);
+                        }
+                    }
+                    penumbra |= st.penumbra;
+                    if (is_virtual) {
+                        ++n_virtual;
+                        vsum += p.m;
+                    } else {
+                        dsum += p.m - p.r;
+                    }
+                    msum += p.m;
+                    rsum += p.r;
+                }
+                if (n_virtual > 0)
+                    b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
+                if (n_virtual < spp)
+                    b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
+                b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
+                b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
+                b.tile_dirty[static_cast<size_t>(tile)] = 1;
+                if (keep) {
+                    b.mixed[pixel] = msum / static_cast<float>(spp);
+                    b.real[pixel] = rsum / static_cast<float>(spp);
+                }
+            }
+        traced += tile_traced;
+        primary += tile_primary;
+        secondary += counters.secondary;
+        shadow += counters.shadow;
+    };
+
+    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    arena.initialize();
+    if (scratch_.size() < static_cast<size_t>(arena.max_concurrency()))
+        scratch_.resize(static_cast<size_t>(arena.max_concurrency()));
+    arena.execute([&] {
+        if (use_mask)
+            footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts, tile_mask_);
+        tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
+                          [&](const tbb::blocked_range<int>& r) {
+                              for (int t = r.begin(); t < r.end(); ++t)
+                                  renderTile(t);
+                          });
+        if (stopped)
+            return;
+        if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
+            out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
+        const MutableImageView dst = out.composite.mutableView();
+        if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
+            b.meanFilterPenumbra();
+        // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
+        tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
+            for (int y = r.begin(); y < r.end(); ++y)
+                b.compositeRow(y, in.camera_image, f.srgb_lut, dst);
+        });
+    });
+    if (stopped)
+        return cancelled();
+    if (in.ray_log != nullptr) {
+        in.ray_log->rays.clear();
+        for (const RayList& l : tile_logs)
+            in.ray_log->rays.insert(in.ray_log->rays.end(), l.begin(), l.end());
+    }
+    b.exportLayers(keep, out);
+    if (stats != nullptr) {
+        stats->pixels_traced = traced;
+        stats->primary_rays = primary;
+        stats->secondary_rays = secondary;
+        stats->shadow_rays = shadow;
+        stats->seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    return Status::ok();
+}
+
+}  // namespace mixray::render::detail

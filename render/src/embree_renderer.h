@@ -1,0 +1,76 @@
+// The Renderer as mixray builds it: Embree's BVH (embree_scene.h), the camera's rays
+// (camera_rays.h), the differential integrator (integrator.h) and the film (film.h), driven
+// tile by tile in a TBB arena. Internal to mixray::render; Renderer::create() makes one.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "camera_rays.h"
+#include "film.h"
+#include "frame_context.h"
+#include "integrator.h"
+#include "mixray/calibration/depth_registration.h"
+
+namespace mixray::render::detail {
+
+// The lights' render data: environment maps loaded (files resolved against the scene file's
+// folder) or taken from memory.
+Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
+                                          const std::vector<Light>& scene_lights);
+
+// A tile's primary hits and directions: reused by the thread, so the loop never allocates.
+struct TileScratch {
+    std::vector<Hit> hits;
+    std::vector<Vec3> dirs;
+    std::vector<Surface> surfaces;  // one pixel's samples, from the footprint test to shading
+    std::vector<uint8_t> have_surface;
+};
+
+class EmbreeRenderer final : public Renderer {
+public:
+    EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
+                   std::vector<ObjectData> objects, std::vector<LightData> lights,
+                   std::filesystem::path scene_source, std::optional<size_t> depth_object);
+
+    // Builds the BVH.
+    Status init();
+
+    Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
+    Status setLights(const std::vector<Light>& lights) override;
+    const RenderOptions& options() const override { return options_; }
+    BareTraceTimes traceBare(const RayLog& log, int repeats) const override;
+
+private:
+    // frame_setup.cpp: the frame's inputs checked, its poses, depth, lights and rays set up.
+    Status checkInputs(const RenderInputs& inputs) const;
+    Status prepareFrame(const RenderInputs& inputs, Frame& f);
+    // The depth image in the camera: inputs.depth_mm itself, or registered into it.
+    Result<ImageView> registeredDepth(const RenderInputs& inputs);
+    void updateDepthMesh(Frame& f);
+    void prepareFootprint(Frame& f) const;
+    void depthRegions(const Frame& f, FootprintScene& fp) const;
+
+    RenderOptions options_;
+    std::vector<MaterialData> materials_;
+    std::vector<ObjectData> objects_;
+    std::vector<LightData> lights_;
+    std::filesystem::path scene_source_;  // the scene file: light files resolve against it
+    std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
+    std::unique_ptr<EmbreeScene> scene_;
+    std::optional<DifferentialIntegrator> integrator_;  // once the BVH is built
+    RayCache rays_;
+    DepthMesher mesher_;
+    // Registration of depth images from another camera: kept while the registration is the
+    // same, so its scratch and the registered image are reused frame to frame.
+    std::optional<calibration::Registrar> registrar_;
+    Image registered_depth_;
+    Film film_;
+    std::vector<uint8_t> tile_mask_;
+    // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
+    std::vector<TileScratch> scratch_;
+};
+
+}  // namespace mixray::render::detail

@@ -1,0 +1,135 @@
+// The film (film.h).
+#include "film.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace mixray::render::detail {
+
+void Film::beginFrame(int w, int h, int ts, bool keep_layers) {
+    const size_t count = static_cast<size_t>(w) * h;
+    if (width != w || height != h || tile_size != ts) {
+        tile_size = ts;
+        tiles_x = (w + ts - 1) / ts;
+        const int tiles_y = (h + ts - 1) / ts;
+        virtual_radiance.assign(count, Vec3::Zero());
+        difference.assign(count, Vec3::Zero());
+        mask.assign(count, 0.f);
+        flags.assign(count, 0);
+        tile_dirty.assign(static_cast<size_t>(tiles_x) * tiles_y, 0);
+        width = w;
+        height = h;
+    }
+    if (keep_layers) {
+        mixed.assign(count, Vec3::Zero());
+        real.assign(count, Vec3::Zero());
+    }
+}
+
+void Film::clearTile(int tile) {
+    const int ts = tile_size;
+    const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+    const int x1 = std::min(width, x0 + ts);
+    for (int y = y0; y < std::min(height, y0 + ts); ++y) {
+        const auto i = static_cast<std::ptrdiff_t>(static_cast<size_t>(y) * width + x0);
+        const auto n = static_cast<std::ptrdiff_t>(x1 - x0);
+        std::fill_n(virtual_radiance.begin() + i, n, Vec3::Zero());
+        std::fill_n(difference.begin() + i, n, Vec3::Zero());
+        std::fill_n(mask.begin() + i, n, 0.f);
+        std::fill_n(flags.begin() + i, n, uint8_t{0});
+    }
+    tile_dirty[static_cast<size_t>(tile)] = 0;
+}
+
+// Only dirty tiles hold penumbra pixels; new values are applied after all are computed, so every
+// mean reads unfiltered neighbours.
+void Film::meanFilterPenumbra() {
+    const int w = width, h = height, ts = tile_size;
+    Film& b = *this;
+    struct Filtered {
+        size_t pixel;
+        Vec3 virtual_radiance, difference;
+    };
+    std::vector<Filtered> filtered;
+    const std::vector<Vec3>& vr = b.virtual_radiance;
+    const std::vector<Vec3>& diff = b.difference;
+    for (size_t t = 0; t < b.tile_dirty.size(); ++t) {
+        if (!b.tile_dirty[t])
+            continue;
+        const int x0 = static_cast<int>(t % tiles_x) * ts, y0 = static_cast<int>(t / tiles_x) * ts;
+        for (int y = y0; y < std::min(h, y0 + ts); ++y)
+            for (int x = x0; x < std::min(w, x0 + ts); ++x) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                if (!(b.flags[i] & kPenumbra))
+                    continue;
+                Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
+                int nv = 0, nd = 0;
+                for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
+                    for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
+                        const size_t j = static_cast<size_t>(yy) * w + xx;
+                        if (b.mask[j] > 0)
+                            sv += vr[j], ++nv;
+                        if (b.mask[j] < 1)
+                            sd += diff[j], ++nd;
+                    }
+                Filtered out{i, vr[i], diff[i]};
+                if (b.mask[i] > 0 && nv > 0)
+                    out.virtual_radiance = sv / static_cast<float>(nv);
+                if (b.mask[i] < 1 && nd > 0)
+                    out.difference = sd / static_cast<float>(nd);
+                filtered.push_back(out);
+            }
+    }
+    for (const Filtered& p : filtered) {
+        b.virtual_radiance[p.pixel] = p.virtual_radiance;
+        b.difference[p.pixel] = p.difference;
+    }
+}
+
+void Film::compositeRow(int y, const ImageView& camera, const std::array<float, 256>& srgb_lut,
+                        const MutableImageView& dst) const {
+    const int w = width, ts = tile_size;
+    const uint8_t* src_row = camera.row<uint8_t>(y);
+    uint8_t* dst_row = dst.row<uint8_t>(y);
+    const int tile_row = (y / ts) * tiles_x;
+    for (int tx = 0; tx < tiles_x; ++tx) {
+        const int x0 = tx * ts, x1 = std::min(w, x0 + ts);
+        if (!tile_dirty[static_cast<size_t>(tile_row + tx)]) {
+            std::memcpy(dst_row + 3 * x0, src_row + 3 * x0, 3 * static_cast<size_t>(x1 - x0));
+            continue;
+        }
+        for (int x = x0; x < x1; ++x) {
+            const size_t i = static_cast<size_t>(y) * w + x;
+            const uint8_t* c = src_row + 3 * x;
+            uint8_t* o = dst_row + 3 * x;
+            const float m = mask[i];
+            if (m == 0 && difference[i] == Vec3::Zero()) {
+                o[0] = c[0], o[1] = c[1], o[2] = c[2];
+                continue;
+            }
+            for (int ch = 0; ch < 3; ++ch) {
+                const float real_radiance = srgb_lut[c[ch]] + difference[i][ch];
+                o[ch] = optics::encodeSrgb8(m * virtual_radiance[i][ch] + (1 - m) * real_radiance);
+            }
+        }
+    }
+}
+
+void Film::exportLayers(bool keep_layers, RenderLayers& out) const {
+    if (!keep_layers) {
+        out.mixed = out.real_only = out.mask = FloatImage{};
+        return;
+    }
+    const size_t count = static_cast<size_t>(width) * height;
+    const auto toImage = [&](const std::vector<Vec3>& src, FloatImage& img) {
+        img = FloatImage{width, height, 3, std::vector<float>(count * 3)};
+        for (size_t i = 0; i < count; ++i)
+            for (int ch = 0; ch < 3; ++ch)
+                img.pixels[3 * i + ch] = src[i][ch];
+    };
+    toImage(mixed, out.mixed);
+    toImage(real, out.real_only);
+    out.mask = FloatImage{width, height, 1, mask};
+}
+
+}  // namespace mixray::render::detail

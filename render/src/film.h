@@ -1,0 +1,43 @@
+// The film: per-pixel accumulators of one-pass differential rendering, kept between frames
+// (only tiles marked dirty hold anything but zeros), RT²AR's penumbra filter, and the composite
+// I_f = M·I_m + (1 − M)·(I_c + I_m − I_r). Internal to mixray::render.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "frame_context.h"
+
+namespace mixray::render::detail {
+
+constexpr uint8_t kTraced = 1;
+constexpr uint8_t kPenumbra = 2;
+
+struct Film {
+    std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
+    std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
+    std::vector<float> mask;             // M
+    std::vector<uint8_t> flags;          // kTraced | kPenumbra
+    std::vector<Vec3> mixed, real;       // keep_layers
+    std::vector<uint8_t> tile_dirty;
+    int width = 0, height = 0;
+    int tile_size = 16, tiles_x = 0;
+
+    // For frames of w x h in tiles of `tile_size`: keeps what it holds when nothing changed;
+    // `keep_layers` zeroes the I_m and I_r layers.
+    void beginFrame(int w, int h, int tile_size, bool keep_layers);
+    // Zeroes a tile the last frame wrote to.
+    void clearTile(int tile);
+    // RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
+    // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
+    void meanFilterPenumbra();
+    // Row y of the composite over `camera` (rgb8 sRGB; `srgb_lut` decodes it) into `dst`;
+    // clean tiles are the camera image.
+    void compositeRow(int y, const ImageView& camera, const std::array<float, 256>& srgb_lut,
+                      const MutableImageView& dst) const;
+    // keep_layers: I_m, I_r and M into `out`; otherwise clears them there.
+    void exportLayers(bool keep_layers, RenderLayers& out) const;
+};
+
+}  // namespace mixray::render::detail

@@ -1,0 +1,409 @@
+// The differential integrator (integrator.h).
+#include "integrator.h"
+
+#include <array>
+#include <cmath>
+
+namespace mixray::render::detail {
+namespace {
+
+// The camera image at a pixel position (bilinear, linear light); nullopt outside.
+std::optional<Vec3> cameraTexel(const Frame& f, double x, double y) {
+    const RenderInputs& in = *f.inputs;
+    const int w = in.camera.width, h = in.camera.height;
+    if (!(x >= 0 && y >= 0 && x <= w - 1 && y <= h - 1))
+        return std::nullopt;
+    const int x0 = std::min(static_cast<int>(x), w - 1), y0 = std::min(static_cast<int>(y), h - 1);
+    const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+    const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+    const auto texel = [&](int px, int py) {
+        const uint8_t* rgb = in.camera_image.row<uint8_t>(py) + 3 * px;
+        return Vec3(f.srgb_lut[rgb[0]], f.srgb_lut[rgb[1]], f.srgb_lut[rgb[2]]);
+    };
+    return (1 - ay) * ((1 - ax) * texel(x0, y0) + ax * texel(x1, y0)) +
+           ay * ((1 - ax) * texel(x0, y1) + ax * texel(x1, y1));
+}
+
+// The camera pixel a world point projects to (bilinear, linear light); nullopt outside.
+std::optional<Vec3> cameraPixelAt(const Frame& f, const Vec3& p_world) {
+    const Eigen::Vector3d p_cam = f.R_cam_world * p_world.cast<double>() + f.t_cam_world;
+    const auto pixel = f.inputs->camera.project(p_cam);
+    if (!pixel)
+        return std::nullopt;
+    return cameraTexel(f, pixel->x(), pixel->y());
+}
+
+}  // namespace
+
+Surface DifferentialIntegrator::surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const {
+    const ObjectData& object = objects_[hit.object];
+    Surface s;
+    s.object = &object;
+    s.material = &materials_[static_cast<size_t>(object.material)];
+    const Eigen::Matrix3f& R = object.R_world_object;
+    if (object.shape == ShapeType::kSphere) {
+        // Recompute the point on the exact sphere: less drift than origin + t·d.
+        const Vec3 p_obj = R.transpose() * (origin + hit.t * d - object.t_world_object);
+        const Vec3 n_obj = p_obj.normalized();
+        s.n_geometric = s.n_shading = rotate(R, n_obj);
+        s.p = rotate(R, n_obj * object.sphere_radius) + object.t_world_object;
+        s.uv = {0.5f + std::atan2(n_obj.y(), n_obj.x()) / (2 * optics::kPi),
+                std::acos(std::clamp(n_obj.z(), -1.f, 1.f)) / optics::kPi};
+        return s;
+    }
+    const TriangleMesh& mesh = object.meshes[hit.mesh];
+    const auto& tri = mesh.triangles[hit.prim];
+    const float w = 1.f - hit.u - hit.v;
+    const Vec3& a = mesh.positions[tri[0]];
+    const Vec3& b = mesh.positions[tri[1]];
+    const Vec3& c = mesh.positions[tri[2]];
+    const Vec3 n_geo = (b - a).cross(c - a).normalized();
+    s.n_geometric = rotate(R, n_geo);
+    s.p = origin + hit.t * d;
+    if (mesh.normals.size() == mesh.positions.size()) {
+        Vec3 n =
+            w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
+        if (n.squaredNorm() > 1e-12f) {
+            n = rotate(R, n.normalized());
+            s.n_shading = n.dot(s.n_geometric) >= 0 ? n : Vec3(-n);
+        } else {
+            s.n_shading = s.n_geometric;
+        }
+    } else {
+        s.n_shading = s.n_geometric;
+    }
+    if (mesh.uvs.size() == mesh.positions.size())
+        s.uv = w * mesh.uvs[tri[0]] + hit.u * mesh.uvs[tri[1]] + hit.v * mesh.uvs[tri[2]];
+    return s;
+}
+
+Vec3 DifferentialIntegrator::environment(const Frame& f, const Vec3& d) const {
+    Vec3 sum = Vec3::Zero();
+    for (const LightData* light : f.environments)
+        sum += light->light.environment_scale *
+               light->environment.radiance((light->R_environment_world * d).normalized());
+    return sum;
+}
+
+// Direct light from point, spherical and directional lights: Lambert plus, for Phong, a
+// normalised Blinn-Phong lobe; each light's shadow rays in the scenes the mode asks for.
+Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
+                                    const Vec3& albedo, Mode mode, SampleState& st) const {
+    Pair out;
+    const Material& mat = s.material->material;
+    const Vec3 origin =
+        s.p + offsetFor(s.p) * (s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    for (const LightData* light : f.lights) {
+        Vec3 wi;
+        float dist = kInf;
+        Vec3 irradiance;
+        if (light->light.type == LightType::kDirectional) {
+            wi = -light->direction_world;
+            irradiance = light->light.intensity;
+        } else {
+            const Vec3 delta = light->position_world - s.p;
+            dist = delta.norm();
+            if (dist <= 0)
+                continue;
+            wi = delta / dist;
+            irradiance = light->light.intensity / (dist * dist);
+        }
+        const float cos_theta = n.dot(wi);
+        if (cos_theta <= 0)
+            continue;
+        Vec3 brdf = albedo / optics::kPi;
+        if (mat.type == MaterialType::kPhong) {
+            const Vec3 h = (wi - d).normalized();
+            const float lobe = std::pow(std::max(0.f, n.dot(h)), mat.shininess);
+            brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
+        }
+        const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
+        Pair visible = shadows_.visibility(*light, origin, wi, dist, mode, st);
+        // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
+        if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
+            shadows_.depthMapOccludes(f, origin, wi, dist)) {
+            visible = {};
+        }
+        out.m += unshadowed.cwiseProduct(visible.m);
+        out.r += unshadowed.cwiseProduct(visible.r);
+    }
+    return out;
+}
+
+Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d,
+                                   int depth, Mode mode, SampleState& st) const {
+    const Material& mat = s.material->material;
+    const bool entering = s.n_geometric.dot(d) < 0;
+    const Vec3 n_geo = entering ? s.n_geometric : Vec3(-s.n_geometric);
+    const Vec3 n = entering ? s.n_shading : Vec3(-s.n_shading);
+    const float eps = offsetFor(s.p);
+    const Vec3 above = s.p + eps * n_geo;
+    const Vec3 below = s.p - eps * n_geo;
+    const bool can_bounce = depth < options_.max_depth;
+    const auto reflected = [&]() {
+        return can_bounce ? trace(f, above, optics::reflect(d, n).normalized(), depth + 1, mode, st)
+                          : Pair{};
+    };
+    float map = 1;
+    if (!s.material->reflectance_map.empty())
+        map = s.material->reflectance_map.sample(s.uv).mean();
+
+    switch (mat.type) {
+        case MaterialType::kDiffuse:
+        case MaterialType::kPhong: {
+            Vec3 albedo = mat.albedo;
+            if (!s.material->albedo_texture.empty())
+                albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
+            Pair local = s.material->albedo_from_camera ? cameraAlbedoDirect(f, s, n, d, st)
+                                                        : direct(f, s, n, d, albedo, mode, st);
+            const float rho = std::clamp(mat.reflectance * map, 0.f, 1.f);
+            if (rho <= 0)
+                return local;
+            return sum(scaled(local, Vec3::Constant(1 - rho)),
+                       scaled(reflected(), Vec3::Constant(rho)));
+        }
+        case MaterialType::kMirror: {
+            const float rho =
+                std::clamp((mat.reflectance > 0 ? mat.reflectance : 1.f) * map, 0.f, 1.f);
+            return scaled(reflected(), Vec3::Constant(rho));
+        }
+        case MaterialType::kMetal: {
+            const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
+            Vec3 fresnel;
+            for (int c = 0; c < 3; ++c)
+                fresnel[c] = optics::schlick(mat.f0[c], cos_i);
+            return scaled(reflected(), fresnel);
+        }
+        case MaterialType::kGlass: {
+            const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
+            // Beer-Lambert absorption along the segment just travelled inside the glass.
+            Vec3 absorbed = Vec3::Ones();
+            if (!entering)
+                for (int c = 0; c < 3; ++c)
+                    absorbed[c] = std::pow(std::max(mat.transmission[c], 0.f), hit.t);
+            const bool dispersive = mat.ior.x() != mat.ior.y() || mat.ior.x() != mat.ior.z();
+            const int channels = dispersive ? 3 : 1;
+            Vec3 reflectance;
+            std::array<std::optional<Vec3>, 3> refracted;
+            for (int c = 0; c < channels; ++c) {
+                const float n_from = entering ? 1.f : mat.ior[c];
+                const float n_to = entering ? mat.ior[c] : 1.f;
+                refracted[c] = optics::refract(d, n, n_from / n_to);
+                reflectance[c] =
+                    refracted[c] ? optics::dielectricReflectance(cos_i, n_from, n_to) : 1.f;
+            }
+            if (!dispersive)
+                reflectance = Vec3::Constant(reflectance[0]);
+            Pair result;
+            if (can_bounce) {
+                if (reflectance.maxCoeff() > 0)
+                    result = scaled(reflected(), reflectance);
+                for (int c = 0; c < channels; ++c) {
+                    if (!refracted[c])
+                        continue;
+                    Pair t = trace(f, below, *refracted[c], depth + 1, mode, st);
+                    Vec3 weight = Vec3::Ones() - reflectance;
+                    if (dispersive) {
+                        const float keep = weight[c];
+                        weight = Vec3::Zero();
+                        weight[c] = keep;
+                    }
+                    result = sum(result, scaled(t, weight));
+                }
+            }
+            return scaled(result, absorbed);
+        }
+    }
+    return {};
+}
+
+// Direct light on the depth surface, whose albedo is the camera pixel over the irradiance the
+// scene's lights give in the real scene: then I_r is the camera pixel itself and I_m is that
+// pixel times E_mixed / E_real, so I_c + I_m − I_r scales the camera pixel by exactly the ratio
+// of the lighting with and without the virtual objects, however the real lights are modelled.
+// Where the model gives no light, nothing virtual can change it: both are the camera pixel.
+Pair DifferentialIntegrator::cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n,
+                                                const Vec3& d, SampleState& st) const {
+    const int w = f.inputs->camera.width, h = f.inputs->camera.height;
+    const std::optional<Vec3> camera = cameraTexel(f, s.uv.x() * w - 0.5, s.uv.y() * h - 0.5);
+    if (!camera)
+        return {};
+    const Pair irradiance = direct(f, s, n, d, Vec3::Ones(), Mode::kBoth, st);
+    Pair out{*camera, *camera};
+    for (int c = 0; c < 3; ++c)
+        if (irradiance.r[c] > 0 && irradiance.m[c] != irradiance.r[c])
+            out.m[c] = (*camera)[c] * irradiance.m[c] / irradiance.r[c];
+    return out;
+}
+
+// The surface a camera ray shows. Virtual objects are hidden exactly where the depth map puts a
+// real surface nearer along the pixel's ray (rayDistanceAt), in every DepthSecondaryRays mode.
+// With the depth mesh, the real surface such a pixel shows is traced too (the nearest of the
+// ghosts and the mesh), so that virtual shadows and reflections on it are shaded.
+// A primary ray's hit among the scene's objects (the depth mesh masked out), checked against the
+// depth map: a real surface the depth camera measured in front hides what was hit.
+Hit DifferentialIntegrator::finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
+                                             std::optional<float> depth_limit) const {
+    const bool ghost = hit.valid && objects_[hit.object].role != ObjectRole::kVirtual;
+    const bool hidden = hit.valid && depth_limit &&
+                        *depth_limit < hit.t * (ghost ? 1 - options_.depth_ghost_agreement : 1.0f);
+    if (!f.depth_mesh)
+        return hidden ? Hit{} : hit;
+    if (hit.valid && !hidden && objects_[hit.object].role == ObjectRole::kVirtual)
+        return hit;
+    // Most of the depth surface is out of reach of every virtual object: there it stays the
+    // camera pixel, as without the mesh, and its triangles need not be traced. The mesh point
+    // lies near the measured one; 5 % of the distance (the relative step the mesher still joins)
+    // covers the difference.
+    if (depth_limit &&
+        !depthSurfaceInfluenced(f, f.t_world_cam + *depth_limit * d, 0.05f * *depth_limit)) {
+        return hidden ? Hit{} : hit;
+    }
+    return EmbreeScene::intersect(scene_.ghosts(), f.t_world_cam, d, kInf);
+}
+
+// ghostInfluenced() for the depth surface at a point known to within `margin`: moving the point
+// by up to `margin` moves its segments towards the lights by no more.
+bool DifferentialIntegrator::depthSurfaceInfluenced(const Frame& f, const Vec3& p,
+                                                    float margin) const {
+    if (f.virtual_bounds.empty())
+        return false;
+    const MaterialData& surface =
+        materials_[static_cast<size_t>(objects_[*depth_object_].material)];
+    if (surface.material.reflectance > 0)
+        return true;
+    for (const LightData* light : f.lights) {
+        Vec3 dir;
+        float length = kInf;
+        float extra = margin;
+        if (light->light.type == LightType::kDirectional) {
+            dir = -light->direction_world;
+        } else {
+            const Vec3 delta = light->position_world - p;
+            length = delta.norm();
+            dir = length > 0 ? Vec3(delta / length) : Vec3::UnitZ();
+            if (light->light.type == LightType::kSphere)
+                extra += light->light.radius;
+        }
+        for (const BoundSphere& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, p, dir, length) <= b.radius + extra)
+                return true;
+    }
+    return false;
+}
+
+// The camera's own measurement of a real surface point (Kán & Kaufmann fig. 4): reproject it
+// into the image; nullopt when it falls outside or something real hides it from the camera.
+std::optional<Vec3> DifferentialIntegrator::cameraRadianceAt(const Frame& f, const Surface& s,
+                                                             SampleState& st) const {
+    const Vec3 to_camera = f.t_world_cam - s.p;
+    const float dist = to_camera.norm();
+    const Vec3 dir = to_camera / dist;
+    const Vec3 origin =
+        s.p + offsetFor(s.p) * (s.n_geometric.dot(dir) > 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    ++st.counters->shadow;
+    logRay(st.log, RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), origin, dir,
+           dist * 0.999f);
+    if (EmbreeScene::occluded(scene_.ghosts(), origin, dir, dist * 0.999f))
+        return std::nullopt;
+    return cameraPixelAt(f, s.p);
+}
+
+Pair DifferentialIntegrator::trace(const Frame& f, const Vec3& origin, const Vec3& d, int depth,
+                                   Mode mode, SampleState& st) const {
+    ++st.counters->secondary;
+    const RTCScene scene = mode == Mode::kReal ? scene_.ghosts() : scene_.all();
+    logRay(st.log, RayLog::Kind::kSecondary, scene, scene_.ghosts(), origin, d, kInf);
+    const Hit hit = EmbreeScene::intersect(scene, origin, d, kInf);
+    if (f.depth && options_.depth_secondary == DepthSecondaryRays::kScreenSpace) {
+        // RT²AR Algorithm 2: the depth camera's surfaces, found in screen space, are real and
+        // seen by the camera, so the camera pixel is their radiance in both scenes.
+        // The walk starts a little away from the origin so that a ray leaving a surface the
+        // depth camera also measured does not find that surface again.
+        const Vec3 start = origin + kDepthStart_m * d;
+        const Vec3 o_cam = (f.R_cam_world * start.cast<double>() + f.t_cam_world).cast<float>();
+        const Vec3 d_cam = (f.R_cam_world * d.cast<double>()).cast<float>();
+        const float t_max = (hit.valid ? hit.t : kFarDepth_m) - kDepthStart_m;
+        const auto t =
+            t_max > 0 ? traceDepthMap(*f.depth, o_cam, d_cam, t_max, options_.depth_thickness_m)
+                      : std::nullopt;
+        if (t)
+            if (const auto c = cameraPixelAt(f, start + *t * d))
+                return {*c, *c};
+    }
+    if (!hit.valid) {
+        const Vec3 e = environment(f, d);
+        return {e, e};
+    }
+    const Surface s = surfaceAt(hit, origin, d);
+    if (s.object->role == ObjectRole::kVirtual) {
+        Pair out;
+        out.m = shade(f, s, hit, d, depth, Mode::kMixed, st).m;
+        if (mode == Mode::kBoth)
+            out.r = trace(f, origin, d, depth, Mode::kReal, st).r;
+        return out;
+    }
+    if (mode != Mode::kMixed)
+        return shade(f, s, hit, d, depth, mode, st);
+    // A real surface reached through a virtual one: the camera saw its radiance; add only what
+    // the virtual objects change there.
+    const Pair p = shade(f, s, hit, d, depth, Mode::kBoth, st);
+    const MaterialType type = s.material->material.type;
+    if (type == MaterialType::kDiffuse || type == MaterialType::kPhong) {
+        if (const auto measured = cameraRadianceAt(f, s, st)) {
+            const Vec3 m = (*measured + p.m - p.r).cwiseMax(0.f);
+            return {m, m};
+        }
+    }
+    return {p.m, p.m};
+}
+
+// Conservative: can virtual objects change the shading of this real point seen along `d`? True
+// for glass and reflective ghosts (when the only ghost is flat: where the mirrored ray passes a
+// virtual bounding sphere), and where a bounding sphere meets the way to a light.
+bool DifferentialIntegrator::ghostInfluenced(const Frame& f, const Surface& s,
+                                             const Vec3& d) const {
+    if (f.virtual_bounds.empty())
+        return false;
+    const Material& mat = s.material->material;
+    const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
+    if (mat.type == MaterialType::kGlass)
+        return true;
+    if (!lambert || mat.reflectance > 0) {
+        // Off the only, flat, ghost a mirrored ray never meets a ghost again, so it changes
+        // the pixel only if it passes a virtual bounding sphere (the ray starts offset).
+        if (!f.lone_flat_ghost)
+            return true;
+        const Vec3 n = s.n_geometric.dot(d) < 0 ? s.n_shading : Vec3(-s.n_shading);
+        const Vec3 r = optics::reflect(d, n).normalized();
+        const float slack = 2 * offsetFor(s.p);
+        for (const BoundSphere& b : f.virtual_bounds)
+            if (distanceToSegment(b.centre, s.p, r, kInf) <= b.radius + slack)
+                return true;
+        if (!lambert)
+            return false;
+    }
+    if (!options_.shadows)
+        return false;
+    for (const LightData* light : f.lights) {
+        Vec3 dir;
+        float length = kInf;
+        float extra = 0;
+        if (light->light.type == LightType::kDirectional) {
+            dir = -light->direction_world;
+        } else {
+            const Vec3 delta = light->position_world - s.p;
+            length = delta.norm();
+            dir = length > 0 ? Vec3(delta / length) : Vec3::UnitZ();
+            if (light->light.type == LightType::kSphere)
+                extra = light->light.radius;
+        }
+        // Shadow rays to a spherical light fan out from s.p to its radius at the light.
+        for (const BoundSphere& b : f.virtual_bounds)
+            if (nearTaperedSegment(b.centre, s.p, dir, length, b.radius, b.radius + extra))
+                return true;
+    }
+    return false;
+}
+
+}  // namespace mixray::render::detail
