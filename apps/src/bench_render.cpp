@@ -248,6 +248,7 @@ struct Config {
     std::string scene;  // teapot, soft, dragons
     std::string name;
     RenderOptions options;
+    LensEffects lens_effects = {};  // added to the scene
 };
 
 std::vector<Config> configsFor(const std::string& scene, int threads) {
@@ -266,6 +267,14 @@ std::vector<Config> configsFor(const std::string& scene, int threads) {
         out.push_back({scene, "primary only", primary});
         out.push_back({scene, "+ hard shadows", shadows});
         out.push_back({scene, "+ shadows + 3 bounces", bounces});
+        // RT²AR §IV-F's lens effects on the frame above. Thresholds low enough that most of the
+        // teapot blooms: the effects' worst case, against the row above as the baseline.
+        LensEffects lens;
+        lens.bloom = Bloom{};
+        lens.bloom->threshold = 0.25f;
+        lens.glare = Glare{};
+        lens.glare->threshold = 0.35f;
+        out.push_back({scene, "+ shadows + 3 bounces + bloom and glare", bounces, lens});
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -542,7 +551,9 @@ int runBenchRender(BenchRenderOptions options) {
             }
         }
         for (const Config& config : configs) {
-            auto renderer = Renderer::create(*scene, config.options);
+            SceneDescription with_lens = *scene;
+            with_lens.lens_effects = config.lens_effects;
+            auto renderer = Renderer::create(with_lens, config.options);
             if (!renderer)
                 return fail("bench render", renderer.status());
             for (const Size& size : *sizes) {

@@ -17,13 +17,16 @@ namespace mixray::render::detail {
 EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                                std::vector<ObjectData> objects, std::vector<LightData> lights,
                                std::filesystem::path scene_source,
-                               std::optional<size_t> depth_object)
+                               std::optional<size_t> depth_object, const LensEffects& lens_effects)
     : options_(std::move(options)),
       materials_(std::move(materials)),
       objects_(std::move(objects)),
       lights_(std::move(lights)),
       scene_source_(std::move(scene_source)),
-      depth_object_(depth_object) {}
+      depth_object_(depth_object) {
+    if (lens_effects.any())
+        lens_effects_.emplace(lens_effects);
+}
 
 Status EmbreeRenderer::init() {
     auto built = EmbreeScene::build(objects_, options_.embree_isa);
@@ -204,6 +207,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         const MutableImageView dst = out.composite.mutableView();
         if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
             b.meanFilterPenumbra();
+        if (lens_effects_)
+            lens_effects_->apply(b);
         // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
         tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
             for (int y = r.begin(); y < r.end(); ++y)

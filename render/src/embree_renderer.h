@@ -12,6 +12,7 @@
 #include "film.h"
 #include "frame_context.h"
 #include "integrator.h"
+#include "lens_effects.h"
 #include "mixray/calibration/depth_registration.h"
 
 namespace mixray::render::detail {
@@ -33,7 +34,8 @@ class EmbreeRenderer final : public Renderer {
 public:
     EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                    std::vector<ObjectData> objects, std::vector<LightData> lights,
-                   std::filesystem::path scene_source, std::optional<size_t> depth_object);
+                   std::filesystem::path scene_source, std::optional<size_t> depth_object,
+                   const LensEffects& lens_effects);
 
     // Builds the BVH.
     Status init();
@@ -68,6 +70,7 @@ private:
     std::optional<calibration::Registrar> registrar_;
     Image registered_depth_;
     Film film_;
+    std::optional<LensEffectsPass> lens_effects_;  // the scene has some
     std::vector<uint8_t> tile_mask_;
     // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
     std::vector<TileScratch> scratch_;

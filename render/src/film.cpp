@@ -17,6 +17,8 @@ void Film::beginFrame(int w, int h, int ts, bool keep_layers) {
         mask.assign(count, 0.f);
         flags.assign(count, 0);
         tile_dirty.assign(static_cast<size_t>(tiles_x) * tiles_y, 0);
+        glow.clear();
+        glow_box = {};
         width = w;
         height = h;
     }
@@ -92,9 +94,11 @@ void Film::compositeRow(int y, const ImageView& camera, const std::array<float, 
     const uint8_t* src_row = camera.row<uint8_t>(y);
     uint8_t* dst_row = dst.row<uint8_t>(y);
     const int tile_row = (y / ts) * tiles_x;
+    const bool glow_row = !glow_box.empty() && y >= glow_box.y0 && y < glow_box.y1;
     for (int tx = 0; tx < tiles_x; ++tx) {
         const int x0 = tx * ts, x1 = std::min(w, x0 + ts);
-        if (!tile_dirty[static_cast<size_t>(tile_row + tx)]) {
+        const bool glowing = glow_row && x1 > glow_box.x0 && x0 < glow_box.x1;
+        if (!tile_dirty[static_cast<size_t>(tile_row + tx)] && !glowing) {
             std::memcpy(dst_row + 3 * x0, src_row + 3 * x0, 3 * static_cast<size_t>(x1 - x0));
             continue;
         }
@@ -103,13 +107,15 @@ void Film::compositeRow(int y, const ImageView& camera, const std::array<float, 
             const uint8_t* c = src_row + 3 * x;
             uint8_t* o = dst_row + 3 * x;
             const float m = mask[i];
-            if (m == 0 && difference[i] == Vec3::Zero()) {
+            const Vec3 g = glowing && glow_box.contains(x, y) ? glow[i] : Vec3::Zero();
+            if (m == 0 && difference[i] == Vec3::Zero() && g == Vec3::Zero()) {
                 o[0] = c[0], o[1] = c[1], o[2] = c[2];
                 continue;
             }
             for (int ch = 0; ch < 3; ++ch) {
                 const float real_radiance = srgb_lut[c[ch]] + difference[i][ch];
-                o[ch] = optics::encodeSrgb8(m * virtual_radiance[i][ch] + (1 - m) * real_radiance);
+                o[ch] = optics::encodeSrgb8(m * virtual_radiance[i][ch] + (1 - m) * real_radiance +
+                                            g[ch]);
             }
         }
     }

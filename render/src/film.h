@@ -11,6 +11,13 @@
 
 namespace mixray::render::detail {
 
+// Pixels [x0, x1) x [y0, y1); empty when x0 >= x1 or y0 >= y1.
+struct PixelBox {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool empty() const { return x0 >= x1 || y0 >= y1; }
+    bool contains(int x, int y) const { return x >= x0 && x < x1 && y >= y0 && y < y1; }
+};
+
 constexpr uint8_t kTraced = 1;
 constexpr uint8_t kPenumbra = 2;
 
@@ -23,6 +30,9 @@ struct Film {
     std::vector<uint8_t> tile_dirty;
     int width = 0, height = 0;
     int tile_size = 16, tiles_x = 0;
+    // Light the lens effects add this frame (lens_effects.h), zero outside glow_box.
+    std::vector<Vec3> glow;
+    PixelBox glow_box;
 
     // For frames of w x h in tiles of `tile_size`: keeps what it holds when nothing changed;
     // `keep_layers` zeroes the I_m and I_r layers.
@@ -32,8 +42,8 @@ struct Film {
     // RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
     // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
     void meanFilterPenumbra();
-    // Row y of the composite over `camera` (rgb8 sRGB; `srgb_lut` decodes it) into `dst`;
-    // clean tiles are the camera image.
+    // Row y of the composite over `camera` (rgb8 sRGB; `srgb_lut` decodes it), plus the glow,
+    // into `dst`; tiles neither dirty nor glowing are the camera image.
     void compositeRow(int y, const ImageView& camera, const std::array<float, 256>& srgb_lut,
                       const MutableImageView& dst) const;
     // keep_layers: I_m, I_r and M into `out`; otherwise clears them there.

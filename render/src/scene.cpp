@@ -206,6 +206,24 @@ Status SceneDescription::validate() const {
         MIXRAY_RETURN_IF_ERROR(validateCamera(*camera, file_where));
     if (!(depth_surface.reflectance >= 0 && depth_surface.reflectance <= 1))
         return corrupt(depth_surface.where, "depth_surface.reflectance", "must be in [0, 1]");
+    if (const auto& b = lens_effects.bloom) {
+        if (!(b->threshold > 0 && b->threshold <= 1e6f))
+            return corrupt(b->where, "lens_effects.bloom.threshold", "must be in (0, 1e6]");
+        if (!(b->strength >= 0 && b->strength <= 10))
+            return corrupt(b->where, "lens_effects.bloom.strength", "must be in [0, 10]");
+        if (!(b->radius_px >= 0.5f && b->radius_px <= 64))
+            return corrupt(b->where, "lens_effects.bloom.radius_px", "must be in [0.5, 64]");
+    }
+    if (const auto& g = lens_effects.glare) {
+        if (!(g->threshold > 0 && g->threshold <= 1e6f))
+            return corrupt(g->where, "lens_effects.glare.threshold", "must be in (0, 1e6]");
+        if (!(g->strength >= 0 && g->strength <= 10))
+            return corrupt(g->where, "lens_effects.glare.strength", "must be in [0, 10]");
+        if (g->passes < 1 || g->passes > 4)
+            return corrupt(g->where, "lens_effects.glare.passes", "must be 1, 2, 3 or 4");
+        if (!(g->attenuation > 0 && g->attenuation < 1))
+            return corrupt(g->where, "lens_effects.glare.attenuation", "must be in (0, 1)");
+    }
     return Status::ok();
 }
 

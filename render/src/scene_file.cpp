@@ -65,9 +65,13 @@ constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like 
 // ---------------------------------------------------------------------------------------------
 // Schema
 
-constexpr std::array<std::string_view, 6> kRootKeys = {"version", "materials", "objects",
-                                                       "lights",  "camera",    "depth_surface"};
+constexpr std::array<std::string_view, 7> kRootKeys = {
+    "version", "materials", "objects", "lights", "camera", "depth_surface", "lens_effects"};
 constexpr std::array<std::string_view, 1> kDepthSurfaceKeys = {"reflectance"};
+constexpr std::array<std::string_view, 2> kLensEffectKeys = {"bloom", "glare"};
+constexpr std::array<std::string_view, 3> kBloomKeys = {"threshold", "strength", "radius_px"};
+constexpr std::array<std::string_view, 4> kGlareKeys = {"threshold", "strength", "passes",
+                                                        "attenuation"};
 constexpr std::array<std::string_view, 10> kMaterialKeys = {
     "type", "albedo", "albedo_texture", "specular",    "shininess",
     "f0",   "ior",    "transmission",   "reflectance", "reflectance_map"};
@@ -132,6 +136,7 @@ private:
     Status parseLight(const Item& item, SceneDescription& scene,
                       std::map<std::string, SourceLocation>& names);
     Status parseCamera(const Item& item, SceneDescription& scene);
+    Status parseLensEffects(const Item& item, SceneDescription& scene);
 
     // Refuses keys the chosen type does not use, naming the ones it does.
     Status checkTypeKeys(const Fields& fields, const TypeKeys& type, std::string_view what);
@@ -615,6 +620,59 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
             scene.depth_surface.reflectance = *s;
         }
     }
+    if (const Item* lens = find(*fields, "lens_effects"))
+        MIXRAY_RETURN_IF_ERROR(parseLensEffects(*lens, scene));
+    return Status::ok();
+}
+
+Status SceneParser::parseLensEffects(const Item& item, SceneDescription& scene) {
+    auto fields =
+        r_.readMap(item, kLensEffectKeys, "a lens_effects mapping with bloom: and glare:");
+    if (!fields)
+        return fields.status();
+    // Each reads `key` of `from` into `out` when it is there.
+    const auto read = [&](const Fields& from, std::string_view key, double min, double max,
+                          bool min_exclusive, float& out) -> Status {
+        if (const Item* v = find(from, key)) {
+            auto x = scalar(*v, min, max, min_exclusive);
+            if (!x)
+                return x.status();
+            out = *x;
+        }
+        return Status::ok();
+    };
+    if (const Item* b = find(*fields, "bloom")) {
+        auto bloom_fields =
+            r_.readMap(*b, kBloomKeys, "a bloom mapping with threshold:, strength:, radius_px:");
+        if (!bloom_fields)
+            return bloom_fields.status();
+        Bloom bloom;
+        bloom.where = b->where;
+        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "threshold", 0, 1e6, true, bloom.threshold));
+        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "strength", 0, 10, false, bloom.strength));
+        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "radius_px", 0.5, 64, false, bloom.radius_px));
+        scene.lens_effects.bloom = bloom;
+    }
+    if (const Item* g = find(*fields, "glare")) {
+        auto glare_fields = r_.readMap(
+            *g, kGlareKeys, "a glare mapping with threshold:, strength:, passes:, attenuation:");
+        if (!glare_fields)
+            return glare_fields.status();
+        Glare glare;
+        glare.where = g->where;
+        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "threshold", 0, 1e6, true, glare.threshold));
+        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "strength", 0, 10, false, glare.strength));
+        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "attenuation", 0, 1, true, glare.attenuation));
+        if (const Item* v = find(*glare_fields, "passes")) {
+            auto n = scalar(*v, 1, 4, false);
+            if (!n)
+                return n.status();
+            if (*n != std::floor(*n))
+                return r_.expected(*v, "a whole number of passes, 1 to 4");
+            glare.passes = static_cast<int>(*n);
+        }
+        scene.lens_effects.glare = glare;
+    }
     return Status::ok();
 }
 
@@ -691,6 +749,7 @@ Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_p
     // and light estimation measure.
     scene.lights = objects->lights;
     scene.camera = objects->camera;
+    scene.lens_effects = objects->lens_effects;  // how the virtual objects pass the lens
     for (SceneObject o : real->objects) {
         o.role = ObjectRole::kGhost;
         scene.objects.push_back(std::move(o));

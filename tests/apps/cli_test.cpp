@@ -390,9 +390,11 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
     CliRun run = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes teapot");
     ASSERT_EQ(run.exit_code, 0) << run.output;
-    for (const char* line : {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
-                             "teapot: + shadows + 3 bounces, 64x48", "fps ", "pixels traced",
-                             "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency"}) {
+    for (const char* line :
+         {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
+          "teapot: + shadows + 3 bounces, 64x48",
+          "teapot: + shadows + 3 bounces + bloom and glare, 64x48", "fps ", "pixels traced",
+          "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
     EXPECT_EQ(run.output.find("does not match"), std::string::npos) << run.output;
@@ -401,7 +403,7 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     ASSERT_EQ(json.exit_code, 0) << json.output;
     const auto figures = nlohmann::json::parse(json.output, nullptr, false);
     ASSERT_TRUE(figures.is_array()) << json.output;
-    ASSERT_EQ(figures.size(), 3u);
+    ASSERT_EQ(figures.size(), 4u);
     for (const auto& f : figures) {
         EXPECT_EQ(f["width"], 64);
         EXPECT_TRUE(f["log_matches_stats"].get<bool>());
@@ -411,6 +413,8 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     }
     EXPECT_EQ(figures[0]["rays_per_frame"]["shadow"].get<double>(), 0);  // primary only
     EXPECT_GT(figures[2]["rays_per_frame"]["secondary"].get<double>(), 0);
+    // The lens effects add no ray to the frame they follow.
+    EXPECT_EQ(figures[3]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
 }
 
 }  // namespace

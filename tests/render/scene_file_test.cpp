@@ -340,6 +340,35 @@ TEST(SceneFileTest, MalformedLightsAndCamera) {
     auto plain = parseScene("objects: []\n", "s.yaml");
     ASSERT_TRUE(plain.isOk());
     EXPECT_EQ(plain->depth_surface.reflectance, 0.f);
+    EXPECT_FALSE(plain->lens_effects.any());
+}
+
+TEST(SceneFileTest, LensEffects) {
+    auto parsed = parseScene(
+        "lens_effects:\n  bloom: { threshold: 2, strength: 0.5, radius_px: 4 }\n"
+        "  glare: { passes: 2, attenuation: 0.85 }\n",
+        "s.yaml");
+    ASSERT_TRUE(parsed.isOk()) << parsed.status().toString();
+    ASSERT_TRUE(parsed->lens_effects.bloom && parsed->lens_effects.glare);
+    EXPECT_FLOAT_EQ(parsed->lens_effects.bloom->threshold, 2);
+    EXPECT_FLOAT_EQ(parsed->lens_effects.bloom->strength, 0.5f);
+    EXPECT_FLOAT_EQ(parsed->lens_effects.bloom->radius_px, 4);
+    EXPECT_EQ(parsed->lens_effects.glare->passes, 2);
+    EXPECT_FLOAT_EQ(parsed->lens_effects.glare->attenuation, 0.85f);
+    EXPECT_FLOAT_EQ(parsed->lens_effects.glare->threshold, Glare{}.threshold);  // the default
+    auto bloom_only = parseScene("lens_effects: { bloom: {} }\n", "s.yaml");
+    ASSERT_TRUE(bloom_only.isOk()) << bloom_only.status().toString();
+    EXPECT_TRUE(bloom_only->lens_effects.bloom && !bloom_only->lens_effects.glare);
+
+    expectError("lens_effects:\n  bloom: { threshold: 0 }\n", 2, "lens_effects.bloom.threshold");
+    expectError("lens_effects:\n  bloom: { radius_px: 100 }\n", 2, "lens_effects.bloom.radius_px");
+    expectError("lens_effects:\n  glare: { passes: 2.5 }\n", 2, "lens_effects.glare.passes",
+                "whole number");
+    expectError("lens_effects:\n  glare: { passes: 9 }\n", 2, "lens_effects.glare.passes");
+    expectError("lens_effects:\n  glare: { attenuation: 1 }\n", 2,
+                "lens_effects.glare.attenuation");
+    expectError("lens_effects:\n  flare: {}\n", 2, "lens_effects.flare", "unknown field");
+    expectError("lens_effects: 1\n", 1, "lens_effects", "bloom:");
 }
 
 TEST(SceneFileTest, MalformedFiles) {
@@ -378,6 +407,8 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_EQ(scene->materials.at("red_plastic").albedo_texture,
               fs::path("docs/textures/plastic.png"));
     EXPECT_FLOAT_EQ(scene->depth_surface.reflectance, 0.1f);
+    ASSERT_TRUE(scene->lens_effects.bloom && scene->lens_effects.glare);
+    EXPECT_FLOAT_EQ(scene->lens_effects.glare->attenuation, 0.9f);
 
     const std::string h = kHeader;
     const std::vector<std::string> inputs = {
@@ -484,6 +515,7 @@ objects:
     shape: { mesh: { file: missing/pot.obj } }
     material: clay
     pose: { translation: [0.1, 0.2, 0] }
+lens_effects: { glare: { passes: 2 } }
 )";
     auto composed = composeArScene(real, objects);
     ASSERT_TRUE(composed.isOk()) << composed.status().toString();
@@ -496,6 +528,10 @@ objects:
     EXPECT_EQ(scene.objects[2].role, ObjectRole::kVirtual);
     EXPECT_TRUE(scene.lights.empty());
     EXPECT_FALSE(scene.camera.has_value());
+    // The objects file says how its objects pass the lens.
+    ASSERT_TRUE(scene.lens_effects.glare.has_value());
+    EXPECT_EQ(scene.lens_effects.glare->passes, 2);
+    EXPECT_FALSE(scene.lens_effects.bloom.has_value());
     EXPECT_EQ(scene.materials.size(), 2u);
     // The missing mesh: a sphere of its material on the same spot, raised by its radius.
     const SceneObject& pot = scene.objects[3];
@@ -544,6 +580,18 @@ TEST(SceneFileTest, ComposeArSceneOnTheDemoFixtures) {
                               : ObjectRole::kGhost)
             << o.name;
     EXPECT_TRUE(composed->scene.lights.empty());
+}
+
+// The lens-effects demo objects compose onto the session's real scene and bring their effects.
+TEST(SceneFileTest, ComposeArSceneOnTheLensEffectsFixture) {
+    auto composed = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
+                                   test::fixturesDir() / "scenes/sim_tabletop_glow.yaml");
+    ASSERT_TRUE(composed.isOk()) << composed.status().toString();
+    EXPECT_EQ(composed->inserted.objects.size(), 2u);
+    const LensEffects& lens = composed->scene.lens_effects;
+    ASSERT_TRUE(lens.bloom && lens.glare);
+    EXPECT_LT(lens.bloom->threshold, lens.glare->threshold);
+    EXPECT_EQ(lens.glare->passes, 3);
 }
 
 TEST(SceneFileTest, ValidateScenesBuiltInCode) {

@@ -125,6 +125,31 @@ struct DepthSurface {
     SourceLocation where;
 };
 
+// RT²AR §IV-F's lens effects, added to the composite from what the virtual content adds to
+// each pixel (linear light): light above a luminance threshold spreads, so a bright virtual
+// highlight glows past its edges like a real one through the lens. A frame with nothing virtual
+// stays the camera image. Plain values.
+struct Bloom {
+    float threshold = 1;     // luminance that blooms (1: the camera's white)
+    float strength = 0.25f;  // fraction of the light above the threshold spread around
+    float radius_px = 6;     // the spread's Gaussian sigma, in pixels of the frame
+    SourceLocation where;
+};
+struct Glare {
+    float threshold = 1.5f;  // a little above bloom's, as RT²AR has it
+    float strength = 0.15f;  // fraction of the light above the threshold spread into streaks
+    // Passes of 4 samples s = 0..3, pass n taking them b = 4^(n−1) pixels apart with weights
+    // a^(b·s): streaks 4^passes − 1 pixels long (63 for 3) along the four diagonals.
+    int passes = 3;
+    float attenuation = 0.9f;  // a (RT²AR: 0.85 to 0.95)
+    SourceLocation where;
+};
+struct LensEffects {
+    std::optional<Bloom> bloom;
+    std::optional<Glare> glare;
+    bool any() const { return bloom || glare; }
+};
+
 // A whole scene. Plain value; reentrant.
 struct SceneDescription {
     std::map<std::string, Material> materials;
@@ -132,6 +157,7 @@ struct SceneDescription {
     std::vector<Light> lights;
     std::optional<FixedCamera> camera;
     DepthSurface depth_surface;
+    LensEffects lens_effects;
     std::filesystem::path source_path;  // where it was loaded from, for messages
 
     // kCorruptData with the entry's location on the first problem: unknown material names,
