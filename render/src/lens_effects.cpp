@@ -200,6 +200,13 @@ void LensEffectsPass::apply(Film& film) {
         zero(film.glow, w, film.glow_box);
     }
     film.glow_box = {};
+    if (w != width_ || h != height_) {  // last frame's boxes are of another size
+        bloom_box_ = glare_box_ = {};
+        bloom_bright_.clear();
+        glare_bright_.clear();
+        width_ = w;
+        height_ = h;
+    }
     if (effects_.bloom) {
         const Bloom& b = *effects_.bloom;
         bloom_box_ = brightPass(film, b.threshold, bloom_box_, bloom_bright_);

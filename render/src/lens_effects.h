@@ -56,6 +56,7 @@ private:
     // Each effect's bright pass, and the box of its light last frame.
     std::vector<Vec3> bloom_bright_, glare_bright_;
     PixelBox bloom_box_, glare_box_;
+    int width_ = 0, height_ = 0;  // the frames they are of
 };
 
 }  // namespace mixray::render::detail

@@ -105,9 +105,8 @@ SceneDescription brightSphereScene(const LensEffects& effects) {
     return scene;
 }
 
-// The composite of `scene` seen from 2 m above, 160x120, over a grey camera image.
-Image renderFromAbove(const SceneDescription& scene) {
-    constexpr int w = 160, h = 120;
+// The composite `renderer` makes seen from 2 m above, w x h, over a grey camera image.
+Image renderFromAbove(Renderer& renderer, int w = 160, int h = 120) {
     const Image camera = filledImage(w, h, [](int, int) {
         return std::array<uint8_t, 3>{90, 90, 90};
     });
@@ -115,11 +114,15 @@ Image renderFromAbove(const SceneDescription& scene) {
     in.camera = calibration::CameraModel::pinhole(w, h, 200, 200, (w - 1) / 2.0, (h - 1) / 2.0);
     in.camera_image = camera.view();
     in.T_world_cam = lookDown({0, 0, 2});
+    RenderLayers out;
+    EXPECT_TRUE(renderer.render(in, out).isOk());
+    return std::move(out.composite);
+}
+
+Image renderFromAbove(const SceneDescription& scene) {
     auto renderer = Renderer::create(scene, RenderOptions{});
     EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
-    RenderLayers out;
-    EXPECT_TRUE((*renderer)->render(in, out).isOk());
-    return std::move(out.composite);
+    return renderFromAbove(**renderer);
 }
 
 LensEffects bloomAndGlare() {
@@ -166,6 +169,18 @@ TEST(LensEffects, ABrightVirtualSphereGlowsOntoTheRealImageAroundIt) {
     EXPECT_GT(grey(streaked, 79 - 18, 59 - 18), grey(plain, 79 - 18, 59 - 18));
     EXPECT_EQ(grey(streaked, 79 + 25, 59), grey(plain, 79 + 25, 59));
     EXPECT_EQ(grey(streaked, 79, 59 + 25), grey(plain, 79, 59 + 25));
+}
+
+// The effects keep buffers between frames: a frame of another size (here the same pixel count,
+// transposed) comes out as from a fresh renderer.
+TEST(LensEffects, AFrameOfAnotherSizeIsAsFromAFreshRenderer) {
+    const SceneDescription scene = brightSphereScene(bloomAndGlare());
+    auto fresh = Renderer::create(scene, RenderOptions{});
+    auto reused = Renderer::create(scene, RenderOptions{});
+    ASSERT_TRUE(fresh.isOk() && reused.isOk());
+    (void)renderFromAbove(**reused, 160, 120);
+    const Image after = renderFromAbove(**reused, 120, 160);
+    EXPECT_TRUE(sameImage(after.view(), renderFromAbove(**fresh, 120, 160).view()));
 }
 
 }  // namespace
