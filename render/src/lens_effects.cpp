@@ -42,14 +42,18 @@ void forRows(int rows, F f) {
 
 }  // namespace
 
-PixelBox brightPass(const Film& film, float threshold, const PixelBox& last,
-                    std::vector<Vec3>& out) {
+void brightPass(const Film& film, std::span<BrightImage> images) {
     const int w = film.width, h = film.height, ts = film.tile_size;
-    if (out.size() != static_cast<size_t>(w) * h)
-        out.assign(static_cast<size_t>(w) * h, Vec3::Zero());
-    else
-        zero(out, w, last);
-    PixelBox box{w, h, 0, 0};
+    for (BrightImage& image : images) {
+        if (image.width != w || image.height != h) {
+            image.light.assign(static_cast<size_t>(w) * h, Vec3::Zero());
+            image.width = w;
+            image.height = h;
+        } else {
+            zero(image.light, w, image.box);
+        }
+        image.box = {w, h, 0, 0};
+    }
     // Only dirty tiles hold anything virtual.
     for (size_t t = 0; t < film.tile_dirty.size(); ++t) {
         if (!film.tile_dirty[t])
@@ -63,13 +67,17 @@ PixelBox brightPass(const Film& film, float threshold, const PixelBox& last,
                 const Vec3 added =
                     m * film.virtual_radiance[i] + (1 - m) * film.difference[i].cwiseMax(0.f);
                 const float y_lum = luminance(added);
-                if (!(y_lum > threshold))
-                    continue;
-                out[i] = added * ((y_lum - threshold) / y_lum);
-                box = united(box, {x, y, x + 1, y + 1});
+                for (BrightImage& image : images) {
+                    if (!(y_lum > image.threshold))
+                        continue;
+                    image.light[i] = added * ((y_lum - image.threshold) / y_lum);
+                    image.box = united(image.box, {x, y, x + 1, y + 1});
+                }
             }
     }
-    return box.empty() ? PixelBox{} : box;
+    for (BrightImage& image : images)
+        if (image.box.empty())
+            image.box = {};
 }
 
 PixelBox addBloom(const std::vector<Vec3>& bright, int w, int h, const PixelBox& box,
@@ -144,9 +152,14 @@ PixelBox addBloom(const std::vector<Vec3>& bright, int w, int h, const PixelBox&
 }
 
 void addGlareStreak(const std::vector<Vec3>& in, int w, const PixelBox& box, int dx, int dy,
-                    int passes, float attenuation, float scale, std::vector<Vec3>& out) {
+                    int passes, float attenuation, float scale, std::vector<Vec3>& out,
+                    StreakBuffers& buffers) {
     const int bw = box.x1 - box.x0, bh = box.y1 - box.y0;
-    std::vector<Vec3> a(static_cast<size_t>(bw) * bh), b(a.size());
+    // Every pixel of the box is written before it is read, so old contents do no harm.
+    std::vector<Vec3>& a = buffers.a;
+    std::vector<Vec3>& b = buffers.b;
+    a.resize(std::max(a.size(), static_cast<size_t>(bw) * bh));
+    b.resize(a.size());
     for (int y = 0; y < bh; ++y)
         std::copy_n(
             in.begin() + static_cast<std::ptrdiff_t>(static_cast<size_t>(box.y0 + y) * w + box.x0),
@@ -181,44 +194,44 @@ void addGlareStreak(const std::vector<Vec3>& in, int w, const PixelBox& box, int
 }
 
 PixelBox addGlare(const std::vector<Vec3>& bright, int w, int h, const PixelBox& box,
-                  const Glare& glare, std::vector<Vec3>& glow) {
+                  const Glare& glare, std::vector<Vec3>& glow, StreakBuffers& buffers) {
     if (box.empty() || glare.strength <= 0)
         return {};
     const int length = (1 << (2 * glare.passes)) - 1;  // 4^passes − 1
     const PixelBox out = grown(box, length, w, h);
     for (const auto& [dx, dy] : {std::pair{1, 1}, {-1, 1}, {1, -1}, {-1, -1}})
         addGlareStreak(bright, w, out, dx, dy, glare.passes, glare.attenuation, glare.strength / 4,
-                       glow);
+                       glow, buffers);
     return out;
+}
+
+LensEffectsPass::LensEffectsPass(LensEffects effects) : effects_(std::move(effects)) {
+    if (effects_.bloom)
+        bright_.emplace_back(effects_.bloom->threshold);
+    if (effects_.glare)
+        bright_.emplace_back(effects_.glare->threshold);
 }
 
 void LensEffectsPass::apply(Film& film) {
     const int w = film.width, h = film.height;
+    // Film::beginFrame() empties the glow when the frame's size changes.
     if (film.glow.size() != static_cast<size_t>(w) * h) {
         film.glow.assign(static_cast<size_t>(w) * h, Vec3::Zero());
     } else {
         zero(film.glow, w, film.glow_box);
     }
     film.glow_box = {};
-    if (w != width_ || h != height_) {  // last frame's boxes are of another size
-        bloom_box_ = glare_box_ = {};
-        bloom_bright_.clear();
-        glare_bright_.clear();
-        width_ = w;
-        height_ = h;
-    }
+    brightPass(film, bright_);
+    auto bright = bright_.begin();
     if (effects_.bloom) {
         const Bloom& b = *effects_.bloom;
-        bloom_box_ = brightPass(film, b.threshold, bloom_box_, bloom_bright_);
-        film.glow_box = united(film.glow_box, addBloom(bloom_bright_, w, h, bloom_box_, b.radius_px,
-                                                       b.strength, film.glow));
+        film.glow_box = united(film.glow_box, addBloom(bright->light, w, h, bright->box,
+                                                       b.radius_px, b.strength, film.glow));
+        ++bright;
     }
-    if (effects_.glare) {
-        const Glare& g = *effects_.glare;
-        glare_box_ = brightPass(film, g.threshold, glare_box_, glare_bright_);
-        film.glow_box =
-            united(film.glow_box, addGlare(glare_bright_, w, h, glare_box_, g, film.glow));
-    }
+    if (effects_.glare)
+        film.glow_box = united(film.glow_box, addGlare(bright->light, w, h, bright->box,
+                                                       *effects_.glare, film.glow, streaks_));
 }
 
 }  // namespace mixray::render::detail

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -27,10 +28,11 @@ TEST(LensEffects, GlareStreakWeightsArePowersOfTheAttenuationAlongOneDiagonal) {
     constexpr int w = 200, h = 200, c = 120;
     std::vector<Vec3> in(w * h, Vec3::Zero()), out(in.size(), Vec3::Zero());
     in[c * w + c] = Vec3::Ones();
+    detail::StreakBuffers buffers;
     const PixelBox box{0, 0, w, h};
     // One pass (b = 1): out(p) gathers in(p + s·(1, 1)), so the light at c lands on c − s·(1, 1)
     // with weight 0.9^s / Σ 0.9^s, and nowhere else.
-    detail::addGlareStreak(in, w, box, 1, 1, 1, 0.9f, 1, out);
+    detail::addGlareStreak(in, w, box, 1, 1, 1, 0.9f, 1, out, buffers);
     const double norm = 1 + 0.9 + 0.81 + 0.729;
     for (int s = 0; s < 4; ++s)
         EXPECT_NEAR(out[(c - s) * w + (c - s)].x(), std::pow(0.9, s) / norm, 1e-6) << s;
@@ -39,7 +41,7 @@ TEST(LensEffects, GlareStreakWeightsArePowersOfTheAttenuationAlongOneDiagonal) {
     EXPECT_NEAR(total(out), 3, 1e-5);
     // Three passes (b = 1, 4, 16): a streak 63 pixels long that keeps the light.
     std::fill(out.begin(), out.end(), Vec3::Zero());
-    detail::addGlareStreak(in, w, box, 1, 1, 3, 0.9f, 1, out);
+    detail::addGlareStreak(in, w, box, 1, 1, 3, 0.9f, 1, out, buffers);
     EXPECT_GT(out[(c - 63) * w + (c - 63)].x(), 0);
     EXPECT_EQ(out[(c - 64) * w + (c - 64)], Vec3::Zero());
     EXPECT_EQ(out[c * w + (c - 10)], Vec3::Zero());  // off the diagonal
@@ -65,8 +67,13 @@ Film brightSquare(int w, int h, int x0, int y0, int n, float radiance) {
 TEST(LensEffects, BloomSpreadsTheLightAboveTheThresholdAndKeepsItsEnergy) {
     constexpr int w = 160, h = 120;
     const Film film = brightSquare(w, h, 80, 60, 2, 3);
-    std::vector<Vec3> bright;
-    const PixelBox box = detail::brightPass(film, 1, {}, bright);
+    // Two thresholds in one pass: 1 passes two thirds of the light, 4 none of it.
+    std::array images{detail::BrightImage(1), detail::BrightImage(4)};
+    detail::brightPass(film, images);
+    const std::vector<Vec3>& bright = images[0].light;
+    const PixelBox box = images[0].box;
+    EXPECT_TRUE(images[1].box.empty());
+    EXPECT_EQ(total(images[1].light), 0);
     EXPECT_EQ(box.x0, 80);
     EXPECT_EQ(box.y1, 62);
     // Luminance 3 over a threshold of 1: two thirds of each pixel's light.
@@ -81,9 +88,11 @@ TEST(LensEffects, BloomSpreadsTheLightAboveTheThresholdAndKeepsItsEnergy) {
         EXPECT_EQ(glow[61 * w + 81 + static_cast<int>(6 * radius) + 12].x(), 0) << radius;
         EXPECT_TRUE(added.contains(81 + static_cast<int>(2 * radius), 61));
     }
-    // Nothing above the threshold: no bloom at all.
-    EXPECT_TRUE(detail::brightPass(film, 4, box, bright).empty());
-    EXPECT_EQ(total(bright), 0);  // the last call's light is cleared
+    // Nothing above the threshold the next frame: the last frame's light is cleared.
+    images[0].threshold = 4;
+    detail::brightPass(film, images);
+    EXPECT_TRUE(images[0].box.empty());
+    EXPECT_EQ(total(images[0].light), 0);
 }
 
 SceneDescription brightSphereScene(const LensEffects& effects) {
