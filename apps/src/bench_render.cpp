@@ -14,6 +14,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -31,7 +32,7 @@ struct BenchRenderOptions {
     std::string sizes = "640x480,1280x720";
     int frames = 20;
     int threads = 0;
-    std::string scenes = "teapot,soft,dragons";
+    std::string scenes = "teapot,soft,dragons,dof";
     bool json = false;
     int repeats = 3;
     std::string shared_data;
@@ -69,12 +70,12 @@ Result<std::vector<Size>> parseSizes(const std::string& text) {
 }
 
 Result<std::vector<std::string>> parseScenes(const std::string& text) {
-    static const std::vector<std::string> known = {"teapot", "soft", "dragons"};
+    static const std::vector<std::string> known = {"teapot", "soft", "dragons", "dof"};
     std::vector<std::string> scenes = splitList(text);
     for (const std::string& item : scenes)
         if (std::find(known.begin(), known.end(), item) == known.end())
             return Status(ErrorCode::kInvalidArgument,
-                          "--scenes: unknown scene '" + item + "' (teapot, soft, dragons)");
+                          "--scenes: unknown scene '" + item + "' (teapot, soft, dragons, dof)");
     return scenes;
 }
 
@@ -245,10 +246,11 @@ double processCpuSeconds() {
 }
 
 struct Config {
-    std::string scene;  // teapot, soft, dragons
+    std::string scene;  // teapot, soft, dragons, dof
     std::string name;
     RenderOptions options;
-    LensEffects lens_effects = {};  // added to the scene
+    LensEffects lens_effects = {};              // added to the scene
+    std::optional<LensAperture> aperture = {};  // the camera's, added to the scene
 };
 
 std::vector<Config> configsFor(const std::string& scene, int threads) {
@@ -275,6 +277,22 @@ std::vector<Config> configsFor(const std::string& scene, int threads) {
         lens.glare = Glare{};
         lens.glare->threshold = 0.35f;
         out.push_back({scene, "+ shadows + 3 bounces + bloom and glare", bounces, lens});
+    } else if (scene == "dof") {
+        // Kán & Kaufmann §3.1's depth of field (their Figure 8: 25 rays per pixel, then the
+        // lens), on the teapot frame with 25 samples per pixel as the baseline.
+        RenderOptions supersampled = base;
+        supersampled.max_depth = 3;
+        supersampled.samples_per_pixel = 25;
+        LensAperture lens;
+        lens.f_number = 1.4f;
+        lens.focal_length_mm = 50;
+        lens.focus_distance_m = 0.4f;  // in front of the teapot, 0.5 m away
+        out.push_back({scene, "25 samples/pixel, shadows + 3 bounces", supersampled});
+        out.push_back({scene,
+                       "25 samples/pixel, shadows + 3 bounces + depth of field (50 mm f/1.4)",
+                       supersampled,
+                       {},
+                       lens});
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -553,6 +571,11 @@ int runBenchRender(BenchRenderOptions options) {
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
             with_lens.lens_effects = config.lens_effects;
+            if (config.aperture) {
+                with_lens.camera.emplace();
+                with_lens.camera->has_pose = false;  // the bench's orbit
+                with_lens.camera->aperture = config.aperture;
+            }
             auto renderer = Renderer::create(with_lens, config.options);
             if (!renderer)
                 return fail("bench render", renderer.status());
@@ -580,7 +603,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
     auto* render = bench.add_subcommand(
         "render",
         "Frames/s and rays/s of the Embree renderer on RT²AR's scenes (teapot on a chessboard "
-        "table; soft shadows; two 1.1M-triangle dragons), against bare Embree tracing the same "
+        "table; soft shadows; two 1.1M-triangle dragons; depth of field), against bare Embree "
+        "tracing the same "
         "rays on the same BVH in the same run");
     auto options = std::make_shared<BenchRenderOptions>();
     render->add_option("--size", options->sizes, "Image sizes, WIDTHxHEIGHT[,WIDTHxHEIGHT...]")
@@ -591,7 +615,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
     render->add_option("--threads", options->threads, "Render threads (0: all hardware threads)")
         ->check(CLI::Range(0, 1024))
         ->capture_default_str();
-    render->add_option("--scenes", options->scenes, "Scenes: teapot, soft, dragons (comma list)")
+    render
+        ->add_option("--scenes", options->scenes, "Scenes: teapot, soft, dragons, dof (comma list)")
         ->capture_default_str();
     render
         ->add_option("--repeats", options->repeats,

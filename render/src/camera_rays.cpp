@@ -3,8 +3,10 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <vector>
 
 namespace mixray::render::detail {
 
@@ -13,22 +15,66 @@ bool sameModel(const calibration::CameraModel& a, const calibration::CameraModel
            a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion;
 }
 
+float ThinLens::blurRadiusPx(double f_px, float nearest_m) const {
+    if (radius_m <= 0)
+        return 0;
+    // |1/d − 1/focus| over d in [nearest, ∞) is largest at one end.
+    const float spread = std::max(1 / focus_m, std::abs(1 / nearest_m - 1 / focus_m));
+    return static_cast<float>(f_px) * radius_m * spread;
+}
+
+namespace {
+
+// Shirley and Chiu's concentric map of the unit square onto the unit disk: strata stay compact.
+Vec2 concentricDisk(float u, float v) {
+    const float a = 2 * u - 1, b = 2 * v - 1;
+    if (a == 0 && b == 0)
+        return Vec2::Zero();
+    constexpr float kQuarterPi = 0.78539816f;
+    const bool wide = std::abs(a) > std::abs(b);
+    const float r = wide ? a : b;
+    const float phi = wide ? kQuarterPi * (b / a) : 2 * kQuarterPi - kQuarterPi * (a / b);
+    return {r * std::cos(phi), r * std::sin(phi)};
+}
+
+}  // namespace
+
 void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size) {
+                    int tile_size, const ThinLens& lens) {
     if (!rays.directions.empty() && sameModel(rays.model, camera) && rays.samples == spp &&
-        rays.seed == seed)
+        rays.seed == seed && rays.lens == lens)
         return;
-    rays = {camera, spp, seed, {}, {}, {}};
+    rays = {camera, spp, seed, lens, {}, {}, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
     rays.directions.resize(static_cast<size_t>(w) * camera.height * spp);
     rays.centre_cos.resize(static_cast<size_t>(w) * camera.height);
+    if (lens.radius_m > 0)
+        rays.lens_points.resize(rays.directions.size());
     tbb::parallel_for(0, camera.height, [&](int y) {
+        std::vector<int> strata(static_cast<size_t>(spp));
         for (int x = 0; x < w; ++x) {
             const size_t pixel = static_cast<size_t>(y) * w + x;
             const auto centre = camera.unproject(Eigen::Vector2d(x, y));
             rays.centre_cos[pixel] = centre ? centre->z() : NAN;
             optics::Rng rng(hashIndex(seed, pixel, 0x5eed));
+            if (!rays.lens_points.empty()) {
+                // Pixel stratum k takes aperture stratum strata[k], shuffled per pixel, so the
+                // two are stratified each and uncorrelated together.
+                optics::Rng lens_rng(hashIndex(seed, pixel, 0x1e25));
+                for (int k = 0; k < spp; ++k)
+                    strata[static_cast<size_t>(k)] = k;
+                for (int k = spp - 1; k > 0; --k)
+                    std::swap(strata[static_cast<size_t>(k)],
+                              strata[static_cast<size_t>(lens_rng.next() %
+                                                         static_cast<uint64_t>(k + 1))]);
+                for (int k = 0; k < spp; ++k) {
+                    const int j = strata[static_cast<size_t>(k)];
+                    const float u = ((j % n) + lens_rng.uniform()) / n;
+                    const float v = ((j / n) + lens_rng.uniform()) / n;
+                    rays.lens_points[pixel * spp + k] = lens.radius_m * concentricDisk(u, v);
+                }
+            }
             for (int k = 0; k < spp; ++k) {
                 // Stratified jitter; one sample sits exactly on the pixel centre.
                 double dx = 0, dy = 0;
@@ -48,13 +94,17 @@ void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
 // The primary hits of the tile [x0, x1) x [y0, y1) in 16-ray packets of 4x4-pixel blocks,
 // logged in that order.
 void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f, int x0, int y0,
-                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& dirs, RayList* log) {
+                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& origins,
+                 std::vector<Vec3>& dirs, RayList* log) {
     const int spp = rays.samples;
     const int w = f.inputs->camera.width, tw = x1 - x0;
     const size_t n = static_cast<size_t>(tw) * (y1 - y0) * spp;
     hits.assign(n, Hit{});
     dirs.resize(n);
+    origins.assign(n, f.t_world_cam);
+    const bool lens = !rays.lens_points.empty();
     std::array<size_t, 16> lane_index;
+    std::array<Vec3, 16> lane_origin;
     std::array<Vec3, 16> lane_dir;
     std::array<Hit, 16> lane_hit;
     // The depth mesh is resolved per pixel in finishPrimaryHit().
@@ -63,11 +113,15 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
     const auto flush = [&] {
         if (lanes == 0)
             return;
-        EmbreeScene::intersect16(scene.all(), f.t_world_cam, lane_dir.data(), lanes,
-                                 lane_hit.data(), object_mask);
+        if (lens)
+            EmbreeScene::intersect16(scene.all(), lane_origin.data(), lane_dir.data(), lanes,
+                                     lane_hit.data(), object_mask);
+        else
+            EmbreeScene::intersect16(scene.all(), f.t_world_cam, lane_dir.data(), lanes,
+                                     lane_hit.data(), object_mask);
         for (int i = 0; i < lanes; ++i) {
             hits[lane_index[i]] = lane_hit[i];
-            logRay(log, RayLog::Kind::kPrimary, scene.all(), scene.ghosts(), f.t_world_cam,
+            logRay(log, RayLog::Kind::kPrimary, scene.all(), scene.ghosts(), origins[lane_index[i]],
                    lane_dir[i], kInf);
         }
         lanes = 0;
@@ -78,17 +132,47 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
                 for (int x = bx; x < std::min(x1, bx + 4); ++x)
                     for (int k = 0; k < spp; ++k) {
                         const size_t i = (static_cast<size_t>(y - y0) * tw + (x - x0)) * spp + k;
-                        const Vec3& dir_cam =
-                            rays.directions[(static_cast<size_t>(y) * w + x) * spp + k];
+                        const size_t sample = (static_cast<size_t>(y) * w + x) * spp + k;
+                        const Vec3& dir_cam = rays.directions[sample];
                         if (!dir_cam.allFinite())
                             continue;
-                        dirs[i] = rotate(f.R_world_cam, dir_cam);
+                        if (lens && dir_cam.z() > 0) {
+                            // From the aperture point through where the pinhole ray meets the
+                            // plane of focus.
+                            const Vec2& a = rays.lens_points[sample];
+                            const Vec3 start(a.x(), a.y(), 0);
+                            const Vec3 dir =
+                                (dir_cam * (rays.lens.focus_m / dir_cam.z()) - start).normalized();
+                            origins[i] = rotate(f.R_world_cam, start) + f.t_world_cam;
+                            dirs[i] = rotate(f.R_world_cam, dir);
+                        } else {
+                            dirs[i] = rotate(f.R_world_cam, dir_cam);
+                        }
+                        lane_origin[lanes] = origins[i];
                         lane_index[lanes] = i;
                         lane_dir[lanes] = dirs[i];
                         if (++lanes == 16)
                             flush();
                     }
             flush();
+        }
+}
+
+void dilateTileMask(std::vector<uint8_t>& mask, int tiles_x, int tile_size, float radius_px) {
+    const int reach = static_cast<int>(std::ceil(radius_px / static_cast<float>(tile_size)));
+    if (reach <= 0 || mask.empty())
+        return;
+    const int tiles_y = static_cast<int>(mask.size()) / tiles_x;
+    const std::vector<uint8_t> seed = mask;
+    for (int ty = 0; ty < tiles_y; ++ty)
+        for (int tx = 0; tx < tiles_x; ++tx) {
+            if (!seed[static_cast<size_t>(ty) * tiles_x + tx])
+                continue;
+            for (int y = std::max(0, ty - reach); y <= std::min(tiles_y - 1, ty + reach); ++y)
+                std::fill_n(
+                    mask.begin() + static_cast<std::ptrdiff_t>(static_cast<size_t>(y) * tiles_x +
+                                                               std::max(0, tx - reach)),
+                    std::min(tiles_x - 1, tx + reach) - std::max(0, tx - reach) + 1, 1);
         }
 }
 

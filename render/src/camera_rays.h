@@ -13,14 +13,35 @@ namespace mixray::render::detail {
 
 bool sameModel(const calibration::CameraModel& a, const calibration::CameraModel& b);
 
+// A thin lens at the centre of projection (Kán & Kaufmann §3.1, after Cook's distributed ray
+// tracing): a sample's ray leaves a point of the aperture disk and passes through the point
+// where its pinhole ray meets the plane of focus z = focus_m, so that plane stays sharp and a
+// point at depth d spreads over fx · 2·radius_m · |1/d − 1/focus_m| pixels. radius_m = 0: a
+// pinhole.
+struct ThinLens {
+    float radius_m = 0;
+    float focus_m = 1;
+
+    bool operator==(const ThinLens&) const = default;
+    // How far, in pixels, a point at depth of at least `nearest_m` can spread from its pinhole
+    // image (half the largest circle of confusion) for a focal length of `f_px`.
+    float blurRadiusPx(double f_px, float nearest_m) const;
+};
+
 // Camera directions of every (sub)pixel sample, computed once per camera model through its
 // unproject(), so rays follow the lens distortion exactly. NaN marks samples without a ray.
 struct RayCache {
     calibration::CameraModel model;
     int samples = 0;
     uint64_t seed = 0;
+    ThinLens lens;
+    // Pinhole directions: a sample's ray without the lens, which the footprint and the depth
+    // map use; with a lens, where it meets the plane of focus.
     std::vector<Vec3> directions;  // ((y * width + x) * samples + s)
-    std::vector<TileCone> cones;   // per tile of options.tile_size
+    // With a lens, each sample's point on the aperture (camera frame, z = 0), stratified
+    // jointly with the pixel samples; empty for a pinhole.
+    std::vector<Vec2> lens_points;
+    std::vector<TileCone> cones;  // per tile of options.tile_size
     // The z of the unit ray through each pixel's centre (y * width + x), exactly as
     // rayDistanceAt() computes it; NaN where it has none in front of the camera.
     std::vector<double> centre_cos;
@@ -39,14 +60,20 @@ struct RayCache {
 };
 
 // Fills `rays` for `camera` with `spp` stratified jittered samples per pixel (a square number;
-// one sits on the pixel centre) drawn from `seed`, and the cones of tiles of `tile_size`; keeps
-// it as it is when nothing changed.
+// one sits on the pixel centre) drawn from `seed`, their points on `lens`'s aperture, and the
+// cones of tiles of `tile_size`; keeps it as it is when nothing changed.
 void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size);
+                    int tile_size, const ThinLens& lens = {});
 
-// The primary hits and world directions of the samples of the tile [x0, x1) x [y0, y1) of
-// frame `f`, in `hits` and `dirs` ((y - y0) * (x1 - x0) + (x - x0)) * samples + s).
+// The primary hits, world origins and world directions of the samples of the tile
+// [x0, x1) x [y0, y1) of frame `f`, in `hits`, `origins` and `dirs`
+// ((y - y0) * (x1 - x0) + (x - x0)) * samples + s). Without a lens every origin is the camera's.
 void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f, int x0, int y0,
-                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& dirs, RayList* log);
+                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& origins,
+                 std::vector<Vec3>& dirs, RayList* log);
+
+// Grows `mask` (tiles_x wide, 1 where a tile may hold virtual content) by `radius_px` pixels of
+// tiles `tile_size` wide: with a lens, content spreads that far from where a pinhole shows it.
+void dilateTileMask(std::vector<uint8_t>& mask, int tiles_x, int tile_size, float radius_px);
 
 }  // namespace mixray::render::detail

@@ -17,7 +17,8 @@ namespace mixray::render::detail {
 EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                                std::vector<ObjectData> objects, std::vector<LightData> lights,
                                std::filesystem::path scene_source,
-                               std::optional<size_t> depth_object, const LensEffects& lens_effects)
+                               std::optional<size_t> depth_object, const LensEffects& lens_effects,
+                               const std::optional<LensAperture>& aperture)
     : options_(std::move(options)),
       materials_(std::move(materials)),
       objects_(std::move(objects)),
@@ -26,6 +27,8 @@ EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> 
       depth_object_(depth_object) {
     if (lens_effects.any())
         lens_effects_.emplace(lens_effects);
+    if (aperture)
+        lens_ = {aperture->diameter_m() / 2, aperture->focus_distance_m};
 }
 
 Status EmbreeRenderer::init() {
@@ -98,7 +101,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
             scratch_[static_cast<size_t>(tbb::this_task_arena::current_thread_index())];
         scratch.surfaces.resize(static_cast<size_t>(spp));
         scratch.have_surface.resize(static_cast<size_t>(spp));
-        primaryHits(*scene_, rays_, f, x0, y0, x1, y1, scratch.hits, scratch.dirs, log);
+        primaryHits(*scene_, rays_, f, x0, y0, x1, y1, scratch.hits, scratch.origins, scratch.dirs,
+                    log);
         Counters counters;
         uint64_t tile_traced = 0, tile_primary = 0;
         for (int y = y0; y < y1; ++y)
@@ -107,6 +111,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                 Hit* hits = scratch.hits.data() +
                             (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
                 const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
+                const Vec3* origins = scratch.origins.data() + (hits - scratch.hits.data());
                 const std::optional<float> depth_limit =
                     f.depth ? rays_.rayDistanceAt(*f.depth, x, y) : std::nullopt;
                 // Whether virtual content can touch this pixel.
@@ -116,7 +121,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                     if (!rays_.directions[pixel * spp + k].allFinite())
                         continue;
                     ++tile_primary;
-                    hits[k] = integrator.finishPrimaryHit(f, hits[k], dirs[k], depth_limit);
+                    hits[k] =
+                        integrator.finishPrimaryHit(f, hits[k], origins[k], dirs[k], depth_limit);
                     if (!hits[k].valid || influenced)
                         continue;
                     if (objects_[hits[k].object].role == ObjectRole::kVirtual) {
@@ -124,7 +130,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         continue;
                     }
                     const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
-                        integrator.surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        integrator.surfaceAt(hits[k], origins[k], dirs[k]);
                     scratch.have_surface[static_cast<size_t>(k)] = 1;
                     influenced = integrator.ghostInfluenced(f, s, dirs[k]);
                 }
@@ -145,17 +151,15 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
                         if (rays_.directions[pixel * spp + k].allFinite())
                             p.m = p.r = integrator.environment(f, dirs[k]);
                     } else {
-                        const Surface s =
-                            scratch.have_surface[static_cast<size_t>(k)]
-                                ? scratch.surfaces[static_cast<size_t>(k)]
-                                : integrator.surfaceAt(hits[k], f.t_world_cam, dirs[k]);
+                        const Surface s = scratch.have_surface[static_cast<size_t>(k)]
+                                              ? scratch.surfaces[static_cast<size_t>(k)]
+                                              : integrator.surfaceAt(hits[k], origins[k], dirs[k]);
                         is_virtual = s.object->role == ObjectRole::kVirtual;
                         if (is_virtual) {
                             p.m = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
                             if (keep)
                                 p.r =
-                                    integrator.trace(f, f.t_world_cam, dirs[k], 0, Mode::kReal, st)
-                                        .r;
+                                    integrator.trace(f, origins[k], dirs[k], 0, Mode::kReal, st).r;
                         } else {
                             p = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kBoth, st);
                         }
@@ -193,8 +197,16 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     if (scratch_.size() < static_cast<size_t>(arena.max_concurrency()))
         scratch_.resize(static_cast<size_t>(arena.max_concurrency()));
     arena.execute([&] {
-        if (use_mask)
+        if (use_mask) {
             footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts, tile_mask_);
+            // The footprint is of pinhole rays; through the lens, content spreads by up to half
+            // its circle of confusion.
+            if (lens_.radius_m > 0)
+                dilateTileMask(tile_mask_, tiles_x, ts,
+                               lens_.blurRadiusPx(std::max(in.camera.fx, in.camera.fy),
+                                                  nearestInfluencedDepth(f)) +
+                                   1);
+        }
         tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                           [&](const tbb::blocked_range<int>& r) {
                               for (int t = r.begin(); t < r.end(); ++t)

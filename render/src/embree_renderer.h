@@ -22,9 +22,10 @@ namespace mixray::render::detail {
 Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
                                           const std::vector<Light>& scene_lights);
 
-// A tile's primary hits and directions: reused by the thread, so the loop never allocates.
+// A tile's primary hits, origins and directions: reused by the thread, so the loop never allocates.
 struct TileScratch {
     std::vector<Hit> hits;
+    std::vector<Vec3> origins;
     std::vector<Vec3> dirs;
     std::vector<Surface> surfaces;  // one pixel's samples, from the footprint test to shading
     std::vector<uint8_t> have_surface;
@@ -35,7 +36,7 @@ public:
     EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                    std::vector<ObjectData> objects, std::vector<LightData> lights,
                    std::filesystem::path scene_source, std::optional<size_t> depth_object,
-                   const LensEffects& lens_effects);
+                   const LensEffects& lens_effects, const std::optional<LensAperture>& aperture);
 
     // Builds the BVH.
     Status init();
@@ -54,6 +55,8 @@ private:
     void updateDepthMesh(Frame& f);
     void prepareFootprint(Frame& f) const;
     void depthRegions(const Frame& f, FootprintScene& fp) const;
+    // With a lens: the nearest depth, in the camera, of anything virtual content can touch.
+    float nearestInfluencedDepth(const Frame& f) const;
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;
@@ -63,6 +66,7 @@ private:
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
     std::unique_ptr<EmbreeScene> scene_;
     std::optional<DifferentialIntegrator> integrator_;  // once the BVH is built
+    ThinLens lens_;  // the scene camera's aperture; radius 0: a pinhole
     RayCache rays_;
     DepthMesher mesher_;
     // Registration of depth images from another camera: kept while the registration is the

@@ -2,6 +2,7 @@
 #include "embree_scene.h"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 
 #include "mixray/render/renderer.h"
@@ -232,6 +233,14 @@ bool EmbreeScene::occluded(RTCScene scene, const Eigen::Vector3f& origin,
 void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f& origin,
                               const Eigen::Vector3f* directions, int count, Hit* hits,
                               unsigned mask) {
+    std::array<Eigen::Vector3f, 16> origins;
+    origins.fill(origin);
+    intersect16(scene, origins.data(), directions, count, hits, mask);
+}
+
+void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f* origins,
+                              const Eigen::Vector3f* directions, int count, Hit* hits,
+                              unsigned mask) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -241,9 +250,10 @@ void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f& origin,
         const bool on = i < count;
         valid[i] = on ? -1 : 0;
         const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
-        rh.ray.org_x[i] = origin.x();
-        rh.ray.org_y[i] = origin.y();
-        rh.ray.org_z[i] = origin.z();
+        const Eigen::Vector3f o = on ? origins[i] : origins[0];
+        rh.ray.org_x[i] = o.x();
+        rh.ray.org_y[i] = o.y();
+        rh.ray.org_z[i] = o.z();
         rh.ray.dir_x[i] = d.x();
         rh.ray.dir_y[i] = d.y();
         rh.ray.dir_z[i] = d.z();

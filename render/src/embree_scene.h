@@ -113,6 +113,10 @@ public:
     static void intersect16(RTCScene scene, const Eigen::Vector3f& origin,
                             const Eigen::Vector3f* directions, int count, Hit* hits,
                             unsigned mask = kAnyMask);
+    // The same from an origin per ray (camera rays through a thin lens's aperture).
+    static void intersect16(RTCScene scene, const Eigen::Vector3f* origins,
+                            const Eigen::Vector3f* directions, int count, Hit* hits,
+                            unsigned mask = kAnyMask);
     // occluded() of up to 16 rays from one origin (soft-shadow samples) as one packet; lanes
     // with active[i] false (active may be null: all) are not traced and false. Traced as an
     // incoherent packet: see kOcclusionPacketFlags.

@@ -130,6 +130,66 @@ void EmbreeRenderer::prepareFootprint(Frame& f) const {
         depthRegions(f, fp);
 }
 
+float EmbreeRenderer::nearestInfluencedDepth(const Frame& f) const {
+    // What virtual objects touch lies on them or on real surfaces: the ghosts, and the depth
+    // camera's surfaces, never nearer than a Kinect measures.
+    constexpr float kNearestMeasured_m = 0.25f, kNearest_m = 0.05f;
+    const Eigen::Matrix3f R_cam_world = f.R_world_cam.transpose();
+    const auto toCam = [&](const Vec3& p) { return Vec3(R_cam_world * (p - f.t_world_cam)); };
+    float nearest = f.depth ? kNearestMeasured_m : kInf;
+    for (const BoundSphere& b : f.footprint.virtual_bounds)
+        nearest = std::min(nearest, toCam(b.centre).z() - b.radius);
+    const calibration::CameraModel& camera = f.inputs->camera;
+    // A plane's depth along the rays of a rectangle of pixels is nearest at a corner (it is
+    // h / n·(u, v, 1), and n·(u, v, 1) is linear in u and v). Its points outside the frame
+    // blur into it from at most the blur radius away: the frame grown by that much.
+    const auto planeNearest = [&](const Vec3& n, float h, float margin_px) {
+        float z = kInf;
+        for (const double u : {-0.5 - margin_px, camera.width - 0.5 + margin_px})
+            for (const double v : {-0.5 - margin_px, camera.height - 0.5 + margin_px}) {
+                const Vec3 d(static_cast<float>((u - camera.cx) / camera.fx),
+                             static_cast<float>((v - camera.cy) / camera.fy), 1.f);
+                const float nd = n.dot(d);
+                if (nd * h > 0)
+                    z = std::min(z, h / nd);
+            }
+        return z;
+    };
+    const auto ghostsNearest = [&](float margin_px) {
+        float z = kInf;
+        for (const FootprintGhost& g : f.footprint.ghosts) {
+            const Vec3 c = toCam(g.bound.centre);
+            if (!g.flat) {
+                z = std::min(z, c.z() - g.bound.radius);
+                continue;
+            }
+            // Also never nearer than the disk where its plane cuts its bound, whose nearest
+            // point lies its radius times the plane's tilt from the camera's axis nearer than
+            // its centre: the larger of the two bounds holds.
+            const Vec3 n = R_cam_world * g.plane_normal;
+            const float h = n.dot(toCam(g.plane_point));
+            const float off = n.dot(c) - h;
+            const float r = std::sqrt(std::max(0.f, g.bound.radius * g.bound.radius - off * off));
+            const float disk = (c - off * n).z() - r * std::sqrt(std::max(0.f, 1 - n.z() * n.z()));
+            z = std::min(z, std::max(disk, planeNearest(n, h, margin_px)));
+        }
+        return z;
+    };
+    // Grow the frame by the blur of the nearest point found so far until that stops growing:
+    // a nearer point outside blurs further in.
+    const float fx = static_cast<float>(std::max(camera.fx, camera.fy));
+    float found = std::max(std::min(nearest, ghostsNearest(0)), kNearest_m);
+    for (int i = 0; i < 4; ++i) {
+        const float grown = std::max(
+            std::min(nearest, ghostsNearest(lens_.blurRadiusPx(fx, found) + 1)), kNearest_m);
+        const bool settled = grown > 0.99f * found;
+        found = std::min(found, grown);
+        if (settled)
+            break;
+    }
+    return found;
+}
+
 // The footprint of the depth mesh: finishPrimaryHit() traces it where depthSurfaceInfluenced()
 // holds for the measured point, with a margin of 5 % of its distance; each tile's sphere holds
 // every such point and its margin.
@@ -244,7 +304,8 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
             f.lights.push_back(&light);
         }
     }
-    updateRayCache(rays_, in.camera, options_.samples_per_pixel, options_.seed, options_.tile_size);
+    updateRayCache(rays_, in.camera, options_.samples_per_pixel, options_.seed, options_.tile_size,
+                   lens_);
     return Status::ok();
 }
 

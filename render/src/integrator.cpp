@@ -242,7 +242,8 @@ Pair DifferentialIntegrator::cameraAlbedoDirect(const Frame& f, const Surface& s
 // ghosts and the mesh), so that virtual shadows and reflections on it are shaded.
 // A primary ray's hit among the scene's objects (the depth mesh masked out), checked against the
 // depth map: a real surface the depth camera measured in front hides what was hit.
-Hit DifferentialIntegrator::finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
+Hit DifferentialIntegrator::finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& origin,
+                                             const Vec3& d,
                                              std::optional<float> depth_limit) const {
     const bool ghost = hit.valid && objects_[hit.object].role != ObjectRole::kVirtual;
     const bool hidden = hit.valid && depth_limit &&
@@ -256,10 +257,10 @@ Hit DifferentialIntegrator::finishPrimaryHit(const Frame& f, const Hit& hit, con
     // lies near the measured one; 5 % of the distance (the relative step the mesher still joins)
     // covers the difference.
     if (depth_limit &&
-        !depthSurfaceInfluenced(f, f.t_world_cam + *depth_limit * d, 0.05f * *depth_limit)) {
+        !depthSurfaceInfluenced(f, origin + *depth_limit * d, 0.05f * *depth_limit)) {
         return hidden ? Hit{} : hit;
     }
-    return EmbreeScene::intersect(scene_.ghosts(), f.t_world_cam, d, kInf);
+    return EmbreeScene::intersect(scene_.ghosts(), origin, d, kInf);
 }
 
 // ghostInfluenced() for the depth surface at a point known to within `margin`: moving the point

@@ -45,7 +45,7 @@ public:
 
     // A primary ray's hit among the scene's objects (the depth mesh masked out), checked against
     // the depth map (`depth_limit`: the measured distance along the pixel's ray).
-    Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& d,
+    Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& origin, const Vec3& d,
                          std::optional<float> depth_limit) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
     // The environment lights' radiance along `d`.

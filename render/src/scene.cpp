@@ -146,6 +146,14 @@ Status validateLight(const Light& l, const std::string& path) {
 Status validateCamera(const FixedCamera& c, const SourceLocation& where) {
     if (!isRigid(c.T_world_cam))
         return corrupt(where, "camera.pose", "must be a finite rigid transform");
+    if (const auto& a = c.aperture) {
+        if (!(a->f_number >= 0.5f && a->f_number <= 128))
+            return corrupt(a->where, "camera.aperture.f_number", "must be in [0.5, 128]");
+        if (!(a->focal_length_mm > 0 && a->focal_length_mm <= 2000))
+            return corrupt(a->where, "camera.aperture.focal_length_mm", "must be in (0, 2000]");
+        if (!(a->focus_distance_m > 0 && a->focus_distance_m <= 1e4f))
+            return corrupt(a->where, "camera.aperture.focus_distance_m", "must be in (0, 1e4]");
+    }
     if (!c.model)
         return Status::ok();
     const calibration::CameraModel& m = *c.model;

@@ -91,7 +91,9 @@ constexpr std::array<std::string_view, 12> kLightKeys = {"name",
                                                          "scale",
                                                          "mirror_lower_hemisphere",
                                                          "rotation"};
-constexpr std::array<std::string_view, 2> kCameraKeys = {"pose", "model"};
+constexpr std::array<std::string_view, 3> kCameraKeys = {"pose", "model", "aperture"};
+constexpr std::array<std::string_view, 3> kApertureKeys = {"f_number", "focal_length_mm",
+                                                           "focus_distance_m"};
 
 struct TypeKeys {
     std::string_view type;
@@ -536,7 +538,8 @@ Status SceneParser::parseLight(const Item& item, SceneDescription& scene,
 }
 
 Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {
-    auto fields = r_.readMap(item, kCameraKeys, "a camera mapping with pose: and model:");
+    auto fields =
+        r_.readMap(item, kCameraKeys, "a camera mapping with pose:, model: and aperture:");
     if (!fields)
         return fields.status();
     // Filled in place: moving an optional<CameraModel> trips GCC's maybe-uninitialized.
@@ -553,6 +556,32 @@ Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {
         if (!model)
             return model.status();
         camera.model = std::move(model).value();
+    }
+    if (const Item* a = find(*fields, "aperture")) {
+        auto aperture_fields =
+            r_.readMap(*a, kApertureKeys,
+                       "an aperture mapping with f_number:, focal_length_mm: and "
+                       "focus_distance_m:");
+        if (!aperture_fields)
+            return aperture_fields.status();
+        LensAperture aperture;
+        aperture.where = a->where;
+        const auto read = [&](std::string_view key, double min, double max, bool required,
+                              float& out) -> Status {
+            const Item* v = find(*aperture_fields, key);
+            if (v == nullptr)
+                return required ? r_.fail(*a, "aperture." + std::string(key) + " is required")
+                                : Status::ok();
+            auto x = scalar(*v, min, max, /*min_exclusive=*/min == 0);
+            if (!x)
+                return x.status();
+            out = *x;
+            return Status::ok();
+        };
+        MIXRAY_RETURN_IF_ERROR(read("f_number", 0.5, 128, false, aperture.f_number));
+        MIXRAY_RETURN_IF_ERROR(read("focal_length_mm", 0, 2000, true, aperture.focal_length_mm));
+        MIXRAY_RETURN_IF_ERROR(read("focus_distance_m", 0, 1e4, true, aperture.focus_distance_m));
+        camera.aperture = aperture;
     }
     return Status::ok();
 }

@@ -192,7 +192,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
 
     auto renderer = std::make_unique<detail::EmbreeRenderer>(
         options, std::move(materials), std::move(objects), std::move(lights).value(),
-        scene.source_path, depth_object, scene.lens_effects);
+        scene.source_path, depth_object, scene.lens_effects,
+        scene.camera ? scene.camera->aperture : std::nullopt);
     MIXRAY_RETURN_IF_ERROR(renderer->init());
     return std::unique_ptr<Renderer>(std::move(renderer));
 }

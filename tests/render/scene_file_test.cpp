@@ -371,6 +371,32 @@ TEST(SceneFileTest, LensEffects) {
     expectError("lens_effects: 1\n", 1, "lens_effects", "bloom:");
 }
 
+TEST(SceneFileTest, CameraAperture) {
+    auto parsed = parseScene(
+        "camera:\n  aperture: { f_number: 1.8, focal_length_mm: 35, focus_distance_m: 1.2 }\n",
+        "s.yaml");
+    ASSERT_TRUE(parsed.isOk()) << parsed.status().toString();
+    ASSERT_TRUE(parsed->camera && parsed->camera->aperture);
+    EXPECT_FALSE(parsed->camera->has_pose);  // the pose still comes from tracking
+    EXPECT_FLOAT_EQ(parsed->camera->aperture->f_number, 1.8f);
+    EXPECT_FLOAT_EQ(parsed->camera->aperture->diameter_m(), 0.035f / 1.8f);
+    EXPECT_FLOAT_EQ(parsed->camera->aperture->focus_distance_m, 1.2f);
+    auto default_f = parseScene(
+        "camera: { aperture: { focal_length_mm: 6, focus_distance_m: 2 } }\n", "s.yaml");
+    ASSERT_TRUE(default_f.isOk()) << default_f.status().toString();
+    EXPECT_FLOAT_EQ(default_f->camera->aperture->f_number, LensAperture{}.f_number);
+
+    expectError("camera:\n  aperture: { focus_distance_m: 2 }\n", 2,
+                "camera.aperture", "focal_length_mm is required");
+    expectError("camera:\n  aperture: { focal_length_mm: 6 }\n", 2, "camera.aperture",
+                "focus_distance_m is required");
+    expectError("camera:\n  aperture: { focal_length_mm: 6, focus_distance_m: 0 }\n", 2,
+                "camera.aperture.focus_distance_m");
+    expectError("camera:\n  aperture: { f_number: 0.2, focal_length_mm: 6, focus_distance_m: 1 }\n",
+                2, "camera.aperture.f_number");
+    expectError("camera:\n  aperture: { iris: 2 }\n", 2, "camera.aperture.iris", "unknown field");
+}
+
 TEST(SceneFileTest, MalformedFiles) {
     expectError("", 1, "", "empty");
     expectError("objects: []\nfoo: 1\n", 2, "foo", "unknown field");
@@ -404,6 +430,8 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_EQ(scene->lights.size(), 4u);
     ASSERT_TRUE(scene->camera && scene->camera->model);
     EXPECT_EQ(scene->camera->model->distortion.size(), 5u);
+    ASSERT_TRUE(scene->camera->aperture);
+    EXPECT_FLOAT_EQ(scene->camera->aperture->focus_distance_m, 0.8f);
     EXPECT_EQ(scene->materials.at("red_plastic").albedo_texture,
               fs::path("docs/textures/plastic.png"));
     EXPECT_FLOAT_EQ(scene->depth_surface.reflectance, 0.1f);

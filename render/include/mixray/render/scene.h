@@ -105,14 +105,28 @@ struct Light {
     SourceLocation where;
 };
 
+// The real lens's aperture as it was set for the session (Kán & Kaufmann §3.1): virtual objects
+// away from the focus distance blur as the camera blurs real ones. A thin lens of diameter
+// focal_length / f_number; a point at distance d spreads over a circle of confusion
+// fx · diameter · |1/d − 1/focus_distance| pixels across. Plain value.
+struct LensAperture {
+    float f_number = 2.8f;
+    float focal_length_mm = 0;    // required: the lens's focal length (not the 35 mm equivalent)
+    float focus_distance_m = 0;   // required: where the lens is focused
+    SourceLocation where;
+
+    float diameter_m() const { return focal_length_mm * 1e-3f / f_number; }
+};
+
 // A fixed camera for rendering without tracking: the pose of the camera in the world and,
-// optionally, its intrinsics (else the recording's calibration is used).
+// optionally, its intrinsics (else the recording's calibration is used) and its aperture.
 struct FixedCamera {
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     // False when a scene file's camera gave no pose: the pose then comes from the recording's
     // pose stream (mixray render).
     bool has_pose = true;
     std::optional<calibration::CameraModel> model;
+    std::optional<LensAperture> aperture;  // none: a pinhole camera, everything in focus
 };
 
 // The real surfaces a depth camera measures, when the Renderer meshes its depth map

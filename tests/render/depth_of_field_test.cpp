@@ -1,0 +1,190 @@
+// Depth of field from the real lens's aperture (Kán & Kaufmann §3.1; render/src/camera_rays.h):
+// a virtual point away from the plane of focus spreads over the circle of confusion the thin-lens
+// formula gives, a virtual object on the plane of focus renders as through a pinhole, and the
+// screen footprint still holds every pixel the blur reaches.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "camera_rays.h"
+#include "renderer_test_util.h"
+
+namespace mixray::render::test {
+namespace {
+
+constexpr int kWidth = 96, kHeight = 72;
+constexpr double kFocal_px = 400;
+
+LensAperture aperture(float focus_distance_m) {
+    LensAperture a;
+    a.f_number = 2;
+    a.focal_length_mm = 50;  // 25 mm across
+    a.focus_distance_m = focus_distance_m;
+    return a;
+}
+
+// A grey ghost floor 2 m below the camera, one small white virtual `shape` 1 m below it, a sun.
+SceneDescription smallObjectScene(ShapeType shape, std::optional<LensAperture> lens) {
+    SceneDescription scene;
+    addGhostFloor(scene);
+    scene.materials["white"] = material(MaterialType::kDiffuse, "white");
+    SceneObject o = object("thing", ObjectRole::kVirtual, shape, "white", {0, 0, 1});
+    o.shape.radius = shape == ShapeType::kSphere ? 0.005f : 0.05f;
+    scene.objects.push_back(o);
+    Light sun;
+    sun.name = "sun";
+    sun.type = LightType::kDirectional;
+    sun.direction = {0.2f, 0.1f, -1};
+    sun.intensity = Rgb::Constant(3);
+    scene.lights.push_back(sun);
+    if (lens) {
+        scene.camera.emplace();
+        scene.camera->has_pose = false;
+        scene.camera->aperture = lens;
+    }
+    return scene;
+}
+
+// `distortion`: OpenCV coefficients of the camera's lens; none: a pinhole.
+RenderLayers renderFromAbove(const SceneDescription& scene, RenderOptions options,
+                             std::vector<double> distortion = {}) {
+    options.threads = 2;
+    auto renderer = Renderer::create(scene, options);
+    EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
+    const Image camera = filledImage(kWidth, kHeight, [](int x, int y) {
+        return std::array<uint8_t, 3>{static_cast<uint8_t>(60 + x), static_cast<uint8_t>(40 + y),
+                                      90};
+    });
+    RenderInputs in;
+    in.camera = calibration::CameraModel::pinhole(kWidth, kHeight, kFocal_px, kFocal_px,
+                                                  (kWidth - 1) / 2.0, (kHeight - 1) / 2.0);
+    in.camera.distortion = std::move(distortion);
+    in.camera_image = camera.view();
+    in.T_world_cam = lookDown({0, 0, 2});
+    RenderLayers out;
+    EXPECT_TRUE((*renderer)->render(in, out).isOk());
+    return out;
+}
+
+struct Spread {
+    double total = 0;  // the mask's sum: the object's area in pixels
+    double var_x = 0, var_y = 0;
+};
+
+Spread maskSpread(const FloatImage& mask) {
+    Spread s;
+    double sx = 0, sy = 0, sxx = 0, syy = 0;
+    for (int y = 0; y < mask.height; ++y)
+        for (int x = 0; x < mask.width; ++x) {
+            const double m = mask.at(x, y)[0];
+            s.total += m;
+            sx += m * x;
+            sy += m * y;
+            sxx += m * x * x;
+            syy += m * y * y;
+        }
+    s.var_x = sxx / s.total - (sx / s.total) * (sx / s.total);
+    s.var_y = syy / s.total - (sy / s.total) * (sy / s.total);
+    return s;
+}
+
+TEST(DepthOfField, APointSpreadsOverTheThinLensCircleOfConfusion) {
+    RenderOptions options;
+    options.samples_per_pixel = 64;
+    options.keep_layers = true;
+    options.shadows = false;
+    const Spread pinhole =
+        maskSpread(renderFromAbove(smallObjectScene(ShapeType::kSphere, {}), options).mask);
+    // A disk of diameter D has variance D²/16 along an axis; the blurred image is the pinhole
+    // image convolved with the circle of confusion, so their variances add.
+    for (const float focus : {0.5f, 2.0f, 4.0f}) {
+        const Spread blurred = maskSpread(
+            renderFromAbove(smallObjectScene(ShapeType::kSphere, aperture(focus)), options).mask);
+        const double expected = kFocal_px * 0.025 * std::abs(1 / 1.0 - 1 / focus);
+        for (const double var : {blurred.var_x, blurred.var_y}) {
+            const double measured = 4 * std::sqrt(var - pinhole.var_x);
+            EXPECT_NEAR(measured, expected, 0.05 * expected) << "focus " << focus;
+        }
+        // Blur moves coverage and keeps it: the object covers as many pixels in all.
+        EXPECT_NEAR(blurred.total, pinhole.total, 0.03 * pinhole.total) << "focus " << focus;
+    }
+}
+
+TEST(DepthOfField, InFocusTheImageIsThePinholeImage) {
+    // A disk facing the camera on the plane of focus: every ray through the aperture meets it
+    // where the pinhole ray through the calibrated lens model (barrel distortion here) does.
+    RenderOptions options;
+    options.samples_per_pixel = 16;
+    options.keep_layers = true;
+    const std::vector<double> barrel = {-0.2, 0.05, 0.001, -0.001, 0};
+    const RenderLayers pinhole =
+        renderFromAbove(smallObjectScene(ShapeType::kDisk, {}), options, barrel);
+    const RenderLayers lens =
+        renderFromAbove(smallObjectScene(ShapeType::kDisk, aperture(1.0f)), options, barrel);
+    int mask_differs = 0;
+    for (int y = 0; y < kHeight; ++y)
+        for (int x = 0; x < kWidth; ++x) {
+            if (pinhole.mask.at(x, y)[0] != lens.mask.at(x, y)[0])
+                ++mask_differs;
+            if (pinhole.mask.at(x, y)[0] != 1)
+                continue;
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(pixelBytes(pinhole.composite, x, y)[c],
+                          pixelBytes(lens.composite, x, y)[c])
+                    << x << "," << y;
+        }
+    // Rays meeting the rim exactly may round either way.
+    EXPECT_LE(mask_differs, 2);
+    // The disk is there: about π·(400·0.05)² pixels.
+    EXPECT_NEAR(maskSpread(lens.mask).total, M_PI * 20 * 20, 0.03 * M_PI * 20 * 20);
+}
+
+TEST(DepthOfField, TheScreenFootprintHoldsEveryPixelTheBlurReaches) {
+    // Focused 0.4 m away: the object 1 m away blurs over 15 pixels, its shadow on the floor over
+    // 20; the footprint's tiles (of pinhole rays, grown by the blur) must lose none of it.
+    RenderOptions options;
+    options.samples_per_pixel = 16;
+    options.tile_size = 8;
+    const SceneDescription scene = smallObjectScene(ShapeType::kSphere, aperture(0.4f));
+    options.screen_footprint = false;
+    const Image every_pixel = renderFromAbove(scene, options).composite;
+    options.screen_footprint = true;
+    const Image footprint = renderFromAbove(scene, options).composite;
+    int changed = 0;
+    for (int y = 0; y < kHeight; ++y)
+        for (int x = 0; x < kWidth; ++x)
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_EQ(pixelBytes(footprint, x, y)[c], pixelBytes(every_pixel, x, y)[c])
+                    << x << "," << y;
+                changed += pixelBytes(every_pixel, x, y)[c] != 90 && c == 2;
+            }
+    EXPECT_GT(changed, 150);  // the blur is there to be lost
+}
+
+TEST(DepthOfField, AFrameWithNothingVirtualIsTheCameraImage) {
+    SceneDescription scene = smallObjectScene(ShapeType::kSphere, aperture(0.4f));
+    scene.objects.pop_back();  // the ghost floor alone
+    RenderOptions options;
+    options.samples_per_pixel = 16;
+    const Image composite = renderFromAbove(scene, options).composite;
+    for (int y = 0; y < kHeight; ++y)
+        for (int x = 0; x < kWidth; ++x) {
+            ASSERT_EQ(pixelBytes(composite, x, y)[0], 60 + x);
+            ASSERT_EQ(pixelBytes(composite, x, y)[1], 40 + y);
+            ASSERT_EQ(pixelBytes(composite, x, y)[2], 90);
+        }
+}
+
+TEST(DepthOfField, BlurRadiusIsHalfTheLargestCircleOfConfusion) {
+    const detail::ThinLens lens{0.01f, 1.0f};
+    // Nearest 0.5 m: |1/0.5 − 1| = 1 > 1/focus = 1; nearest 0.25 m: 3.
+    EXPECT_NEAR(lens.blurRadiusPx(500, 0.5f), 500 * 0.01 * 1, 1e-4);
+    EXPECT_NEAR(lens.blurRadiusPx(500, 0.25f), 500 * 0.01 * 3, 1e-3);
+    // Far objects: at most the blur of a point at infinity.
+    EXPECT_NEAR(lens.blurRadiusPx(500, 100.f), 500 * 0.01 * 1, 1e-4);
+    EXPECT_EQ(detail::ThinLens{}.blurRadiusPx(500, 0.1f), 0);
+}
+
+}  // namespace
+}  // namespace mixray::render::test
