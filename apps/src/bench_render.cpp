@@ -251,6 +251,7 @@ struct Config {
     RenderOptions options;
     LensEffects lens_effects = {};              // added to the scene
     std::optional<LensAperture> aperture = {};  // the camera's, added to the scene
+    CameraMatching camera_matching = {};        // added to the scene
 };
 
 std::vector<Config> configsFor(const std::string& scene, int threads) {
@@ -277,6 +278,12 @@ std::vector<Config> configsFor(const std::string& scene, int threads) {
         lens.glare = Glare{};
         lens.glare->threshold = 0.35f;
         out.push_back({scene, "+ shadows + 3 bounces + bloom and glare", bounces, lens});
+        // Camera matching: the camera image's noise measured every frame and added to the
+        // virtual pixels, against the same row without it.
+        CameraMatching matching;
+        matching.noise = 1;
+        out.push_back(
+            {scene, "+ shadows + 3 bounces + camera noise matched", bounces, {}, {}, matching});
     } else if (scene == "dof") {
         // Kán & Kaufmann §3.1's depth of field (their Figure 8: 25 rays per pixel, then the
         // lens), on the teapot frame with 25 samples per pixel as the baseline.
@@ -349,7 +356,15 @@ void paintCameraImage(const calibration::CameraModel& camera, const Eigen::Isome
                             ? 30
                             : 225;
             }
-            row[3 * x] = row[3 * x + 1] = row[3 * x + 2] = v;
+            // A sensor's noise, σ about 2 codes (camera matching measures it).
+            uint64_t h = (static_cast<uint64_t>(y) * 0x9e3779b97f4a7c15ULL) ^
+                         (static_cast<uint64_t>(x) * 0xc2b2ae3d27d4eb4fULL);
+            h ^= h >> 29;
+            h *= 0xbf58476d1ce4e5b9ULL;
+            h ^= h >> 32;
+            const int grain = static_cast<int>(h % 7) - 3;  // uniform on −3..3: σ = 2
+            row[3 * x] = row[3 * x + 1] = row[3 * x + 2] =
+                static_cast<uint8_t>(std::clamp(static_cast<int>(v) + grain, 0, 255));
         }
     }
 }
@@ -571,6 +586,7 @@ int runBenchRender(BenchRenderOptions options) {
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
             with_lens.lens_effects = config.lens_effects;
+            with_lens.camera_matching = config.camera_matching;
             if (config.aperture) {
                 with_lens.camera.emplace();
                 with_lens.camera->has_pose = false;  // the bench's orbit

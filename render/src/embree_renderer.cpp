@@ -18,7 +18,8 @@ EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> 
                                std::vector<ObjectData> objects, std::vector<LightData> lights,
                                std::filesystem::path scene_source,
                                std::optional<size_t> depth_object, const LensEffects& lens_effects,
-                               const std::optional<LensAperture>& aperture)
+                               const std::optional<LensAperture>& aperture,
+                               const CameraMatching& matching)
     : options_(std::move(options)),
       materials_(std::move(materials)),
       objects_(std::move(objects)),
@@ -29,6 +30,10 @@ EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> 
         lens_effects_.emplace(lens_effects);
     if (aperture)
         lens_ = {aperture->diameter_m() / 2, aperture->focus_distance_m};
+    if (matching.noise) {
+        grain_.emplace();
+        grain_->strength = *matching.noise;
+    }
 }
 
 Status EmbreeRenderer::init() {
@@ -221,10 +226,12 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
             b.meanFilterPenumbra();
         if (lens_effects_)
             lens_effects_->apply(b);
+        if (grain_)
+            grain_->update(in.camera_image);
         // Composite I_f = M·I_m + (1 − M)·(I_c + I_m − I_r); clean tiles are the camera image.
         tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
             for (int y = r.begin(); y < r.end(); ++y)
-                b.compositeRow(y, in.camera_image, f.srgb_lut, dst);
+                b.compositeRow(y, in.camera_image, f.srgb_lut, grain_ ? &*grain_ : nullptr, dst);
         });
     });
     if (stopped)

@@ -36,7 +36,8 @@ public:
     EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                    std::vector<ObjectData> objects, std::vector<LightData> lights,
                    std::filesystem::path scene_source, std::optional<size_t> depth_object,
-                   const LensEffects& lens_effects, const std::optional<LensAperture>& aperture);
+                   const LensEffects& lens_effects, const std::optional<LensAperture>& aperture,
+                   const CameraMatching& matching);
 
     // Builds the BVH.
     Status init();
@@ -75,6 +76,7 @@ private:
     Image registered_depth_;
     Film film_;
     std::optional<LensEffectsPass> lens_effects_;  // the scene has some
+    std::optional<Grain> grain_;                   // the scene matches the camera's noise
     std::vector<uint8_t> tile_mask_;
     // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
     std::vector<TileScratch> scratch_;

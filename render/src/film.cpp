@@ -89,7 +89,7 @@ void Film::meanFilterPenumbra() {
 }
 
 void Film::compositeRow(int y, const ImageView& camera, const std::array<float, 256>& srgb_lut,
-                        const MutableImageView& dst) const {
+                        const Grain* grain, const MutableImageView& dst) const {
     const int w = width, ts = tile_size;
     const uint8_t* src_row = camera.row<uint8_t>(y);
     uint8_t* dst_row = dst.row<uint8_t>(y);
@@ -116,6 +116,8 @@ void Film::compositeRow(int y, const ImageView& camera, const std::array<float, 
                 const float real_radiance = srgb_lut[c[ch]] + difference[i][ch];
                 o[ch] = optics::encodeSrgb8(m * virtual_radiance[i][ch] + (1 - m) * real_radiance +
                                             g[ch]);
+                if (grain != nullptr && m > 0)
+                    o[ch] = grain->add(o[ch], m, 3 * i + static_cast<size_t>(ch));
             }
         }
     }

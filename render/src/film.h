@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "frame_context.h"
+#include "sensor_noise.h"
 
 namespace mixray::render::detail {
 
@@ -43,9 +44,10 @@ struct Film {
     // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
     void meanFilterPenumbra();
     // Row y of the composite over `camera` (rgb8 sRGB; `srgb_lut` decodes it), plus the glow,
-    // into `dst`; tiles neither dirty nor glowing are the camera image.
+    // into `dst`, with `grain` (may be null) on what is virtual; tiles neither dirty nor glowing
+    // are the camera image.
     void compositeRow(int y, const ImageView& camera, const std::array<float, 256>& srgb_lut,
-                      const MutableImageView& dst) const;
+                      const Grain* grain, const MutableImageView& dst) const;
     // keep_layers: I_m, I_r and M into `out`; otherwise clears them there.
     void exportLayers(bool keep_layers, RenderLayers& out) const;
 };

@@ -222,6 +222,8 @@ Status SceneDescription::validate() const {
         if (!(b->radius_px >= 0.5f && b->radius_px <= 64))
             return corrupt(b->where, "lens_effects.bloom.radius_px", "must be in [0.5, 64]");
     }
+    if (camera_matching.noise && !(*camera_matching.noise >= 0 && *camera_matching.noise <= 10))
+        return corrupt(camera_matching.where, "camera_matching.noise", "must be in [0, 10]");
     if (const auto& g = lens_effects.glare) {
         if (!(g->threshold > 0 && g->threshold <= 1e6f))
             return corrupt(g->where, "lens_effects.glare.threshold", "must be in (0, 1e6]");

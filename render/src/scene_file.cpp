@@ -65,8 +65,10 @@ constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like 
 // ---------------------------------------------------------------------------------------------
 // Schema
 
-constexpr std::array<std::string_view, 7> kRootKeys = {
-    "version", "materials", "objects", "lights", "camera", "depth_surface", "lens_effects"};
+constexpr std::array<std::string_view, 8> kRootKeys = {
+    "version", "materials",     "objects",      "lights",
+    "camera",  "depth_surface", "lens_effects", "camera_matching"};
+constexpr std::array<std::string_view, 1> kCameraMatchingKeys = {"noise"};
 constexpr std::array<std::string_view, 1> kDepthSurfaceKeys = {"reflectance"};
 constexpr std::array<std::string_view, 2> kLensEffectKeys = {"bloom", "glare"};
 constexpr std::array<std::string_view, 3> kBloomKeys = {"threshold", "strength", "radius_px"};
@@ -651,6 +653,19 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
     }
     if (const Item* lens = find(*fields, "lens_effects"))
         MIXRAY_RETURN_IF_ERROR(parseLensEffects(*lens, scene));
+    if (const Item* matching = find(*fields, "camera_matching")) {
+        auto matching_fields =
+            r_.readMap(*matching, kCameraMatchingKeys, "a camera_matching mapping with noise:");
+        if (!matching_fields)
+            return matching_fields.status();
+        scene.camera_matching.where = matching->where;
+        if (const Item* noise = find(*matching_fields, "noise")) {
+            auto strength = scalar(*noise, 0, 10, false);
+            if (!strength)
+                return strength.status();
+            scene.camera_matching.noise = *strength;
+        }
+    }
     return Status::ok();
 }
 
@@ -779,6 +794,7 @@ Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_p
     scene.lights = objects->lights;
     scene.camera = objects->camera;
     scene.lens_effects = objects->lens_effects;  // how the virtual objects pass the lens
+    scene.camera_matching = objects->camera_matching;
     for (SceneObject o : real->objects) {
         o.role = ObjectRole::kGhost;
         scene.objects.push_back(std::move(o));

@@ -393,7 +393,8 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     for (const char* line :
          {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
           "teapot: + shadows + 3 bounces, 64x48",
-          "teapot: + shadows + 3 bounces + bloom and glare, 64x48", "fps ", "pixels traced",
+          "teapot: + shadows + 3 bounces + bloom and glare, 64x48",
+          "teapot: + shadows + 3 bounces + camera noise matched, 64x48", "fps ", "pixels traced",
           "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency"}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
@@ -403,7 +404,7 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     ASSERT_EQ(json.exit_code, 0) << json.output;
     const auto figures = nlohmann::json::parse(json.output, nullptr, false);
     ASSERT_TRUE(figures.is_array()) << json.output;
-    ASSERT_EQ(figures.size(), 4u);
+    ASSERT_EQ(figures.size(), 5u);
     for (const auto& f : figures) {
         EXPECT_EQ(f["width"], 64);
         EXPECT_TRUE(f["log_matches_stats"].get<bool>());
@@ -415,6 +416,8 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     EXPECT_GT(figures[2]["rays_per_frame"]["secondary"].get<double>(), 0);
     // The lens effects add no ray to the frame they follow.
     EXPECT_EQ(figures[3]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
+    // Nor does camera matching.
+    EXPECT_EQ(figures[4]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
 }
 
 }  // namespace

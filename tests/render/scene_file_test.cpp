@@ -381,13 +381,13 @@ TEST(SceneFileTest, CameraAperture) {
     EXPECT_FLOAT_EQ(parsed->camera->aperture->f_number, 1.8f);
     EXPECT_FLOAT_EQ(parsed->camera->aperture->diameter_m(), 0.035f / 1.8f);
     EXPECT_FLOAT_EQ(parsed->camera->aperture->focus_distance_m, 1.2f);
-    auto default_f = parseScene(
-        "camera: { aperture: { focal_length_mm: 6, focus_distance_m: 2 } }\n", "s.yaml");
+    auto default_f =
+        parseScene("camera: { aperture: { focal_length_mm: 6, focus_distance_m: 2 } }\n", "s.yaml");
     ASSERT_TRUE(default_f.isOk()) << default_f.status().toString();
     EXPECT_FLOAT_EQ(default_f->camera->aperture->f_number, LensAperture{}.f_number);
 
-    expectError("camera:\n  aperture: { focus_distance_m: 2 }\n", 2,
-                "camera.aperture", "focal_length_mm is required");
+    expectError("camera:\n  aperture: { focus_distance_m: 2 }\n", 2, "camera.aperture",
+                "focal_length_mm is required");
     expectError("camera:\n  aperture: { focal_length_mm: 6 }\n", 2, "camera.aperture",
                 "focus_distance_m is required");
     expectError("camera:\n  aperture: { focal_length_mm: 6, focus_distance_m: 0 }\n", 2,
@@ -395,6 +395,18 @@ TEST(SceneFileTest, CameraAperture) {
     expectError("camera:\n  aperture: { f_number: 0.2, focal_length_mm: 6, focus_distance_m: 1 }\n",
                 2, "camera.aperture.f_number");
     expectError("camera:\n  aperture: { iris: 2 }\n", 2, "camera.aperture.iris", "unknown field");
+}
+
+TEST(SceneFileTest, CameraMatching) {
+    auto parsed = parseScene("camera_matching: { noise: 0.8 }\n", "s.yaml");
+    ASSERT_TRUE(parsed.isOk()) << parsed.status().toString();
+    ASSERT_TRUE(parsed->camera_matching.noise);
+    EXPECT_FLOAT_EQ(*parsed->camera_matching.noise, 0.8f);
+    auto off = parseScene("camera_matching: {}\n", "s.yaml");
+    ASSERT_TRUE(off.isOk()) << off.status().toString();
+    EXPECT_FALSE(off->camera_matching.any());
+    expectError("camera_matching:\n  noise: 11\n", 2, "camera_matching.noise");
+    expectError("camera_matching:\n  blur: 1\n", 2, "camera_matching.blur", "unknown field");
 }
 
 TEST(SceneFileTest, MalformedFiles) {
@@ -437,6 +449,8 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_FLOAT_EQ(scene->depth_surface.reflectance, 0.1f);
     ASSERT_TRUE(scene->lens_effects.bloom && scene->lens_effects.glare);
     EXPECT_FLOAT_EQ(scene->lens_effects.glare->attenuation, 0.9f);
+    ASSERT_TRUE(scene->camera_matching.noise);
+    EXPECT_FLOAT_EQ(*scene->camera_matching.noise, 1.0f);
 
     const std::string h = kHeader;
     const std::vector<std::string> inputs = {

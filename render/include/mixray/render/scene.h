@@ -164,6 +164,16 @@ struct LensEffects {
     bool any() const { return bloom || glare; }
 };
 
+// Camera matching (beyond the papers): virtual pixels take the real camera's look, so they do
+// not look cleaner than the real ones around them. Plain value.
+struct CameraMatching {
+    // The camera's noise, measured on each frame's image as a function of brightness, added to
+    // the virtual pixels times this (1: as much as the camera has); none: off.
+    std::optional<float> noise;
+    SourceLocation where;
+    bool any() const { return noise.has_value(); }
+};
+
 // A whole scene. Plain value; reentrant.
 struct SceneDescription {
     std::map<std::string, Material> materials;
@@ -172,6 +182,7 @@ struct SceneDescription {
     std::optional<FixedCamera> camera;
     DepthSurface depth_surface;
     LensEffects lens_effects;
+    CameraMatching camera_matching;
     std::filesystem::path source_path;  // where it was loaded from, for messages
 
     // kCorruptData with the entry's location on the first problem: unknown material names,
