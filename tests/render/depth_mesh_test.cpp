@@ -61,15 +61,6 @@ std::unique_ptr<Renderer> makeRenderer(const SceneDescription& scene, const Rend
     return renderer ? std::move(renderer).value() : nullptr;
 }
 
-Light sun(const std::string& name, const Vector3d& direction, float irradiance) {
-    Light light;
-    light.name = name;
-    light.type = LightType::kDirectional;
-    light.direction = direction.normalized();
-    light.intensity = Rgb::Constant(irradiance);
-    return light;
-}
-
 SceneObject ball(const Vector3d& centre, float radius, const std::string& material = "white") {
     SceneObject o = object("ball", ObjectRole::kVirtual, ShapeType::kSphere, material, centre);
     o.shape.radius = radius;
@@ -187,8 +178,8 @@ TEST(DepthMesh, VirtualShadowOnTheDepthSurfaceDarkensCameraPixelsByThePredictedR
     SceneDescription scene;
     scene.materials["white"] = material(MaterialType::kDiffuse, "white");
     scene.objects.push_back(ball(centre, static_cast<float>(radius)));
-    scene.lights.push_back(sun("a", dir_a, e_a));
-    scene.lights.push_back(sun("b", {0, 0, -1}, e_b));
+    scene.lights.push_back(directionalLight("a", dir_a, e_a));
+    scene.lights.push_back(directionalLight("b", {0, 0, -1}, e_b));
     const double cos_a = 2 / std::sqrt(5.0);
     const double ratio = e_b / (e_a * cos_a + e_b);
 
@@ -287,7 +278,7 @@ TEST(DepthMesh, FootprintTracingGivesTheSameImageAsTracingEverything) {
     lamp.radius = 0.08f;
     lamp.intensity = Rgb::Constant(4);
     scene.lights.push_back(lamp);
-    scene.lights.push_back(sun("sun", {0.3, 0.2, -1}, 1));
+    scene.lights.push_back(directionalLight("sun", {0.3, 0.2, -1}, 1));
     const Eigen::Isometry3d T = lookDown({1, 0, 3});
     const CameraModel model =
         CameraModel::pinhole(kW, kH, 120, 120, (kW - 1) / 2.0, (kH - 1) / 2.0);
@@ -400,8 +391,8 @@ TEST(DepthMesh, RealDepthStepShadowsAVirtualObject) {
     SceneDescription both;
     both.materials["white"] = material(MaterialType::kDiffuse, "white");
     both.objects.push_back(ball(centre, static_cast<float>(radius)));
-    both.lights.push_back(sun("l", dir_l, 1.5f));
-    both.lights.push_back(sun("r", dir_r, 1.5f));
+    both.lights.push_back(directionalLight("l", dir_l, 1.5f));
+    both.lights.push_back(directionalLight("r", dir_r, 1.5f));
     SceneDescription right_only = both;
     right_only.lights.erase(right_only.lights.begin());
     RenderOptions plain;
@@ -502,7 +493,7 @@ TEST(DepthMesh, AllDepthModesAgreeOnPrimaryOcclusion) {
     SceneDescription scene;
     scene.materials["white"] = material(MaterialType::kDiffuse, "white");
     scene.objects.push_back(ball(centre, static_cast<float>(radius)));
-    scene.lights.push_back(sun("sun", {0.2, 0.3, 1}, 2));
+    scene.lights.push_back(directionalLight("sun", {0.2, 0.3, 1}, 2));
     const CameraModel model = camera();
     const Image depth = depthImage(kW, kH, [](int x, int y) {
         return static_cast<uint16_t>(x < kW / 2 + 7 && y > 10 ? 1700 + x : 0);

@@ -32,12 +32,7 @@ SceneDescription smallObjectScene(ShapeType shape, std::optional<LensAperture> l
     SceneObject o = object("thing", ObjectRole::kVirtual, shape, "white", {0, 0, 1});
     o.shape.radius = shape == ShapeType::kSphere ? 0.005f : 0.05f;
     scene.objects.push_back(o);
-    Light sun;
-    sun.name = "sun";
-    sun.type = LightType::kDirectional;
-    sun.direction = {0.2f, 0.1f, -1};
-    sun.intensity = Rgb::Constant(3);
-    scene.lights.push_back(sun);
+    scene.lights.push_back(directionalLight("sun", {0.2, 0.1, -1}, 3));
     if (lens) {
         scene.camera.emplace();
         scene.camera->has_pose = false;

@@ -104,12 +104,8 @@ SceneDescription brightSphereScene(const LensEffects& effects) {
         object("ball", ObjectRole::kVirtual, ShapeType::kSphere, "white", {0, 0, 0.1});
     ball.shape.radius = 0.1f;
     scene.objects.push_back(ball);
-    Light sun;
-    sun.name = "sun";
-    sun.type = LightType::kDirectional;
-    sun.direction = {0, 0, -1};
-    sun.intensity = Rgb::Constant(30);  // the top of the ball: 0.9 · 30 / π ≈ 8.6
-    scene.lights.push_back(sun);
+    // The top of the ball: 0.9 · 30 / π ≈ 8.6.
+    scene.lights.push_back(directionalLight("sun", {0, 0, -1}, 30));
     scene.lens_effects = effects;
     return scene;
 }

@@ -60,15 +60,6 @@ Light pointLight(const Eigen::Vector3d& position, float intensity) {
     return light;
 }
 
-Light directionalLight(const std::string& name, const Eigen::Vector3d& direction, float e) {
-    Light light;
-    light.name = name;
-    light.type = LightType::kDirectional;
-    light.direction = direction.normalized();
-    light.intensity = Rgb::Constant(e);
-    return light;
-}
-
 TEST(Renderer, WithoutVirtualObjectsTheCompositeIsTheCameraImageBitForBit) {
     SceneDescription scene;
     addGhostFloor(scene);

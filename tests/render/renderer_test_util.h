@@ -97,6 +97,16 @@ inline std::filesystem::path writeEnvironment(
     return path;
 }
 
+inline Light directionalLight(const std::string& name, const Eigen::Vector3d& direction,
+                              float irradiance) {
+    Light light;
+    light.name = name;
+    light.type = LightType::kDirectional;
+    light.direction = direction.normalized();
+    light.intensity = Rgb::Constant(irradiance);
+    return light;
+}
+
 inline Light environmentLight(const std::filesystem::path& path) {
     Light light;
     light.name = "environment";

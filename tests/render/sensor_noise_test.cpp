@@ -74,12 +74,7 @@ Image renderBox(std::optional<float> noise, bool with_box = true) {
         box.shape.size = {0.6f, 0.6f, 0.1f};
         scene.objects.push_back(box);
     }
-    Light sun;
-    sun.name = "sun";
-    sun.type = LightType::kDirectional;
-    sun.direction = {0, 0, -1};
-    sun.intensity = Rgb::Constant(1.5f);
-    scene.lights.push_back(sun);
+    scene.lights.push_back(directionalLight("sun", {0, 0, -1}, 1.5f));
     scene.camera_matching.noise = noise;
     RenderOptions options;
     options.threads = 2;
