@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "backends.h"
@@ -15,6 +16,7 @@
 #include "mixray/render/ar_pipeline.h"
 #include "mixray/render/output.h"
 #include "mixray/replay/open_recording.h"
+#include "mixray/tracking/camera_environment.h"
 #include "mixray/tracking/pipeline.h"
 #include "overlay.h"
 
@@ -36,6 +38,10 @@ struct TrackCommandOptions {
     uint64_t max_frames = 0;
     std::string rig;  // empty: the recording's rig.yaml attachment
     std::string utc;  // the first colour frame's UTC; empty: the recording's tag
+    // Build an environment map from the colour camera's own tracked frames
+    // (camera_environment.exr): the map's width, 0 for none.
+    int camera_environment = 0;
+    double camera_environment_radius_m = 0;  // its distance sphere; 0: at infinity
 };
 
 json vec(const Eigen::Vector3d& v) {
@@ -221,6 +227,16 @@ int runTrack(const TrackCommandOptions& options) {
     }
     reader->reset();
 
+    std::optional<tracking::CameraEnvironment> camera_environment;
+    if (options.camera_environment > 0) {
+        auto created =
+            tracking::CameraEnvironment::create({.width = options.camera_environment,
+                                                 .radius_m = options.camera_environment_radius_m,
+                                                 .centre = Eigen::Vector3d::Zero()});
+        if (!created)
+            return fail("track", created.status());
+        camera_environment.emplace(std::move(created).value());
+    }
     std::string poses_csv =
         "frame,stamp_ns,state,stale,reacquired,targets,markers,rms_px,tx,ty,tz,qw,qx,qy,qz\n";
     std::string lights_csv =
@@ -280,6 +296,11 @@ int runTrack(const TrackCommandOptions& options) {
             addLights(setup->environment->stream, f.environment.stale, f.environment.value->lights);
         if (f.sun.value)
             addLights("sun", f.sun.stale, {*f.sun.value});
+        // Only frames with a fresh pose: a stale one would smear the map.
+        if (camera_environment && f.track.state == tracking::TrackState::kTracking &&
+            f.track.pose.value && !f.track.pose.stale &&
+            !(result = camera_environment->add(f.color.image(), setup->camera.model, T)))
+            return false;
         if (video) {
             const Image overlay = drawTrackingOverlay(f, *setup);
             if (!(result = video->write(overlay.view(), stamp)))
@@ -331,6 +352,23 @@ int runTrack(const TrackCommandOptions& options) {
         if (Status s = writeText(out_dir / name, text); !s)
             return fail("track", s);
     }
+    if (camera_environment) {
+        const FloatImage map = camera_environment->map();
+        if (Status s = render::writeExr(map, out_dir / "camera_environment.exr"); !s)
+            return fail("track", s);
+        // A picture of it, as the camera would show it.
+        auto preview = render::toSrgb8(map);
+        if (!preview)
+            return fail("track", preview.status());
+        if (Status s = render::writePng(preview->view(), out_dir / "camera_environment.png"); !s)
+            return fail("track", s);
+        std::printf(
+            "camera environment: %llu frames, %.1f %% of the sphere seen (the rest filled); "
+            "use it as a scene's environment light: { type: environment, file: %s }\n",
+            static_cast<unsigned long long>(camera_environment->frames()),
+            100 * camera_environment->coverage(),
+            (out_dir / "camera_environment.exr").string().c_str());
+    }
     const double n = static_cast<double>(frames.size());
     std::printf(
         "%s: %zu colour frames, %llu tracked, %llu without a fresh pose; mean %.1f ms "
@@ -363,6 +401,16 @@ void registerTrackCommand(CLI::App& app, Commands& commands) {
     sub->add_flag("!--no-environment", o->environment,
                   "Do not estimate lights from the environment camera");
     sub->add_option("--max-frames", o->max_frames, "Stop after this many colour frames (0: all)");
+    sub->add_option("--camera-environment", o->camera_environment,
+                    "Also build an environment map of this width from the colour camera's own "
+                    "tracked frames (camera_environment.exr and .png), for scenes without a "
+                    "fish-eye camera or an HDR map")
+        ->check(CLI::Range(16, 8192));
+    sub->add_option("--camera-environment-radius", o->camera_environment_radius_m,
+                    "Distance in metres from the world origin (the marker) to the surroundings "
+                    "the camera sees; 0: at infinity")
+        ->check(CLI::Range(0.0, 1e4))
+        ->capture_default_str();
     sub->add_option("--rig", o->rig,
                     "Rig file whose site: (latitude, longitude, heading) gives the sun's "
                     "direction; default: the recording's rig.yaml attachment");

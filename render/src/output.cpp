@@ -16,6 +16,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "optics.h"
+
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
@@ -103,6 +105,22 @@ Status writePng(const ImageView& image, const std::filesystem::path& path) {
     } catch (const cv::Exception& e) {
         return Status(ErrorCode::kInternal, name + ": PNG encoding failed: " + e.what());
     }
+}
+
+Result<Image> toSrgb8(const FloatImage& linear) {
+    if (linear.channels != 3 || linear.width <= 0 || linear.height <= 0 ||
+        linear.pixels.size() != static_cast<size_t>(linear.width) * linear.height * 3)
+        return Status(ErrorCode::kInvalidArgument,
+                      "toSrgb8: a 3-channel image of width x height x 3 pixels is needed");
+    Image out(ImageDesc::packed(PixelFormat::kRGB8, linear.width, linear.height));
+    const MutableImageView view = out.mutableView();
+    for (int y = 0; y < linear.height; ++y) {
+        uint8_t* row = view.row<uint8_t>(y);
+        for (int x = 0; x < 3 * linear.width; ++x)
+            row[x] =
+                optics::encodeSrgb8(linear.pixels[static_cast<size_t>(y) * linear.width * 3 + x]);
+    }
+    return out;
 }
 
 Status writeExr(const FloatImage& image, const std::filesystem::path& path) {

@@ -303,6 +303,33 @@ TEST(InfoCli, SummarisesRecordStreamsAndNamesDamagedRecords) {
     EXPECT_EQ(doc["streams"][0]["records"]["lost"], 1);
 }
 
+// The big-endian 32-bit number at `offset` of a file: a PNG's width and height sit at 16 and 20.
+uint32_t beU32At(const fs::path& path, std::streamoff offset) {
+    std::ifstream in(path, std::ios::binary);
+    in.seekg(offset);
+    unsigned char b[4] = {};
+    in.read(reinterpret_cast<char*>(b), 4);
+    return (uint32_t{b[0]} << 24) | (uint32_t{b[1]} << 16) | (uint32_t{b[2]} << 8) | b[3];
+}
+
+TEST(TrackCli, BuildsAnEnvironmentFromTheCamerasOwnFrames) {
+    const fs::path dir = test::tempDir();
+    CliRun run =
+        mixray("track " + q(kSession) +
+               " --max-frames 6 --no-video --no-record --camera-environment 64 -o " + q(dir));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("camera environment: 6 frames"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("% of the sphere seen"), std::string::npos) << run.output;
+    EXPECT_GT(fs::file_size(dir / "camera_environment.exr"), 0u);
+    EXPECT_EQ(beU32At(dir / "camera_environment.png", 16), 64u);
+    EXPECT_EQ(beU32At(dir / "camera_environment.png", 20), 32u);
+    CliRun odd =
+        mixray("track " + q(kSession) +
+               " --max-frames 1 --no-video --no-record --camera-environment 17 -o " + q(dir));
+    EXPECT_NE(odd.exit_code, 0);
+    EXPECT_NE(odd.output.find("width must be even"), std::string::npos) << odd.output;
+}
+
 TEST(TrackCli, BadInputIsAnErrorNotACrash) {
     const fs::path dir = test::tempDir();
     CliRun missing = mixray("track " + q(dir / "none.mkv") + " -o " + q(dir));

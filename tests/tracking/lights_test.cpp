@@ -17,6 +17,7 @@
 #include "mixray/graph/mkv.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/simulator.h"
+#include "mixray/tracking/camera_environment.h"
 #include "mixray/tracking/environment_light_node.h"
 #include "mixray/tracking/light_record.h"
 #include "test_data.h"
@@ -635,6 +636,85 @@ TEST(EnvironmentLightNode, LiveTheNewestImageWins) {
     const EnvironmentLightStats stats = g.node->stats();
     EXPECT_EQ(stats.environment_frames, groups.size());
     EXPECT_EQ(stats.environment_frames + stats.environment_skipped + dropped, g.published);
+}
+
+// The environment from the colour camera alone, frame after frame of the session at the true
+// poses. Looking down at the table, the camera sees the room only past the table's far edge: the
+// test compares the map with the simulator's room there (directions whose ray, from every
+// frame's camera, misses the table by 5 cm or more), as frames accumulate.
+TEST(CameraEnvironment, OnTheSimulatedSessionItConvergesToTheTrueRoom) {
+    const render::SimTruth& t = truth();
+    const Frames& frames = allFrames();
+    ASSERT_EQ(frames.color.size(), t.frames.size());
+    auto truth_map = render::EnvironmentMap::load(t.environment_map);
+    ASSERT_TRUE(truth_map) << truth_map.status().toString();
+    auto environment = CameraEnvironment::create({.width = 256});
+    ASSERT_TRUE(environment) << environment.status().toString();
+    std::vector<FloatImage> maps;
+    for (size_t i = 0; i < frames.color.size(); ++i) {
+        ASSERT_TRUE(
+            environment->add(frames.color[i].view(), t.color, t.frames[i].T_world_color).isOk());
+        maps.push_back(environment->map());
+    }
+    const render::EnvironmentMap lookup = asRendererMap(maps.back());
+    // The table: the plane z = table_z_m, 1.6 m x 1.2 m about the marker (simulator.cpp).
+    const auto missesTheTable = [&](const Eigen::Vector3d& d) {
+        for (const render::SimFrameTruth& f : t.frames) {
+            const Vector3d c = f.T_world_color.translation();
+            if (d.z() >= 0)
+                continue;
+            const Vector3d hit = c + (t.table_z_m - c.z()) / d.z() * d;
+            if (std::abs(hit.x()) < 0.85 && std::abs(hit.y()) < 0.65)
+                return false;
+        }
+        return true;
+    };
+    std::vector<std::pair<int, int>> room;  // texels seen by the end whose ray misses the table
+    for (int y = 0; y < environment->height(); ++y)
+        for (int x = 0; x < environment->width(); ++x)
+            if (environment->seen(x, y) &&
+                missesTheTable(
+                    lookup.directionOf(Eigen::Vector2f(x + 0.5f, y + 0.5f)).cast<double>()))
+                room.emplace_back(x, y);
+    ASSERT_GT(room.size(), 200u) << "the camera never saw the room";
+    // Mean |map − truth| there, the truth clipped as the 8-bit camera clips it.
+    const auto error = [&](const FloatImage& map) {
+        double sum = 0;
+        for (const auto& [x, y] : room) {
+            const Eigen::Vector3f d = lookup.directionOf(Eigen::Vector2f(x + 0.5f, y + 0.5f));
+            const render::Rgb expected = truth_map->radiance(d).cwiseMin(1.f);
+            sum += (render::Rgb(map.at(x, y)[0], map.at(x, y)[1], map.at(x, y)[2]) - expected)
+                       .cwiseAbs()
+                       .mean();
+        }
+        return sum / static_cast<double>(room.size());
+    };
+    for (size_t i = 0; i < maps.size(); ++i)
+        if (i % 7 == 0 || i + 1 == maps.size())
+            std::cout << "camera environment: frame " << i << ", room error " << error(maps[i])
+                      << "\n";
+    std::cout << "camera environment: " << room.size() << " room texels, coverage "
+              << environment->coverage() << "\n";
+    EXPECT_LT(error(maps.back()), 0.02);                  // what it saw is the room
+    EXPECT_LT(error(maps.back()), 0.5 * error(maps[0]));  // closer as the camera moves
+}
+
+TEST(CameraEnvironment, RefusesBadInput) {
+    EXPECT_FALSE(CameraEnvironment::create({.width = 15}));
+    EXPECT_FALSE(CameraEnvironment::create({.width = 64, .radius_m = -1}));
+    auto environment = CameraEnvironment::create({.width = 64});
+    ASSERT_TRUE(environment);
+    const Image& color = firstColor();
+    calibration::CameraModel other = truth().color;
+    other.width /= 2;
+    EXPECT_EQ(environment->add(color.view(), other, Isometry3d::Identity()).code(),
+              ErrorCode::kInvalidArgument);
+    Isometry3d skewed = Isometry3d::Identity();
+    skewed.linear()(0, 1) = 0.5;
+    EXPECT_EQ(environment->add(color.view(), truth().color, skewed).code(),
+              ErrorCode::kInvalidArgument);
+    EXPECT_EQ(environment->frames(), 0u);
+    EXPECT_EQ(environment->coverage(), 0);
 }
 
 }  // namespace

@@ -16,17 +16,11 @@ namespace mixray::tracking {
 Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const EnvironmentCamera& camera,
                                              int width) {
     MIXRAY_RETURN_IF_ERROR(camera.validate());
-    MIXRAY_RETURN_IF_ERROR(detail::checkColorImage(env, "environment image"));
-    if (env.desc.width != camera.model.width || env.desc.height != camera.model.height)
-        return Status(ErrorCode::kInvalidArgument,
-                      "environment image is " + std::to_string(env.desc.width) + "x" +
-                          std::to_string(env.desc.height) + ", the camera model " +
-                          std::to_string(camera.model.width) + "x" +
-                          std::to_string(camera.model.height));
+    MIXRAY_RETURN_IF_ERROR(
+        detail::checkColorImage(env, camera.model.width, camera.model.height, "environment image"));
     if (width < 16 || width > 8192 || width % 2 != 0)
         return Status(ErrorCode::kInvalidArgument,
                       "environment map width must be even, 16 to 8192");
-    const auto& table = srgbToLinearTable();
     FloatImage map;
     map.width = width;
     map.height = width / 2;
@@ -48,18 +42,10 @@ Result<FloatImage> environmentMapFromFisheye(const ImageView& env, const Environ
             const auto px = camera.model.project(R_env_world * d_world);
             if (!px || !(px->x() >= 0 && px->y() >= 0 && px->x() <= iw - 1 && px->y() <= ih - 1))
                 continue;
-            const int x0 = std::min(static_cast<int>(px->x()), iw - 1);
-            const int y0 = std::min(static_cast<int>(px->y()), ih - 1);
-            const int x1 = std::min(x0 + 1, iw - 1), y1 = std::min(y0 + 1, ih - 1);
-            const double ax = px->x() - x0, ay = px->y() - y0;
-            const auto c00 = detail::codesAt(env, x0, y0), c10 = detail::codesAt(env, x1, y0);
-            const auto c01 = detail::codesAt(env, x0, y1), c11 = detail::codesAt(env, x1, y1);
+            const std::array<double, 3> radiance = detail::linearRadianceAt(env, px->x(), px->y());
             float* out = map.at(x, y);
-            // Interpolated in linear radiance, where averaging light is meaningful.
             for (size_t c = 0; c < 3; ++c)
-                out[c] = scale * static_cast<float>(
-                                     (1 - ay) * ((1 - ax) * table[c00[c]] + ax * table[c10[c]]) +
-                                     ay * ((1 - ax) * table[c01[c]] + ax * table[c11[c]]));
+                out[c] = scale * static_cast<float>(radiance[c]);
             seen[static_cast<size_t>(y) * map.width + x] = 1;
         }
     }

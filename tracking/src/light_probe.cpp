@@ -547,12 +547,8 @@ Result<ProbeResult> estimateProbeLights(const ImageView& color,
     MIXRAY_RETURN_IF_ERROR(probe.validate());
     MIXRAY_RETURN_IF_ERROR(options.validate());
     MIXRAY_RETURN_IF_ERROR(camera.validate().withContext("light probe camera"));
-    MIXRAY_RETURN_IF_ERROR(detail::checkColorImage(color, "light probe image"));
-    if (color.desc.width != camera.width || color.desc.height != camera.height)
-        return Status(ErrorCode::kInvalidArgument,
-                      "light probe image is " + std::to_string(color.desc.width) + "x" +
-                          std::to_string(color.desc.height) + ", the camera model " +
-                          std::to_string(camera.width) + "x" + std::to_string(camera.height));
+    MIXRAY_RETURN_IF_ERROR(
+        detail::checkColorImage(color, camera.width, camera.height, "light probe image"));
     if (!T_world_camera.matrix().allFinite())
         return Status(ErrorCode::kInvalidArgument, "light probe: camera pose is not finite");
     const std::string name = "probe '" + probe.name + "'";

@@ -80,5 +80,14 @@ Status checkColorImage(const ImageView& image, const char* what) {
     return Status::ok();
 }
 
+Status checkColorImage(const ImageView& image, int width, int height, const char* what) {
+    MIXRAY_RETURN_IF_ERROR(checkColorImage(image, what));
+    if (image.desc.width != width || image.desc.height != height)
+        return bad(std::string(what) + " is " + std::to_string(image.desc.width) + "x" +
+                   std::to_string(image.desc.height) + ", the camera model " +
+                   std::to_string(width) + "x" + std::to_string(height));
+    return Status::ok();
+}
+
 }  // namespace detail
 }  // namespace mixray::tracking

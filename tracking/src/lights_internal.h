@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -17,6 +18,8 @@ namespace mixray::tracking::detail {
 
 // kInvalidArgument unless `image` is kRGB8, kBGR8 or kMono8 with data for its size.
 Status checkColorImage(const ImageView& image, const char* what);
+// The same, and that it is width x height (its camera model's size), naming both otherwise.
+Status checkColorImage(const ImageView& image, int width, int height, const char* what);
 
 // The pixel's three code values as R, G, B (mono repeated).
 inline std::array<uint8_t, 3> codesAt(const ImageView& image, int x, int y) {
@@ -29,6 +32,23 @@ inline std::array<uint8_t, 3> codesAt(const ImageView& image, int x, int y) {
         default:
             return {row[3 * x], row[3 * x + 1], row[3 * x + 2]};
     }
+}
+
+// The linear radiance (sRGB decoded) at (x, y) in [0, width − 1] x [0, height − 1], bilinear
+// between pixel centres: interpolated in linear light, where averaging light is meaningful.
+inline std::array<double, 3> linearRadianceAt(const ImageView& image, double x, double y) {
+    const auto& table = srgbToLinearTable();
+    const int w = image.desc.width, h = image.desc.height;
+    const int x0 = std::min(static_cast<int>(x), w - 1), y0 = std::min(static_cast<int>(y), h - 1);
+    const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+    const double ax = x - x0, ay = y - y0;
+    const auto c00 = codesAt(image, x0, y0), c10 = codesAt(image, x1, y0);
+    const auto c01 = codesAt(image, x0, y1), c11 = codesAt(image, x1, y1);
+    std::array<double, 3> out{};
+    for (size_t c = 0; c < 3; ++c)
+        out[c] = (1 - ay) * ((1 - ax) * table[c00[c]] + ax * table[c10[c]]) +
+                 ay * ((1 - ax) * table[c01[c]] + ax * table[c11[c]]);
+    return out;
 }
 
 // Rec. 709 luminance weights, applied to linear RGB.

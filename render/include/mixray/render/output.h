@@ -22,6 +22,11 @@ Status writePng(const ImageView& image, const std::filesystem::path& path);
 // counts or a pixel vector of the wrong size; kIoError naming the file. Reentrant.
 Status writeExr(const FloatImage& image, const std::filesystem::path& path);
 
+// A linear 3-channel float image as an 8-bit sRGB picture (kRGB8), clipped to [0, 1] as a
+// camera clips: a look at an environment map or a layer. kInvalidArgument for other channel
+// counts or a pixel vector of the wrong size. Reentrant.
+Result<Image> toSrgb8(const FloatImage& linear);
+
 enum class VideoCodec : uint8_t {
     kAuto,   // .mp4/.m4v/.mov: H.264 when the build has libx264, else MPEG-4 part 2; .mkv: FFV1
     kH264,   // libx264, yuv420p (widely playable); .mp4 or .mkv
