@@ -636,6 +636,25 @@ TEST(SceneFileTest, ComposeArSceneOnTheLensEffectsFixture) {
     EXPECT_EQ(lens.glare->passes, 3);
 }
 
+// The depth-of-field and all-effects demo objects compose too, bringing the lens's aperture
+// (the pose still from tracking) and the camera matching.
+TEST(SceneFileTest, ComposeArSceneOnTheDepthOfFieldAndEffectsFixtures) {
+    for (const char* objects :
+         {"scenes/sim_tabletop_dof.yaml", "scenes/sim_tabletop_effects.yaml"}) {
+        auto composed = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
+                                       test::fixturesDir() / objects);
+        ASSERT_TRUE(composed.isOk()) << composed.status().toString();
+        ASSERT_TRUE(composed->scene.camera && composed->scene.camera->aperture) << objects;
+        EXPECT_FALSE(composed->scene.camera->has_pose) << objects;
+        EXPECT_FLOAT_EQ(composed->scene.camera->aperture->f_number, 1.4f) << objects;
+    }
+    auto effects = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
+                                  test::fixturesDir() / "scenes/sim_tabletop_effects.yaml");
+    ASSERT_TRUE(effects.isOk());
+    EXPECT_TRUE(effects->scene.lens_effects.bloom && effects->scene.lens_effects.glare);
+    EXPECT_TRUE(effects->scene.camera_matching.noise);
+}
+
 TEST(SceneFileTest, ValidateScenesBuiltInCode) {
     SceneDescription scene;
     scene.materials["m"].name = "m";
