@@ -252,6 +252,9 @@ struct Config {
     LensEffects lens_effects = {};              // added to the scene
     std::optional<LensAperture> aperture = {};  // the camera's, added to the scene
     CameraMatching camera_matching = {};        // added to the scene
+    // Motion blur: the shutter open over this fraction of the time between frames at 30 fps,
+    // the orbit's motion between frames scaled to it; 0: none.
+    double exposure_fraction = 0;
 };
 
 std::vector<Config> configsFor(const std::string& scene, int threads) {
@@ -300,6 +303,14 @@ std::vector<Config> configsFor(const std::string& scene, int threads) {
                        supersampled,
                        {},
                        lens});
+        // Motion blur (camera matching) on the same frame: a 1/60 s exposure at 30 fps.
+        out.push_back({scene,
+                       "25 samples/pixel, shadows + 3 bounces + motion blur (1/60 s)",
+                       supersampled,
+                       {},
+                       {},
+                       {},
+                       0.5});
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -398,6 +409,9 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
     // Wall-clock and process CPU seconds of one render() call.
     const auto frame = [&](int i, RenderStats& stats) -> Result<std::pair<double, double>> {
         inputs.T_world_cam = cameraPose(i);
+        if (config.exposure_fraction > 0)
+            inputs.shutter = shutterFromMotion(cameraPose(i - 1), inputs.T_world_cam, 1 / 30.0,
+                                               config.exposure_fraction / 30.0);
         paintCameraImage(inputs.camera, inputs.T_world_cam, image);
         const double cpu_start = processCpuSeconds();
         const auto start = std::chrono::steady_clock::now();

@@ -40,19 +40,29 @@ Vec2 concentricDisk(float u, float v) {
 }  // namespace
 
 void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size, const ThinLens& lens) {
+                    int tile_size, const ThinLens& lens, bool timed) {
     if (!rays.directions.empty() && sameModel(rays.model, camera) && rays.samples == spp &&
-        rays.seed == seed && rays.lens == lens)
+        rays.seed == seed && rays.lens == lens && (!timed || !rays.times.empty()))
         return;
-    rays = {camera, spp, seed, lens, {}, {}, {}, {}};
+    rays = {camera, spp, seed, lens, {}, {}, {}, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
     rays.directions.resize(static_cast<size_t>(w) * camera.height * spp);
     rays.centre_cos.resize(static_cast<size_t>(w) * camera.height);
     if (lens.radius_m > 0)
         rays.lens_points.resize(rays.directions.size());
+    if (timed)
+        rays.times.resize(rays.directions.size());
     tbb::parallel_for(0, camera.height, [&](int y) {
         std::vector<int> strata(static_cast<size_t>(spp));
+        // A fresh shuffle of the pixel's strata into `strata`.
+        const auto shuffle = [&](optics::Rng& rng) {
+            for (int k = 0; k < spp; ++k)
+                strata[static_cast<size_t>(k)] = k;
+            for (int k = spp - 1; k > 0; --k)
+                std::swap(strata[static_cast<size_t>(k)],
+                          strata[static_cast<size_t>(rng.next() % static_cast<uint64_t>(k + 1))]);
+        };
         for (int x = 0; x < w; ++x) {
             const size_t pixel = static_cast<size_t>(y) * w + x;
             const auto centre = camera.unproject(Eigen::Vector2d(x, y));
@@ -62,18 +72,22 @@ void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
                 // Pixel stratum k takes aperture stratum strata[k], shuffled per pixel, so the
                 // two are stratified each and uncorrelated together.
                 optics::Rng lens_rng(hashIndex(seed, pixel, 0x1e25));
-                for (int k = 0; k < spp; ++k)
-                    strata[static_cast<size_t>(k)] = k;
-                for (int k = spp - 1; k > 0; --k)
-                    std::swap(strata[static_cast<size_t>(k)],
-                              strata[static_cast<size_t>(lens_rng.next() %
-                                                         static_cast<uint64_t>(k + 1))]);
+                shuffle(lens_rng);
                 for (int k = 0; k < spp; ++k) {
                     const int j = strata[static_cast<size_t>(k)];
                     const float u = ((j % n) + lens_rng.uniform()) / n;
                     const float v = ((j / n) + lens_rng.uniform()) / n;
                     rays.lens_points[pixel * spp + k] = lens.radius_m * concentricDisk(u, v);
                 }
+            }
+            if (timed) {
+                // The exposure in spp strata, paired with the pixel samples by a shuffle.
+                optics::Rng time_rng(hashIndex(seed, pixel, 0x7173));
+                shuffle(time_rng);
+                for (int k = 0; k < spp; ++k)
+                    rays.times[pixel * spp + k] =
+                        (strata[static_cast<size_t>(k)] + time_rng.uniform()) /
+                        static_cast<float>(spp);
             }
             for (int k = 0; k < spp; ++k) {
                 // Stratified jitter; one sample sits exactly on the pixel centre.
@@ -103,6 +117,7 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
     dirs.resize(n);
     origins.assign(n, f.t_world_cam);
     const bool lens = !rays.lens_points.empty();
+    const bool moving = f.shutter && !rays.times.empty();
     std::array<size_t, 16> lane_index;
     std::array<Vec3, 16> lane_origin;
     std::array<Vec3, 16> lane_dir;
@@ -113,7 +128,7 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
     const auto flush = [&] {
         if (lanes == 0)
             return;
-        if (lens)
+        if (lens || moving)
             EmbreeScene::intersect16(scene.all(), lane_origin.data(), lane_dir.data(), lanes,
                                      lane_hit.data(), object_mask);
         else
@@ -136,17 +151,31 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
                         const Vec3& dir_cam = rays.directions[sample];
                         if (!dir_cam.allFinite())
                             continue;
+                        // The ray in the camera frame: from the centre of projection, or, through
+                        // a lens, from the aperture point through where the pinhole ray meets the
+                        // plane of focus (a ray at or beyond 90° keeps the pinhole's).
+                        Vec3 start = Vec3::Zero(), dir = dir_cam;
                         if (lens && dir_cam.z() > 0) {
-                            // From the aperture point through where the pinhole ray meets the
-                            // plane of focus.
                             const Vec2& a = rays.lens_points[sample];
-                            const Vec3 start(a.x(), a.y(), 0);
-                            const Vec3 dir =
+                            start = Vec3(a.x(), a.y(), 0);
+                            dir =
                                 (dir_cam * (rays.lens.focus_m / dir_cam.z()) - start).normalized();
-                            origins[i] = rotate(f.R_world_cam, start) + f.t_world_cam;
-                            dirs[i] = rotate(f.R_world_cam, dir);
+                        }
+                        if (moving) {
+                            // The camera where it was at the sample's time in the exposure.
+                            const float tau = rays.times[sample];
+                            // nlerp: over one exposure the turn is small, and there nlerp
+                            // is slerp within 1e-6, without trigonometry per sample.
+                            const Eigen::Quaternionf q(((1 - tau) * f.shutter->q_open.coeffs() +
+                                                        tau * f.shutter->q_close.coeffs())
+                                                           .normalized());
+                            origins[i] = q * start + (1 - tau) * f.shutter->t_open +
+                                         tau * f.shutter->t_close;
+                            dirs[i] = q * dir;
                         } else {
-                            dirs[i] = rotate(f.R_world_cam, dir_cam);
+                            if (lens)
+                                origins[i] = rotate(f.R_world_cam, start) + f.t_world_cam;
+                            dirs[i] = rotate(f.R_world_cam, dir);
                         }
                         lane_origin[lanes] = origins[i];
                         lane_index[lanes] = i;

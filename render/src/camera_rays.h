@@ -41,6 +41,9 @@ struct RayCache {
     // With a lens, each sample's point on the aperture (camera frame, z = 0), stratified
     // jointly with the pixel samples; empty for a pinhole.
     std::vector<Vec2> lens_points;
+    // For motion blur, each sample's time in the exposure, 0 (shutter open) to 1 (closed),
+    // stratified over the pixel's samples and paired with them by a shuffle; empty: none.
+    std::vector<float> times;
     std::vector<TileCone> cones;  // per tile of options.tile_size
     // The z of the unit ray through each pixel's centre (y * width + x), exactly as
     // rayDistanceAt() computes it; NaN where it has none in front of the camera.
@@ -60,14 +63,17 @@ struct RayCache {
 };
 
 // Fills `rays` for `camera` with `spp` stratified jittered samples per pixel (a square number;
-// one sits on the pixel centre) drawn from `seed`, their points on `lens`'s aperture, and the
-// cones of tiles of `tile_size`; keeps it as it is when nothing changed.
+// one sits on the pixel centre) drawn from `seed`, their points on `lens`'s aperture, their
+// times in the exposure when `timed` (kept once made, so a pipeline that blurs some frames and
+// not others does not rebuild it), and the cones of tiles of `tile_size`; keeps it as it is
+// when nothing changed.
 void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size, const ThinLens& lens = {});
+                    int tile_size, const ThinLens& lens = {}, bool timed = false);
 
 // The primary hits, world origins and world directions of the samples of the tile
 // [x0, x1) x [y0, y1) of frame `f`, in `hits`, `origins` and `dirs`
-// ((y - y0) * (x1 - x0) + (x - x0)) * samples + s). Without a lens every origin is the camera's.
+// ((y - y0) * (x1 - x0) + (x - x0)) * samples + s). Without a lens every origin is the camera's;
+// with f.shutter each sample's pose is interpolated at its time.
 void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f, int x0, int y0,
                  int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& origins,
                  std::vector<Vec3>& dirs, RayList* log);

@@ -439,6 +439,33 @@ int QualityController::update(double render_seconds) {
     return step_;
 }
 
+std::optional<RenderInputs::ShutterPoses> CompositorNode::shutterFor(const FrameMetadata& color,
+                                                                     const PoseRecord& pose) {
+    const std::optional<float>& fallback_ms = scene_.camera_matching.motion_blur_exposure_ms;
+    if (!fallback_ms)
+        return std::nullopt;
+    // Motion only between two measured poses of frames close in time: a pose carried over, a
+    // lost one or a gap (dropped frames, a pause) gives no velocity to trust.
+    const bool measured = pose.status == PoseStatus::kValid;
+    const int64_t stamp = color.host_stamp_ns;
+    std::optional<RenderInputs::ShutterPoses> out;
+    constexpr int64_t kLongestGapNs = 200'000'000;
+    const double exposure_s =
+        color.exposure_us > 0 ? color.exposure_us * 1e-6 : *fallback_ms * 1e-3;
+    if (measured && last_T_world_cam_ && stamp > last_pose_stamp_ns_ &&
+        stamp - last_pose_stamp_ns_ <= kLongestGapNs && exposure_s > 0)
+        out =
+            shutterFromMotion(*last_T_world_cam_, pose.transform(),
+                              static_cast<double>(stamp - last_pose_stamp_ns_) * 1e-9, exposure_s);
+    if (measured) {
+        last_T_world_cam_ = pose.transform();
+        last_pose_stamp_ns_ = stamp;
+    } else {
+        last_T_world_cam_.reset();
+    }
+    return out;
+}
+
 Status CompositorNode::composite(const Pending& set) {
     drainEnvironmentMaps();
     CompositeFrame out;
@@ -446,6 +473,7 @@ Status CompositorNode::composite(const Pending& set) {
     out.depth = set.depth;
     Eigen::Isometry3d T_world_cam = options_.fixed_T_world_cam;
     bool has_pose = true;
+    std::optional<RenderInputs::ShutterPoses> shutter;
     if (set.pose) {
         auto pose = decodePoseRecord(set.pose.image());
         if (!pose)
@@ -454,6 +482,7 @@ Status CompositorNode::composite(const Pending& set) {
         has_pose = pose->status != PoseStatus::kLost;
         if (has_pose)
             T_world_cam = pose->transform();
+        shutter = shutterFor(set.color.meta(), *pose);
     }
     if (set.lights) {
         const ImageView bytes = set.lights.image();
@@ -520,6 +549,7 @@ Status CompositorNode::composite(const Pending& set) {
         in.camera_image = set.color.image();
         in.camera = options_.camera;
         in.T_world_cam = T_world_cam;
+        in.shutter = shutter;
         if (set.depth) {
             in.depth_mm = set.depth.image();
             if (options_.depth_registration)

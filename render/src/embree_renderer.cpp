@@ -204,13 +204,12 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     arena.execute([&] {
         if (use_mask) {
             footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts, tile_mask_);
-            // The footprint is of pinhole rays; through the lens, content spreads by up to half
-            // its circle of confusion.
-            if (lens_.radius_m > 0)
+            // The footprint is of the image pose's pinhole rays; through the lens content
+            // spreads by up to half its circle of confusion, and over the exposure by how far
+            // the camera moved.
+            if (lens_.radius_m > 0 || f.shutter)
                 dilateTileMask(tile_mask_, tiles_x, ts,
-                               lens_.blurRadiusPx(std::max(in.camera.fx, in.camera.fy),
-                                                  nearestInfluencedDepth(f)) +
-                                   1);
+                               spreadRadiusPx(f, nearestInfluencedDepth(f)) + 1);
         }
         tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                           [&](const tbb::blocked_range<int>& r) {

@@ -56,8 +56,11 @@ private:
     void updateDepthMesh(Frame& f);
     void prepareFootprint(Frame& f) const;
     void depthRegions(const Frame& f, FootprintScene& fp) const;
-    // With a lens: the nearest depth, in the camera, of anything virtual content can touch.
+    // With a lens or motion blur: the nearest depth, in the camera, of anything virtual content
+    // can touch, and how far in pixels a point at least that deep spreads from where the frame's
+    // pinhole image shows it.
     float nearestInfluencedDepth(const Frame& f) const;
+    float spreadRadiusPx(const Frame& f, float nearest_m) const;
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;

@@ -87,6 +87,13 @@ struct Frame {
     // The only active ghost is a plane or disk: no ray leaving it can meet a ghost again.
     bool lone_flat_ghost = false;
     FootprintScene footprint;
+    // Motion blur: the camera's pose at the shutter's opening and closing (RenderInputs::shutter),
+    // the quaternions on the same side.
+    struct Shutter {
+        Eigen::Quaternionf q_open, q_close;
+        Vec3 t_open, t_close;
+    };
+    std::optional<Shutter> shutter;
 };
 
 inline uint64_t hashIndex(uint64_t seed, uint64_t a, uint64_t b) {

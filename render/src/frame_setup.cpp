@@ -75,6 +75,12 @@ Status EmbreeRenderer::checkInputs(const RenderInputs& in) const {
             return bad("depth image buffer is too small for its size");
     }
     MIXRAY_RETURN_IF_ERROR(checkPose(in.T_world_cam, "render inputs: T_world_cam"));
+    if (in.shutter) {
+        MIXRAY_RETURN_IF_ERROR(
+            checkPose(in.shutter->T_world_cam_open, "render inputs: shutter T_world_cam_open"));
+        MIXRAY_RETURN_IF_ERROR(
+            checkPose(in.shutter->T_world_cam_close, "render inputs: shutter T_world_cam_close"));
+    }
     for (const auto& [name, T] : in.T_world_anchor)
         MIXRAY_RETURN_IF_ERROR(checkPose(T, "render inputs: T_world_anchor[" + name + "]"));
     return Status::ok();
@@ -130,6 +136,23 @@ void EmbreeRenderer::prepareFootprint(Frame& f) const {
         depthRegions(f, fp);
 }
 
+float EmbreeRenderer::spreadRadiusPx(const Frame& f, float nearest_m) const {
+    const calibration::CameraModel& camera = f.inputs->camera;
+    const double f_px = std::max(camera.fx, camera.fy);
+    float spread = lens_.blurRadiusPx(f_px, nearest_m);
+    if (f.shutter) {
+        // A point at depth d moves across the image by at most f·|Δt|/d for the camera's
+        // travel, and by f·θ·(1 + u² + v²) for a turn of θ where the image reaches tan⁻¹ u and
+        // tan⁻¹ v off its axis (the pinhole's d(f·tan)/dθ, small turns).
+        const float travel = (f.shutter->t_close - f.shutter->t_open).norm();
+        const float turn = f.shutter->q_open.angularDistance(f.shutter->q_close);
+        const double u = std::max(camera.cx + 1, camera.width - camera.cx) / camera.fx;
+        const double v = std::max(camera.cy + 1, camera.height - camera.cy) / camera.fy;
+        spread += static_cast<float>(f_px * (travel / nearest_m + turn * (1 + u * u + v * v)));
+    }
+    return spread;
+}
+
 float EmbreeRenderer::nearestInfluencedDepth(const Frame& f) const {
     // What virtual objects touch lies on them or on real surfaces: the ghosts, and the depth
     // camera's surfaces, never nearer than a Kinect measures.
@@ -177,11 +200,10 @@ float EmbreeRenderer::nearestInfluencedDepth(const Frame& f) const {
     };
     // Grow the frame by the blur of the nearest point found so far until that stops growing:
     // a nearer point outside blurs further in.
-    const float fx = static_cast<float>(std::max(camera.fx, camera.fy));
     float found = std::max(std::min(nearest, ghostsNearest(0)), kNearest_m);
     for (int i = 0; i < 4; ++i) {
-        const float grown = std::max(
-            std::min(nearest, ghostsNearest(lens_.blurRadiusPx(fx, found) + 1)), kNearest_m);
+        const float grown =
+            std::max(std::min(nearest, ghostsNearest(spreadRadiusPx(f, found) + 1)), kNearest_m);
         const bool settled = grown > 0.99f * found;
         found = std::min(found, grown);
         if (settled)
@@ -251,6 +273,16 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
     f.inputs = &in;
     f.R_world_cam = in.T_world_cam.linear().cast<float>();
     f.t_world_cam = in.T_world_cam.translation().cast<float>();
+    if (in.shutter) {
+        const auto& s = *in.shutter;
+        f.shutter = Frame::Shutter{Eigen::Quaternionf(s.T_world_cam_open.linear().cast<float>()),
+                                   Eigen::Quaternionf(s.T_world_cam_close.linear().cast<float>()),
+                                   s.T_world_cam_open.translation().cast<float>(),
+                                   s.T_world_cam_close.translation().cast<float>()};
+        // The shorter way round, for the interpolation.
+        if (f.shutter->q_open.dot(f.shutter->q_close) < 0)
+            f.shutter->q_close.coeffs() = -f.shutter->q_close.coeffs();
+    }
     const Eigen::Isometry3d T_cam_world = in.T_world_cam.inverse();
     f.R_cam_world = T_cam_world.linear();
     f.t_cam_world = T_cam_world.translation();
@@ -305,7 +337,7 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
         }
     }
     updateRayCache(rays_, in.camera, options_.samples_per_pixel, options_.seed, options_.tile_size,
-                   lens_);
+                   lens_, in.shutter.has_value());
     return Status::ok();
 }
 

@@ -43,4 +43,22 @@ uint64_t RayLog::count(Kind kind) const {
         std::count_if(rays.begin(), rays.end(), [kind](const Ray& r) { return r.kind == kind; }));
 }
 
+RenderInputs::ShutterPoses shutterFromMotion(const Eigen::Isometry3d& T_world_cam_before,
+                                             const Eigen::Isometry3d& T_world_cam,
+                                             double frame_interval_s, double exposure_s) {
+    // The motion between the frames in the camera's frame, as a turn and a travel, taken as
+    // uniform: a fraction s of it is the turn's angle times s and the travel times s (exact for
+    // a pure turn or a pure travel, first order for both).
+    const Eigen::Isometry3d step = T_world_cam_before.inverse() * T_world_cam;
+    const Eigen::AngleAxisd turn(step.linear());
+    const double s = exposure_s / (2 * frame_interval_s);
+    const auto part = [&](double fraction) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        T.linear() = Eigen::AngleAxisd(fraction * turn.angle(), turn.axis()).toRotationMatrix();
+        T.translation() = fraction * step.translation();
+        return T;
+    };
+    return {T_world_cam * part(-s), T_world_cam * part(s)};
+}
+
 }  // namespace mixray::render

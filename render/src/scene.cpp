@@ -224,6 +224,9 @@ Status SceneDescription::validate() const {
     }
     if (camera_matching.noise && !(*camera_matching.noise >= 0 && *camera_matching.noise <= 10))
         return corrupt(camera_matching.where, "camera_matching.noise", "must be in [0, 10]");
+    if (const auto& e = camera_matching.motion_blur_exposure_ms; e && !(*e >= 0 && *e <= 1000))
+        return corrupt(camera_matching.where, "camera_matching.motion_blur.exposure_ms",
+                       "must be in [0, 1000]");
     if (const auto& g = lens_effects.glare) {
         if (!(g->threshold > 0 && g->threshold <= 1e6f))
             return corrupt(g->where, "lens_effects.glare.threshold", "must be in (0, 1e6]");

@@ -68,7 +68,8 @@ constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like 
 constexpr std::array<std::string_view, 8> kRootKeys = {
     "version", "materials",     "objects",      "lights",
     "camera",  "depth_surface", "lens_effects", "camera_matching"};
-constexpr std::array<std::string_view, 1> kCameraMatchingKeys = {"noise"};
+constexpr std::array<std::string_view, 2> kCameraMatchingKeys = {"noise", "motion_blur"};
+constexpr std::array<std::string_view, 1> kMotionBlurKeys = {"exposure_ms"};
 constexpr std::array<std::string_view, 1> kDepthSurfaceKeys = {"reflectance"};
 constexpr std::array<std::string_view, 2> kLensEffectKeys = {"bloom", "glare"};
 constexpr std::array<std::string_view, 3> kBloomKeys = {"threshold", "strength", "radius_px"};
@@ -654,8 +655,8 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
     if (const Item* lens = find(*fields, "lens_effects"))
         MIXRAY_RETURN_IF_ERROR(parseLensEffects(*lens, scene));
     if (const Item* matching = find(*fields, "camera_matching")) {
-        auto matching_fields =
-            r_.readMap(*matching, kCameraMatchingKeys, "a camera_matching mapping with noise:");
+        auto matching_fields = r_.readMap(*matching, kCameraMatchingKeys,
+                                          "a camera_matching mapping with noise: and motion_blur:");
         if (!matching_fields)
             return matching_fields.status();
         scene.camera_matching.where = matching->where;
@@ -664,6 +665,19 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
             if (!strength)
                 return strength.status();
             scene.camera_matching.noise = *strength;
+        }
+        if (const Item* blur = find(*matching_fields, "motion_blur")) {
+            auto blur_fields =
+                r_.readMap(*blur, kMotionBlurKeys, "a motion_blur mapping with exposure_ms:");
+            if (!blur_fields)
+                return blur_fields.status();
+            scene.camera_matching.motion_blur_exposure_ms = 0;
+            if (const Item* e = find(*blur_fields, "exposure_ms")) {
+                auto exposure = scalar(*e, 0, 1000, false);
+                if (!exposure)
+                    return exposure.status();
+                scene.camera_matching.motion_blur_exposure_ms = *exposure;
+            }
         }
     }
     return Status::ok();

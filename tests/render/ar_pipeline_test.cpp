@@ -217,6 +217,39 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
     EXPECT_EQ(stats.compositor->latency.count, 36u);
 }
 
+// camera_matching.motion_blur through the compositor: from the second measured pose on, each
+// composite is blurred over the exposure by the camera's motion since the last frame; without
+// an exposure (the session's frames carry none, and exposure_ms 0) nothing changes.
+TEST(ArPipeline, MotionBlurFollowsTheTrackedCamerasMotion) {
+    const auto composites = [](std::optional<float> exposure_ms) {
+        ArPipelineOptions options = sessionPipelineOptions();
+        options.scene->camera_matching.motion_blur_exposure_ms = exposure_ms;
+        std::mutex mutex;
+        std::map<uint64_t, std::vector<uint8_t>> got;
+        options.on_composite = [&](const CompositeFrame& c) {
+            const ImageView image = c.composite.image();
+            std::lock_guard lock(mutex);
+            got[c.color.meta().sequence].assign(image.data, image.data + image.size_bytes);
+        };
+        std::unique_ptr<ArPipeline> pipeline;
+        runToEnd(sessionSource(ArSource::Pace::kFast), std::move(options), pipeline);
+        return got;
+    };
+    const auto still = composites(std::nullopt);
+    const auto unknown_exposure = composites(0.f);
+    const auto blurred = composites(30.f);
+    ASSERT_EQ(still.size(), 36u);
+    ASSERT_EQ(blurred.size(), 36u);
+    EXPECT_TRUE(unknown_exposure == still);
+    EXPECT_TRUE(blurred.at(0) == still.at(0)) << "no motion known before the second frame";
+    for (uint64_t i = 1; i < 36; i += 5) {
+        size_t differ = 0;
+        for (size_t b = 0; b < still.at(i).size(); ++b)
+            differ += still.at(i)[b] != blurred.at(i)[b];
+        EXPECT_GT(differ, 300u) << "frame " << i;
+    }
+}
+
 TEST(ArPipeline, RecordsRawStreamsPosesLightsAndTheCompositeIntoOneRecording) {
     const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_record.mkv";
     ArPipelineOptions options = sessionPipelineOptions();

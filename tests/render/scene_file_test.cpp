@@ -406,6 +406,15 @@ TEST(SceneFileTest, CameraMatching) {
     ASSERT_TRUE(off.isOk()) << off.status().toString();
     EXPECT_FALSE(off->camera_matching.any());
     expectError("camera_matching:\n  noise: 11\n", 2, "camera_matching.noise");
+    auto blur = parseScene("camera_matching: { motion_blur: { exposure_ms: 8 } }\n", "s.yaml");
+    ASSERT_TRUE(blur.isOk()) << blur.status().toString();
+    EXPECT_FLOAT_EQ(blur->camera_matching.motion_blur_exposure_ms.value_or(-1), 8);
+    EXPECT_FALSE(blur->camera_matching.noise);
+    auto own = parseScene("camera_matching: { motion_blur: {} }\n", "s.yaml");
+    ASSERT_TRUE(own.isOk()) << own.status().toString();
+    EXPECT_EQ(own->camera_matching.motion_blur_exposure_ms, 0.f);  // the frames' own only
+    expectError("camera_matching:\n  motion_blur: { exposure_ms: -1 }\n", 2,
+                "camera_matching.motion_blur.exposure_ms");
     expectError("camera_matching:\n  blur: 1\n", 2, "camera_matching.blur", "unknown field");
 }
 

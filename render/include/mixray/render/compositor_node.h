@@ -186,6 +186,10 @@ private:
     void onSet(const SyncSet& set);
     void run();
     Status composite(const Pending& set);
+    // Motion blur's shutter poses for this colour frame and its pose, from the motion since the
+    // last measured one; remembers this one.
+    std::optional<RenderInputs::ShutterPoses> shutterFor(const FrameMetadata& color,
+                                                         const PoseRecord& pose);
     Result<Renderer*> renderer(int step);
     Status warmUp();
     void drainEnvironmentMaps();
@@ -194,6 +198,10 @@ private:
 
     CompositorOptions options_;
     SceneDescription scene_;
+    // The last composite's measured camera pose and its frame's stamp: the motion the next
+    // frame's motion blur extrapolates (camera_matching.motion_blur).
+    std::optional<Eigen::Isometry3d> last_T_world_cam_;
+    int64_t last_pose_stamp_ns_ = 0;
     CompositeCallback on_composite_;
     std::vector<QualityStep> ladder_;
     std::vector<std::unique_ptr<Renderer>> renderers_;  // per rung, made when first used

@@ -115,6 +115,14 @@ struct RenderInputs {
     // depth_registration->color must be `camera`. Not owned.
     const calibration::DepthRegistration* depth_registration = nullptr;
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    // Motion blur (camera matching): the camera's poses when the shutter opened and closed, the
+    // image's T_world_cam between them; each sample takes a time in the exposure, stratified,
+    // and the pose interpolated at it. Unset: a still camera.
+    struct ShutterPoses {
+        Eigen::Isometry3d T_world_cam_open = Eigen::Isometry3d::Identity();
+        Eigen::Isometry3d T_world_cam_close = Eigen::Isometry3d::Identity();
+    };
+    std::optional<ShutterPoses> shutter;
     // Poses of the anchors objects are bound to, this frame ("marker:3" -> T_world_marker).
     // "world" is implicit. Objects whose anchor is missing are not drawn this frame.
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
@@ -124,6 +132,13 @@ struct RenderInputs {
     // thread (or a signal watcher) ends the frame within about one tile's time. Default: never.
     std::stop_token stop;
 };
+
+// The shutter's poses for a camera moving at constant velocity from T_world_cam_before (a frame
+// `frame_interval_s` earlier) to T_world_cam, whose image is taken mid-exposure over
+// `exposure_s`: the motion between the frames, scaled to the exposure either side of the image.
+RenderInputs::ShutterPoses shutterFromMotion(const Eigen::Isometry3d& T_world_cam_before,
+                                             const Eigen::Isometry3d& T_world_cam,
+                                             double frame_interval_s, double exposure_s);
 
 struct RenderLayers {
     Image composite;       // I_f as rgb8 sRGB, the size of the camera image

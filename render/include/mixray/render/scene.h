@@ -111,8 +111,8 @@ struct Light {
 // fx · diameter · |1/d − 1/focus_distance| pixels across. Plain value.
 struct LensAperture {
     float f_number = 2.8f;
-    float focal_length_mm = 0;    // required: the lens's focal length (not the 35 mm equivalent)
-    float focus_distance_m = 0;   // required: where the lens is focused
+    float focal_length_mm = 0;   // required: the lens's focal length (not the 35 mm equivalent)
+    float focus_distance_m = 0;  // required: where the lens is focused
     SourceLocation where;
 
     float diameter_m() const { return focal_length_mm * 1e-3f / f_number; }
@@ -170,8 +170,12 @@ struct CameraMatching {
     // The camera's noise, measured on each frame's image as a function of brightness, added to
     // the virtual pixels times this (1: as much as the camera has); none: off.
     std::optional<float> noise;
+    // Motion blur over each frame's exposure, from the tracked camera's motion between frames:
+    // the frames' own exposure time where they carry one, else this many milliseconds (0: only
+    // where they carry one); none: off.
+    std::optional<float> motion_blur_exposure_ms;
     SourceLocation where;
-    bool any() const { return noise.has_value(); }
+    bool any() const { return noise.has_value() || motion_blur_exposure_ms.has_value(); }
 };
 
 // A whole scene. Plain value; reentrant.

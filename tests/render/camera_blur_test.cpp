@@ -1,7 +1,9 @@
-// Depth of field from the real lens's aperture (Kán & Kaufmann §3.1; render/src/camera_rays.h):
-// a virtual point away from the plane of focus spreads over the circle of confusion the thin-lens
-// formula gives, a virtual object on the plane of focus renders as through a pinhole, and the
-// screen footprint still holds every pixel the blur reaches.
+// The camera's own blur, sampled with the pixel (render/src/camera_rays.h). Depth of field from
+// the real lens's aperture (Kán & Kaufmann §3.1): a virtual point away from the plane of focus
+// spreads over the circle of confusion the thin-lens formula gives, a virtual object on the
+// plane of focus renders as through a pinhole. Motion blur over the exposure (camera matching):
+// a point smears along the image path the camera's travel or turn gives it. In both, the screen
+// footprint still holds every pixel the blur reaches.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,7 +45,8 @@ SceneDescription smallObjectScene(ShapeType shape, std::optional<LensAperture> l
 
 // `distortion`: OpenCV coefficients of the camera's lens; none: a pinhole.
 RenderLayers renderFromAbove(const SceneDescription& scene, RenderOptions options,
-                             std::vector<double> distortion = {}) {
+                             std::vector<double> distortion = {},
+                             std::optional<RenderInputs::ShutterPoses> shutter = {}) {
     options.threads = 2;
     auto renderer = Renderer::create(scene, options);
     EXPECT_TRUE(renderer.isOk()) << renderer.status().toString();
@@ -57,6 +60,7 @@ RenderLayers renderFromAbove(const SceneDescription& scene, RenderOptions option
     in.camera.distortion = std::move(distortion);
     in.camera_image = camera.view();
     in.T_world_cam = lookDown({0, 0, 2});
+    in.shutter = shutter;
     RenderLayers out;
     EXPECT_TRUE((*renderer)->render(in, out).isOk());
     return out;
@@ -84,11 +88,17 @@ Spread maskSpread(const FloatImage& mask) {
     return s;
 }
 
-TEST(DepthOfField, APointSpreadsOverTheThinLensCircleOfConfusion) {
+// Enough samples for a point's spread to be measured from its mask, and no shadows to trace.
+RenderOptions spreadOptions() {
     RenderOptions options;
     options.samples_per_pixel = 64;
     options.keep_layers = true;
     options.shadows = false;
+    return options;
+}
+
+TEST(DepthOfField, APointSpreadsOverTheThinLensCircleOfConfusion) {
+    const RenderOptions options = spreadOptions();
     const Spread pinhole =
         maskSpread(renderFromAbove(smallObjectScene(ShapeType::kSphere, {}), options).mask);
     // A disk of diameter D has variance D²/16 along an axis; the blurred image is the pinhole
@@ -179,6 +189,81 @@ TEST(DepthOfField, BlurRadiusIsHalfTheLargestCircleOfConfusion) {
     // Far objects: at most the blur of a point at infinity.
     EXPECT_NEAR(lens.blurRadiusPx(500, 100.f), 500 * 0.01 * 1, 1e-4);
     EXPECT_EQ(detail::ThinLens{}.blurRadiusPx(500, 0.1f), 0);
+}
+
+// The exposure of a camera 2 m above the floor that moves by `travel` (world) or turns by
+// `turn_rad` about the image's vertical axis while the shutter is open; the image's pose is the
+// middle one.
+RenderInputs::ShutterPoses shutterPoses(const Eigen::Vector3d& travel, double turn_rad = 0) {
+    RenderInputs::ShutterPoses s;
+    s.T_world_cam_open = lookDown(Eigen::Vector3d(0, 0, 2) - travel / 2);
+    s.T_world_cam_close = lookDown(Eigen::Vector3d(0, 0, 2) + travel / 2);
+    s.T_world_cam_open.linear() =
+        s.T_world_cam_open.linear() * Eigen::AngleAxisd(-turn_rad / 2, Eigen::Vector3d::UnitY());
+    s.T_world_cam_close.linear() =
+        s.T_world_cam_close.linear() * Eigen::AngleAxisd(turn_rad / 2, Eigen::Vector3d::UnitY());
+    return s;
+}
+
+TEST(MotionBlur, APointSmearsAlongTheImagePathOfTheCamerasTravelOrTurn) {
+    const RenderOptions options = spreadOptions();
+    const SceneDescription scene = smallObjectScene(ShapeType::kSphere, {});
+    const Spread still = maskSpread(renderFromAbove(scene, options).mask);
+    // A box blur of length L adds L²/12 to the variance along it, nothing across it. Moving
+    // 2 cm sideways past a point 1 m away: L = 400 · 0.02 / 1 = 8 px; turning by 0.02 rad about
+    // the image's vertical axis near its centre: L = 400 · 0.02 = 8 px, both along x.
+    for (const auto& [name, shutter] :
+         {std::pair{"travel", shutterPoses({0.02, 0, 0})},
+          std::pair{"turn", shutterPoses(Eigen::Vector3d::Zero(), 0.02)}}) {
+        const Spread blurred = maskSpread(renderFromAbove(scene, options, {}, shutter).mask);
+        EXPECT_NEAR(std::sqrt(12 * (blurred.var_x - still.var_x)), 8, 0.05 * 8) << name;
+        EXPECT_NEAR(blurred.var_y, still.var_y, 0.05 * 64 / 12) << name;
+        EXPECT_NEAR(blurred.total, still.total, 0.03 * still.total) << name;
+    }
+}
+
+TEST(MotionBlur, TheScreenFootprintHoldsEveryPixelTheSmearReaches) {
+    // 10 cm of travel and a turn: the object smears over 40 pixels, its shadow on the floor
+    // over 20, both along paths that leave their pinhole tiles.
+    RenderOptions options;
+    options.samples_per_pixel = 16;
+    options.tile_size = 8;
+    const SceneDescription scene = smallObjectScene(ShapeType::kSphere, {});
+    const auto shutter = shutterPoses({0.1, 0.03, 0}, 0.03);
+    options.screen_footprint = false;
+    const Image every_pixel = renderFromAbove(scene, options, {}, shutter).composite;
+    options.screen_footprint = true;
+    const Image footprint = renderFromAbove(scene, options, {}, shutter).composite;
+    int changed = 0;
+    for (int y = 0; y < kHeight; ++y)
+        for (int x = 0; x < kWidth; ++x) {
+            for (int c = 0; c < 3; ++c)
+                EXPECT_EQ(pixelBytes(footprint, x, y)[c], pixelBytes(every_pixel, x, y)[c])
+                    << x << "," << y;
+            changed += pixelBytes(every_pixel, x, y)[2] != 90;
+        }
+    EXPECT_GT(changed, 100);  // the smear is there to be lost
+}
+
+TEST(MotionBlur, ShutterPosesMustBeRigid) {
+    RenderOptions options;
+    options.threads = 1;
+    auto renderer = Renderer::create(smallObjectScene(ShapeType::kSphere, {}), options);
+    ASSERT_TRUE(renderer.isOk());
+    const Image camera = filledImage(kWidth, kHeight, [](int, int) {
+        return std::array<uint8_t, 3>{90, 90, 90};
+    });
+    RenderInputs in;
+    in.camera = calibration::CameraModel::pinhole(kWidth, kHeight, kFocal_px, kFocal_px,
+                                                  (kWidth - 1) / 2.0, (kHeight - 1) / 2.0);
+    in.camera_image = camera.view();
+    in.T_world_cam = lookDown({0, 0, 2});
+    in.shutter = shutterPoses({0.01, 0, 0});
+    in.shutter->T_world_cam_close.linear()(0, 0) = 2;
+    RenderLayers out;
+    const Status status = (*renderer)->render(in, out);
+    EXPECT_EQ(status.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(status.toString().find("T_world_cam_close"), std::string::npos) << status.toString();
 }
 
 }  // namespace
