@@ -42,6 +42,7 @@ TEST(AravisOptions, ParsesEveryOption) {
                                                  {"packet_resend", "false"},
                                                  {"lost_timeout_ms", "500"},
                                                  {"reconnect_ms", "100"},
+                                                 {"heartbeat_timeout_ms", "10000"},
                                                  {"clock_domain", "7"}}));
     ASSERT_TRUE(o) << o.status().toString();
     EXPECT_EQ(o->pixel_format, "BayerRG8");
@@ -59,6 +60,7 @@ TEST(AravisOptions, ParsesEveryOption) {
     EXPECT_FALSE(o->packet_resend);
     EXPECT_EQ(o->lost_timeout_ms, 500);
     EXPECT_EQ(o->reconnect_ms, 100);
+    EXPECT_EQ(o->heartbeat_timeout_ms, 10000);
     EXPECT_EQ(o->clock_domain, 7u);
 }
 

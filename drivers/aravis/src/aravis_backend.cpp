@@ -210,6 +210,25 @@ Result<ArvCamera*> openCamera(const std::string& id) {
     return {ErrorCode::kNotFound, "Aravis camera '" + target + "': " + first_error};
 }
 
+// GevHeartbeatTimeout where the camera's description has it, else the bootstrap register every
+// GigE Vision device has (Aravis's own simulator describes no such feature).
+Status setHeartbeatTimeout(ArvCamera* camera, int64_t timeout_ms) {
+    constexpr guint64 kHeartbeatTimeoutRegister = 0x0938;
+    GError* error = nullptr;
+    ArvDevice* device = arv_camera_get_device(camera);
+    if (arv_camera_is_feature_available(camera, "GevHeartbeatTimeout", nullptr)) {
+        arv_device_set_integer_feature_value(device, "GevHeartbeatTimeout", timeout_ms, &error);
+    } else {
+        arv_device_write_register(device, kHeartbeatTimeoutRegister,
+                                  static_cast<guint32>(timeout_ms), &error);
+    }
+    if (error) {
+        return {ErrorCode::kUnsupported,
+                "heartbeat_timeout_ms " + std::to_string(timeout_ms) + ": " + takeError(error)};
+    }
+    return Status::ok();
+}
+
 // Applies `o` to `camera`. Settings the options leave empty keep the camera's values.
 Status configure(ArvCamera* camera, const AravisOptions& o) {
     GError* error = nullptr;
@@ -281,6 +300,8 @@ Status configure(ArvCamera* camera, const AravisOptions& o) {
         }
         if (error)
             return failed("packet_size");
+        if (o.heartbeat_timeout_ms > 0)
+            MIXRAY_RETURN_IF_ERROR(setHeartbeatTimeout(camera, o.heartbeat_timeout_ms));
     }
     return Status::ok();
 }

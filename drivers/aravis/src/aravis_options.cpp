@@ -169,6 +169,8 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
                                           int64_t{3'600'000}, "100..3600000"));
     MIXRAY_RETURN_IF_ERROR(reader.integer("reconnect_ms", o.reconnect_ms, int64_t{10},
                                           int64_t{3'600'000}, "10..3600000"));
+    MIXRAY_RETURN_IF_ERROR(reader.integer("heartbeat_timeout_ms", o.heartbeat_timeout_ms,
+                                          int64_t{500}, int64_t{600'000}, "500..600000"));
     MIXRAY_RETURN_IF_ERROR(reader.integer("clock_domain", o.clock_domain, ClockDomainId{1},
                                           ClockDomainId{UINT32_MAX},
                                           "an integer >= 1 (0 is the host clock)"));
@@ -176,8 +178,8 @@ Result<AravisOptions> AravisOptions::fromConfig(const DeviceConfig& config) {
     MIXRAY_RETURN_IF_ERROR(reader.leftovers(
         "pixel_format, debayer, exposure_us, gain, fps, width, height, offset_x, offset_y, "
         "trigger, trigger_activation, ptp, buffers, packet_size, packet_resend, lost_timeout_ms, "
-        "reconnect_ms, "
-        "clock_domain, and the rig's <stream>.width, .height, .fps, .format for mono or color"));
+        "reconnect_ms, heartbeat_timeout_ms, clock_domain, and the rig's <stream>.width, .height, "
+        ".fps, .format for mono or color"));
     MIXRAY_RETURN_IF_ERROR(o.validate().withContext("aravis device '" + config.name + "'"));
     return o;
 }

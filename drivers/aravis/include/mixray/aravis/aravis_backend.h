@@ -50,6 +50,10 @@ enum class TriggerMode : uint8_t {
 //   lost_timeout_ms  free run without frames this long probes the camera; an unanswered
 //                  probe declares the connection lost (default 2000)
 //   reconnect_ms   pause between attempts to reopen a lost camera (default 500)
+//   heartbeat_timeout_ms  GigE Vision: how long the camera keeps this host in control
+//                  without a heartbeat (GevHeartbeatTimeout, bootstrap register 0x0938),
+//                  500..600000; longer rides out a stalled or loaded host, shorter notices a
+//                  pulled cable sooner (default: the camera's, typically 3000)
 //   clock_domain   ClockDomainId of the camera clock, >= 1 (default: a hash of the name;
 //                  with ptp, kPtpClockDomain, shared by every PTP camera)
 // A rig file's stream list and stream modes arrive as DeviceConfig::streams (one of "mono",
@@ -75,6 +79,7 @@ struct AravisOptions {
     bool packet_resend = true;
     int64_t lost_timeout_ms = 2000;
     int64_t reconnect_ms = 500;
+    int64_t heartbeat_timeout_ms = 0;  // 0: keep
     ClockDomainId clock_domain = 0;
 
     // kInvalidArgument naming the device and the option for unknown keys and bad values.
