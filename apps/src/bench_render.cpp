@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -32,11 +33,12 @@ struct BenchRenderOptions {
     std::string sizes = "640x480,1280x720";
     int frames = 20;
     int threads = 0;
-    std::string scenes = "teapot,soft,dragons,dof";
+    std::string scenes = "teapot,soft,dragons,dof,shadow-maps";
     bool json = false;
     int repeats = 3;
     std::string shared_data;
-    std::string embree_isas = "best";  // "best", "all" or a comma list of embreeIsas()
+    std::string embree_isas = "best";         // "best", "all" or a comma list of embreeIsas()
+    std::string map_sizes = "512,1024,2048";  // shadow-maps: texels on a side
 };
 
 struct Size {
@@ -70,12 +72,14 @@ Result<std::vector<Size>> parseSizes(const std::string& text) {
 }
 
 Result<std::vector<std::string>> parseScenes(const std::string& text) {
-    static const std::vector<std::string> known = {"teapot", "soft", "dragons", "dof"};
+    static const std::vector<std::string> known = {"teapot", "soft", "dragons", "dof",
+                                                   "shadow-maps"};
     std::vector<std::string> scenes = splitList(text);
     for (const std::string& item : scenes)
         if (std::find(known.begin(), known.end(), item) == known.end())
-            return Status(ErrorCode::kInvalidArgument,
-                          "--scenes: unknown scene '" + item + "' (teapot, soft, dragons, dof)");
+            return Status(
+                ErrorCode::kInvalidArgument,
+                "--scenes: unknown scene '" + item + "' (teapot, soft, dragons, dof, shadow-maps)");
     return scenes;
 }
 
@@ -246,7 +250,7 @@ double processCpuSeconds() {
 }
 
 struct Config {
-    std::string scene;  // teapot, soft, dragons, dof
+    std::string scene;  // teapot, soft, dragons, dof, shadow-maps
     std::string name;
     RenderOptions options;
     LensEffects lens_effects = {};              // added to the scene
@@ -255,9 +259,11 @@ struct Config {
     // Motion blur: the shutter open over this fraction of the time between frames at 30 fps,
     // the orbit's motion between frames scaled to it; 0: none.
     double exposure_fraction = 0;
+    std::optional<ShadowMapSettings> shadow_map = {};  // given to every light
 };
 
-std::vector<Config> configsFor(const std::string& scene, int threads) {
+std::vector<Config> configsFor(const std::string& scene, int threads,
+                               const std::vector<int>& map_sizes) {
     RenderOptions base;
     base.threads = threads;
     base.soft_shadows = SoftShadowMethod::kHard;
@@ -311,6 +317,37 @@ std::vector<Config> configsFor(const std::string& scene, int threads) {
                        {},
                        {},
                        0.5});
+    } else if (scene == "shadow-maps") {
+        // Castro et al.'s Tabela I on the teapot under the spherical lamp: shadow maps of 512²,
+        // 1024² and 2048² (hard, PCF 3x3, VSM; VSM also in their 8-bit path and bit-packed in
+        // RGBA8) against ray-traced soft shadows of the same light, the first row, which the
+        // others' image difference is measured against.
+        RenderOptions soft = base;
+        soft.soft_shadows = SoftShadowMethod::kAdaptive;
+        soft.shadow_samples = 20;
+        out.push_back({scene, "ray-traced soft shadows, 20 samples adaptive (reference)", soft});
+        out.push_back({scene, "ray-traced hard shadows", base});
+        for (int resolution : map_sizes) {
+            const std::string side = std::to_string(resolution) + "²";
+            const auto add = [&](const std::string& what, ShadowMapFilter filter,
+                                 ShadowMapStorage storage) {
+                ShadowMapSettings map;
+                map.resolution = resolution;
+                map.filter = filter;
+                map.storage = storage;
+                Config c{scene, "shadow map " + side + " " + what, base};
+                c.shadow_map = map;
+                out.push_back(c);
+            };
+            add("hard", ShadowMapFilter::kHard, ShadowMapStorage::kFloat);
+            add("PCF 3x3", ShadowMapFilter::kPcf, ShadowMapStorage::kFloat);
+            add("VSM", ShadowMapFilter::kVsm, ShadowMapStorage::kFloat);
+            // Tabela I's two columns: z and z² in 8 bits each, and bit-packed into RGBA.
+            add("VSM, 8-bit z and z² (no bit packing)", ShadowMapFilter::kVsm,
+                ShadowMapStorage::kEightBit);
+            add("VSM, z and z² bit-packed in RGBA8", ShadowMapFilter::kVsm,
+                ShadowMapStorage::kPackedRgba8);
+        }
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -386,7 +423,11 @@ struct Figures {
     int frames = 0;
     double fps = 0;
     double frame_ms = 0;
-    double pixels_traced = 0;                       // per frame
+    double pixels_traced = 0;  // per frame
+    double shadow_map_ms = 0;  // per frame: rendering the shadow maps
+    Image composite;           // the logged frame's, for image differences between rows
+    Image camera;              // the logged frame's camera image
+    std::optional<double> rmse_vs_reference;        // shadow-maps: against the first row, 0..255
     double primary = 0, secondary = 0, shadow = 0;  // rays per frame
     double mrays_per_s = 0;
     // The logged frame: its rays on the renderer and on bare Embree.
@@ -434,6 +475,7 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
             return seconds.status();
         total += seconds->first;
         fig.pixels_traced += static_cast<double>(stats.pixels_traced);
+        fig.shadow_map_ms += 1e3 * stats.shadow_map_seconds;
         fig.primary += static_cast<double>(stats.primary_rays);
         fig.secondary += static_cast<double>(stats.secondary_rays);
         fig.shadow += static_cast<double>(stats.shadow_rays);
@@ -441,7 +483,8 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
     fig.fps = frames / total;
     fig.frame_ms = 1e3 * total / frames;
     fig.mrays_per_s = (fig.primary + fig.secondary + fig.shadow) / total / 1e6;
-    for (double* v : {&fig.pixels_traced, &fig.primary, &fig.secondary, &fig.shadow})
+    for (double* v :
+         {&fig.pixels_traced, &fig.shadow_map_ms, &fig.primary, &fig.secondary, &fig.shadow})
         *v /= frames;
 
     // One frame logged, then the same frame (same pose, same seed: the same rays) timed
@@ -450,6 +493,8 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
     inputs.ray_log = &log;
     MIXRAY_RETURN_IF_ERROR(frame(frames / 2, stats).status());
     inputs.ray_log = nullptr;
+    fig.composite = out.composite;
+    fig.camera = image;
     fig.logged_rays = log.rays.size();
     fig.log_matches_stats = log.count(RayLog::Kind::kPrimary) == stats.primary_rays &&
                             log.count(RayLog::Kind::kSecondary) == stats.secondary_rays &&
@@ -476,6 +521,11 @@ void printFigures(const Figures& f) {
                 f.frame_ms, f.pixels_traced, 100 * f.pixels_traced / pixels);
     std::printf("  rays/frame  primary %9.0f  secondary %9.0f  shadow %9.0f   %7.2f Mrays/s\n",
                 f.primary, f.secondary, f.shadow, f.mrays_per_s);
+    if (f.shadow_map_ms > 0 || f.rmse_vs_reference)
+        std::printf(
+            "  shadow maps %7.2f ms of the frame; composite RMSE vs the reference %.2f "
+            "codes\n",
+            f.shadow_map_ms, f.rmse_vs_reference.value_or(0.0));
     const double bare_ms = 1e3 * f.bare.total();
     std::printf(
         "  same %llu rays, bare Embree %7.2f ms (primary %s %.2f, secondary %s %.2f, shadow %s "
@@ -502,6 +552,9 @@ nlohmann::json toJson(const Figures& f) {
             {"fps", f.fps},
             {"frame_ms", f.frame_ms},
             {"pixels_traced", f.pixels_traced},
+            {"shadow_map_ms", f.shadow_map_ms},
+            {"rmse_vs_reference",
+             f.rmse_vs_reference ? nlohmann::json(*f.rmse_vs_reference) : nlohmann::json()},
             {"rays_per_frame",
              {{"primary", f.primary}, {"secondary", f.secondary}, {"shadow", f.shadow}}},
             {"mrays_per_s", f.mrays_per_s},
@@ -546,6 +599,26 @@ Result<std::vector<std::string>> parseIsas(const std::string& text) {
     return isas;
 }
 
+// Root mean square difference of two rgb8 composites of one frame, in codes, over the pixels
+// where either differs from the camera image: what the virtual content changed.
+double rmse(const Image& a, const Image& b, const Image& camera) {
+    const auto x = a.bytes(), y = b.bytes(), c = camera.bytes();
+    if (x.size() != y.size() || x.size() != c.size() || x.empty())
+        return std::numeric_limits<double>::quiet_NaN();
+    double sum = 0;
+    size_t n = 0;
+    for (size_t i = 0; i + 2 < x.size(); i += 3) {
+        if (std::equal(&x[i], &x[i] + 3, &c[i]) && std::equal(&y[i], &y[i] + 3, &c[i]))
+            continue;
+        for (size_t k = i; k < i + 3; ++k) {
+            const double d = static_cast<double>(x[k]) - static_cast<double>(y[k]);
+            sum += d * d;
+        }
+        n += 3;
+    }
+    return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+}
+
 int runBenchRender(BenchRenderOptions options) {
     auto sizes = parseSizes(options.sizes);
     if (!sizes)
@@ -556,6 +629,16 @@ int runBenchRender(BenchRenderOptions options) {
     auto scenes = parseScenes(options.scenes);
     if (!scenes)
         return fail("bench render", scenes.status());
+    std::vector<int> map_sizes;
+    for (const std::string& item : splitList(options.map_sizes)) {
+        char* end = nullptr;
+        const long side = std::strtol(item.c_str(), &end, 10);
+        if (item.empty() || *end != '\0' || side < 16 || side > 8192)
+            return fail("bench render",
+                        {ErrorCode::kInvalidArgument,
+                         "--map-sizes: '" + item + "' is not a side of 16..8192 texels"});
+        map_sizes.push_back(static_cast<int>(side));
+    }
     const fs::path shared =
         options.shared_data.empty() ? defaultSharedDataDir() : fs::path(options.shared_data);
     const unsigned threads = options.threads > 0
@@ -585,20 +668,26 @@ int runBenchRender(BenchRenderOptions options) {
         }
         Result<SceneDescription> scene =
             name == "dragons" ? dragonScene(shared)
-                              : Result<SceneDescription>(teapotScene(shared, name == "soft"));
+                              : Result<SceneDescription>(
+                                    teapotScene(shared, name == "soft" || name == "shadow-maps"));
         if (!scene)
             return fail("bench render", scene.status());
         std::vector<Config> configs;
         for (const std::string& isa : *isas) {
-            for (Config config : configsFor(name, options.threads)) {
+            for (Config config : configsFor(name, options.threads, map_sizes)) {
                 config.options.embree_isa = isa;
                 if (!isa.empty())
                     config.name += " [isa=" + isa + "]";
                 configs.push_back(std::move(config));
             }
         }
+        // shadow-maps: each size's first row's composite, which the others are compared with.
+        std::map<std::pair<int, int>, Image> references;
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
+            if (config.shadow_map)
+                for (Light& light : with_lens.lights)
+                    light.shadow_map = config.shadow_map;
             with_lens.lens_effects = config.lens_effects;
             with_lens.camera_matching = config.camera_matching;
             if (config.aperture) {
@@ -613,6 +702,14 @@ int runBenchRender(BenchRenderOptions options) {
                 auto figures = benchOne(**renderer, config, size, options.frames, options.repeats);
                 if (!figures)
                     return fail("bench render", figures.status());
+                if (name == "shadow-maps") {
+                    const auto key = std::pair{size.width, size.height};
+                    if (!references.contains(key))
+                        references[key] = figures->composite;
+                    else
+                        figures->rmse_vs_reference =
+                            rmse(figures->composite, references[key], figures->camera);
+                }
                 if (options.json) {
                     results.push_back(toJson(*figures));
                 } else {
@@ -633,7 +730,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
     auto* render = bench.add_subcommand(
         "render",
         "Frames/s and rays/s of the Embree renderer on RT²AR's scenes (teapot on a chessboard "
-        "table; soft shadows; two 1.1M-triangle dragons; depth of field), against bare Embree "
+        "table; soft shadows; two 1.1M-triangle dragons; depth of field; shadow maps), against "
+        "bare Embree "
         "tracing the same "
         "rays on the same BVH in the same run");
     auto options = std::make_shared<BenchRenderOptions>();
@@ -646,7 +744,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         ->check(CLI::Range(0, 1024))
         ->capture_default_str();
     render
-        ->add_option("--scenes", options->scenes, "Scenes: teapot, soft, dragons, dof (comma list)")
+        ->add_option("--scenes", options->scenes,
+                     "Scenes: teapot, soft, dragons, dof, shadow-maps (comma list)")
         ->capture_default_str();
     render
         ->add_option("--repeats", options->repeats,
@@ -660,6 +759,10 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
                      "Embree kernels: best (Embree's choice), all (every instruction set this "
                      "machine offers, one after another) or a comma list of sse2, sse4.2, avx, "
                      "avx2, avx512")
+        ->capture_default_str();
+    render
+        ->add_option("--map-sizes", options->map_sizes,
+                     "shadow-maps: shadow map sides in texels (comma list, 16..8192)")
         ->capture_default_str();
     render->add_option("--shared-data", options->shared_data,
                        "Real third-party data (default: ../shared/data beside the source tree)");

@@ -11,6 +11,7 @@
 #include <chrono>
 
 #include "bare_trace.h"
+#include "shadow_map.h"
 
 namespace mixray::render::detail {
 
@@ -54,6 +55,26 @@ Status EmbreeRenderer::setLights(const std::vector<Light>& lights) {
         return loaded.status();
     lights_ = std::move(loaded).value();
     return Status::ok();
+}
+
+double EmbreeRenderer::renderShadowMaps(const Frame& f) {
+    const auto start = std::chrono::steady_clock::now();
+    bool rendered = false;
+    for (LightData& light : lights_) {
+        // Last frame's map lends its memory to this frame's.
+        std::unique_ptr<ShadowMap> recycled;
+        if (light.shadow_map && light.shadow_map.use_count() == 1)
+            recycled = std::make_unique<ShadowMap>(std::move(*light.shadow_map));
+        light.shadow_map.reset();
+        if (light.active && light.light.shadow_map && options_.shadows) {
+            light.shadow_map = ShadowMap::render(*light.light.shadow_map, light, f.virtual_bounds,
+                                                 *scene_, objects_, std::move(recycled));
+            rendered = true;
+        }
+    }
+    return rendered
+               ? std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+               : 0.0;
 }
 
 BareTraceTimes EmbreeRenderer::traceBare(const RayLog& log, int repeats) const {
@@ -201,7 +222,9 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     arena.initialize();
     if (scratch_.size() < static_cast<size_t>(arena.max_concurrency()))
         scratch_.resize(static_cast<size_t>(arena.max_concurrency()));
+    double shadow_map_seconds = 0;
     arena.execute([&] {
+        shadow_map_seconds = renderShadowMaps(f);
         if (use_mask) {
             footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts, tile_mask_);
             // The footprint is of the image pose's pinhole rays; through the lens content
@@ -246,6 +269,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         stats->primary_rays = primary;
         stats->secondary_rays = secondary;
         stats->shadow_rays = shadow;
+        stats->shadow_map_seconds = shadow_map_seconds;
         stats->seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }

@@ -61,6 +61,9 @@ private:
     // pinhole image shows it.
     float nearestInfluencedDepth(const Frame& f) const;
     float spreadRadiusPx(const Frame& f, float nearest_m) const;
+    // The lights' shadow maps for this frame (Light::shadow_map), inside the render arena; the
+    // seconds they took, 0 when no light asks for one.
+    double renderShadowMaps(const Frame& f);
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;

@@ -50,6 +50,8 @@ struct ObjectData {
     Eigen::Vector3f t_world_object = Eigen::Vector3f::Zero();
 };
 
+class ShadowMap;
+
 struct LightData {
     Light light;
     EnvironmentMap environment;  // kEnvironment only
@@ -57,6 +59,8 @@ struct LightData {
     Eigen::Vector3f position_world = Eigen::Vector3f::Zero();
     Eigen::Vector3f direction_world{0, 0, -1};  // unit, travel direction
     Eigen::Matrix3f R_environment_world = Eigen::Matrix3f::Identity();
+    // Light::shadow_map: this frame's maps; null where they cannot cover the casters.
+    std::shared_ptr<ShadowMap> shadow_map;
 };
 
 // Embree's `isa=` values RenderOptions::embree_isa may name, narrowest first.

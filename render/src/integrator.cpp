@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 
+#include "shadow_map.h"
+
 namespace mixray::render::detail {
 namespace {
 
@@ -118,7 +120,12 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
             brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
         }
         const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
-        Pair visible = shadows_.visibility(*light, origin, wi, dist, mode, st);
+        std::optional<Pair> from_map;
+        if (light->shadow_map && options_.shadows)
+            from_map = light->shadow_map->visibility(
+                s.p, s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+        Pair visible =
+            from_map ? *from_map : shadows_.visibility(*light, origin, wi, dist, mode, st);
         // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
         if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
             shadows_.depthMapOccludes(f, origin, wi, dist)) {

@@ -101,9 +101,26 @@ Status validateShape(const SceneObject& o, const std::string& path) {
     return Status::ok();
 }
 
+Status validateShadowMap(const ShadowMapSettings& m, const std::string& path) {
+    if (m.resolution < 16 || m.resolution > 8192)
+        return corrupt(m.where, path + ".resolution", "must be 16..8192 texels");
+    if (m.pcf_kernel < 1 || m.pcf_kernel > 15)
+        return corrupt(m.where, path + ".kernel", "must be 1..15 taps");
+    if (!(std::isfinite(m.vsm_blur_texels) && m.vsm_blur_texels >= 0 && m.vsm_blur_texels <= 32))
+        return corrupt(m.where, path + ".blur_texels", "must be 0..32");
+    if (!(m.bleeding_reduction >= 0 && m.bleeding_reduction < 1))
+        return corrupt(m.where, path + ".bleeding_reduction", "must be in [0, 1)");
+    return Status::ok();
+}
+
 Status validateLight(const Light& l, const std::string& path) {
     if (!isValidAnchor(l.anchor))
         return corrupt(l.where, path + ".anchor", "expected world or marker:<id>");
+    if (l.shadow_map) {
+        if (l.type == LightType::kEnvironment)
+            return corrupt(l.where, path + ".shadow_map", "an environment light has no shadow map");
+        MIXRAY_RETURN_IF_ERROR(validateShadowMap(*l.shadow_map, path + ".shadow_map"));
+    }
     switch (l.type) {
         case LightType::kSphere:
             if (!(std::isfinite(l.radius) && l.radius > 0))

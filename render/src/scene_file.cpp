@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -82,7 +83,7 @@ constexpr std::array<std::string_view, 6> kObjectKeys = {"name",     "role",   "
                                                          "material", "anchor", "pose"};
 constexpr std::array<std::string_view, 5> kShapeKeys = {"sphere", "box", "plane", "disk", "mesh"};
 constexpr std::array<std::string_view, 2> kRotationKeys = {"rotation_deg", "quaternion"};
-constexpr std::array<std::string_view, 12> kLightKeys = {"name",
+constexpr std::array<std::string_view, 13> kLightKeys = {"name",
                                                          "type",
                                                          "anchor",
                                                          "position",
@@ -93,7 +94,12 @@ constexpr std::array<std::string_view, 12> kLightKeys = {"name",
                                                          "file",
                                                          "scale",
                                                          "mirror_lower_hemisphere",
-                                                         "rotation"};
+                                                         "rotation",
+                                                         "shadow_map"};
+constexpr std::array<std::string_view, 6> kShadowMapKeys = {
+    "filter", "resolution", "kernel", "blur_texels", "bleeding_reduction", "storage"};
+constexpr std::array<std::string_view, 3> kShadowMapFilters = {"hard", "pcf", "vsm"};
+constexpr std::array<std::string_view, 3> kShadowMapStorages = {"float", "8bit", "rgba8"};
 constexpr std::array<std::string_view, 3> kCameraKeys = {"pose", "model", "aperture"};
 constexpr std::array<std::string_view, 3> kApertureKeys = {"f_number", "focal_length_mm",
                                                            "focus_distance_m"};
@@ -118,9 +124,9 @@ const std::vector<TypeKeys>& materialTypes() {
 
 const std::vector<TypeKeys>& lightTypes() {
     static const std::vector<TypeKeys> types = {
-        {"point", {"name", "type", "anchor", "position", "intensity"}},
-        {"sphere", {"name", "type", "anchor", "position", "radius", "intensity"}},
-        {"directional", {"name", "type", "anchor", "direction", "irradiance"}},
+        {"point", {"name", "type", "anchor", "position", "intensity", "shadow_map"}},
+        {"sphere", {"name", "type", "anchor", "position", "radius", "intensity", "shadow_map"}},
+        {"directional", {"name", "type", "anchor", "direction", "irradiance", "shadow_map"}},
         {"environment", {"name", "type", "file", "scale", "mirror_lower_hemisphere", "rotation"}},
     };
     return types;
@@ -140,6 +146,7 @@ private:
     Result<Shape> parseShape(const Item& item);
     Status parseLight(const Item& item, SceneDescription& scene,
                       std::map<std::string, SourceLocation>& names);
+    Result<ShadowMapSettings> parseShadowMap(const Item& item);
     Status parseCamera(const Item& item, SceneDescription& scene);
     Status parseLensEffects(const Item& item, SceneDescription& scene);
 
@@ -150,6 +157,8 @@ private:
     Result<std::string> name(const Item& item);
     Result<std::string> anchor(const Item& item);
     Result<float> scalar(const Item& item, double min, double max, bool min_exclusive);
+    // The index in `names` of the item's word.
+    Result<size_t> oneOf(const Item& item, std::span<const std::string_view> names);
     // A linear RGB colour: a number (grey) or [r, g, b], each in [min, max].
     Result<Rgb> colour(const Item& item, double min, double max);
     Result<Eigen::Vector3d> vector3(const Item& item, double limit) {
@@ -182,6 +191,19 @@ Result<float> SceneParser::scalar(const Item& item, double min, double max, bool
     if (!v)
         return v.status();
     return static_cast<float>(*v);
+}
+
+Result<size_t> SceneParser::oneOf(const Item& item, std::span<const std::string_view> names) {
+    if (item.node.IsScalar()) {
+        for (size_t i = 0; i < names.size(); ++i)
+            if (item.node.Scalar() == names[i])
+                return i;
+        std::string what = "expected one of " + yaml::joinNames(names);
+        if (auto guess = yaml::closestName(item.node.Scalar(), names); !guess.empty())
+            what += " (did you mean " + std::string(guess) + "?)";
+        return r_.fail(item, what + ", got " + yaml::quote(item.node.Scalar()));
+    }
+    return r_.expected(item, "one of " + yaml::joinNames(names));
 }
 
 Result<Rgb> SceneParser::colour(const Item& item, double min, double max) {
@@ -534,10 +556,52 @@ Status SceneParser::parseLight(const Item& item, SceneDescription& scene,
             if (!q)
                 return q.status();
             light.T_world_environment.linear() = q->toRotationMatrix();
+        } else if (f.key == "shadow_map") {
+            auto m = parseShadowMap(v);
+            if (!m)
+                return m.status();
+            light.shadow_map = *m;
         }
     }
     scene.lights.push_back(std::move(light));
     return Status::ok();
+}
+
+Result<ShadowMapSettings> SceneParser::parseShadowMap(const Item& item) {
+    auto fields = r_.readMap(item, kShadowMapKeys,
+                             "a shadow map mapping with filter: (hard, pcf or vsm) and its "
+                             "settings");
+    if (!fields)
+        return fields.status();
+    ShadowMapSettings m;
+    m.where = item.where;
+    for (const auto& f : *fields) {
+        const Item& v = f.item;
+        if (f.key == "filter" || f.key == "storage") {
+            const bool filter = f.key == "filter";
+            auto i =
+                oneOf(v, filter ? std::span(kShadowMapFilters) : std::span(kShadowMapStorages));
+            if (!i)
+                return i.status();
+            if (filter)
+                m.filter = static_cast<ShadowMapFilter>(*i);
+            else
+                m.storage = static_cast<ShadowMapStorage>(*i);
+        } else if (f.key == "resolution" || f.key == "kernel") {
+            const bool resolution = f.key == "resolution";
+            auto n = resolution ? r_.integer(v, 16, 8192) : r_.integer(v, 1, 15);
+            if (!n)
+                return n.status();
+            (resolution ? m.resolution : m.pcf_kernel) = static_cast<int>(*n);
+        } else {
+            const bool blur = f.key == "blur_texels";
+            auto x = blur ? scalar(v, 0, 32, false) : scalar(v, 0, 0.99, false);
+            if (!x)
+                return x.status();
+            (blur ? m.vsm_blur_texels : m.bleeding_reduction) = *x;
+        }
+    }
+    return m;
 }
 
 Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {

@@ -356,8 +356,9 @@ TEST(Cli, BenchDriversSaysWhichPeerIsMissing) {
 }
 
 TEST(Cli, BenchRenderRejectsBadArguments) {
-    for (const char* args : {"--size 64by48", "--size 64x48,8x8", "--size ''", "--scenes nope",
-                             "--scenes teapot,", "--frames 0", "--threads -1", "--repeats 0"}) {
+    for (const char* args :
+         {"--size 64by48", "--size 64x48,8x8", "--size ''", "--scenes nope", "--scenes teapot,",
+          "--frames 0", "--threads -1", "--repeats 0", "--map-sizes 8", "--map-sizes 512,x"}) {
         CliRun run = mixray(std::string("bench render ") + args);
         EXPECT_EQ(run.exit_code, 2) << args << "\n" << run.output;
     }
@@ -418,6 +419,35 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     EXPECT_EQ(figures[3]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
     // Nor does camera matching.
     EXPECT_EQ(figures[4]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
+}
+
+// Castro et al.'s Tabela I: ray-traced soft shadows (the reference), hard shadows, then per map
+// size the hard, PCF, packed-PCF, VSM and 8-bit VSM maps, each with its map time and its
+// composite's difference from the reference.
+TEST(Cli, BenchRenderComparesShadowMapsWithRayTracedShadows) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
+    CliRun json = mixray(
+        "bench render --size 96x72 --frames 1 --repeats 1 --scenes shadow-maps --map-sizes "
+        "64,128 --json");
+    ASSERT_EQ(json.exit_code, 0) << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 12u);
+    EXPECT_EQ(figures[0]["rmse_vs_reference"], nullptr);
+    EXPECT_EQ(figures[0]["shadow_map_ms"].get<double>(), 0);
+    EXPECT_GT(figures[0]["rays_per_frame"]["shadow"].get<double>(), 0);
+    for (size_t i = 2; i < figures.size(); ++i) {
+        SCOPED_TRACE(figures[i]["config"].get<std::string>());
+        EXPECT_NE(figures[i]["config"].get<std::string>().find("shadow map "), std::string::npos);
+        EXPECT_GT(figures[i]["shadow_map_ms"].get<double>(), 0);
+        // The map answers the shading points it covers: shadow rays are left only outside it
+        // and towards the camera (real surfaces seen through glass).
+        EXPECT_LT(figures[i]["rays_per_frame"]["shadow"].get<double>(),
+                  figures[1]["rays_per_frame"]["shadow"].get<double>());
+        const double rmse = figures[i]["rmse_vs_reference"].get<double>();
+        EXPECT_GE(rmse, 0);
+        EXPECT_LT(rmse, 40);
+    }
 }
 
 }  // namespace

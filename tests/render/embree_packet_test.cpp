@@ -9,6 +9,7 @@
 #include <random>
 
 #include "embree_scene.h"
+#include "embree_test_util.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/renderer.h"
 #include "watchdog.h"
@@ -22,26 +23,8 @@ using Eigen::Vector3f;
 // within the test's ctest timeout.
 constexpr std::chrono::seconds kPerIsaLimit{30};
 
-ObjectData floorObject(float side) {
-    Shape plane;
-    plane.type = ShapeType::kPlane;
-    plane.size = {side, side, 0};
-    ObjectData floor;
-    floor.name = "floor";
-    floor.role = ObjectRole::kGhost;
-    floor.shape = ShapeType::kPlane;
-    floor.meshes.push_back(makeShapeMesh(plane));
-    return floor;
-}
-
-ObjectData ballObject(float radius, const Vector3f& centre) {
-    ObjectData ball;
-    ball.name = "ball";
-    ball.shape = ShapeType::kSphere;
-    ball.sphere_radius = radius;
-    ball.t_world_object = centre;
-    return ball;
-}
+using test::ballObject;
+using test::floorObject;
 
 // Shadow rays from a grid of points on the floor towards a spherical light.
 struct ShadowSetup {
@@ -90,7 +73,7 @@ struct Mismatches {
 // towards points on a spherical light, tnear 0, tfar just short of the light; camera packets of
 // 4x4 pixels from above. Each lane against the single-ray call.
 Mismatches compareWithSingleRays(EmbreeScene& scene, const ShadowSetup& setup,
-                                 test::WatchdogStage& stage) {
+                                 mixray::test::WatchdogStage& stage) {
     Mismatches m;
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> uniform(0.f, 1.f);
@@ -186,27 +169,28 @@ TEST(EmbreePackets, AgreeWithSingleRaysOnEveryIsa) {
         for (const auto& [name, make] :
              {std::pair{"floating ball", &floatingBall}, std::pair{"tabletop", &tabletop}}) {
             SCOPED_TRACE("isa=" + isa + ", " + name);
-            test::runWithin(kPerIsaLimit, "Embree packets on isa=" + isa + " (" + name + ")",
-                            [&, make = make](test::WatchdogStage& stage) {
-                                ShadowSetup setup = make();
-                                for (ObjectData& o : setup.objects)
-                                    o.active = true;
-                                stage.set("building the scene");
-                                auto built = EmbreeScene::build(setup.objects, isa);
-                                ASSERT_TRUE(built) << built.status().toString();
-                                EmbreeScene& scene = **built;
-                                ASSERT_TRUE(scene.setPoses(setup.objects));
-                                const Mismatches m = compareWithSingleRays(scene, setup, stage);
-                                // Packet and single-ray kernels may differ on a ray that grazes an
-                                // edge; anything more is a wrong answer.
-                                EXPECT_LE(m.shadow, m.shadow_rays / 1000)
-                                    << m.shadow << " of " << m.shadow_rays << " shadow rays";
-                                EXPECT_LE(m.camera, m.camera_rays / 1000)
-                                    << m.camera << " of " << m.camera_rays << " camera rays";
-                                std::printf("isa=%s, %s: %d/%d shadow, %d/%d camera lanes differ\n",
-                                            isa.c_str(), name, m.shadow, m.shadow_rays, m.camera,
-                                            m.camera_rays);
-                            });
+            mixray::test::runWithin(
+                kPerIsaLimit, "Embree packets on isa=" + isa + " (" + name + ")",
+                [&, make = make](mixray::test::WatchdogStage& stage) {
+                    ShadowSetup setup = make();
+                    for (ObjectData& o : setup.objects)
+                        o.active = true;
+                    stage.set("building the scene");
+                    auto built = EmbreeScene::build(setup.objects, isa);
+                    ASSERT_TRUE(built) << built.status().toString();
+                    EmbreeScene& scene = **built;
+                    ASSERT_TRUE(scene.setPoses(setup.objects));
+                    const Mismatches m = compareWithSingleRays(scene, setup, stage);
+                    // Packet and single-ray kernels may differ on a ray that grazes an
+                    // edge; anything more is a wrong answer.
+                    EXPECT_LE(m.shadow, m.shadow_rays / 1000)
+                        << m.shadow << " of " << m.shadow_rays << " shadow rays";
+                    EXPECT_LE(m.camera, m.camera_rays / 1000)
+                        << m.camera << " of " << m.camera_rays << " camera rays";
+                    std::printf("isa=%s, %s: %d/%d shadow, %d/%d camera lanes differ\n",
+                                isa.c_str(), name, m.shadow, m.shadow_rays, m.camera,
+                                m.camera_rays);
+                });
         }
     }
 }

@@ -437,6 +437,49 @@ TEST(SceneFileTest, MalformedFiles) {
               std::string::npos);
 }
 
+// A light's shadow map: every setting read, and bad ones named with where they are.
+TEST(SceneFileTest, ShadowMapSettings) {
+    auto scene = parseScene(
+        "lights:\n  - type: point\n    position: [0, 0, 1]\n    shadow_map:\n"
+        "      filter: pcf\n      resolution: 512\n      kernel: 5\n      storage: rgba8\n"
+        "  - type: directional\n    direction: [0, 0, -1]\n    shadow_map: { filter: hard, "
+        "storage: 8bit }\n",
+        "scene.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    ASSERT_TRUE(scene->lights[0].shadow_map);
+    const ShadowMapSettings& pcf = *scene->lights[0].shadow_map;
+    EXPECT_EQ(pcf.filter, ShadowMapFilter::kPcf);
+    EXPECT_EQ(pcf.resolution, 512);
+    EXPECT_EQ(pcf.pcf_kernel, 5);
+    EXPECT_EQ(pcf.storage, ShadowMapStorage::kPackedRgba8);
+    EXPECT_EQ(scene->lights[1].shadow_map->filter, ShadowMapFilter::kHard);
+    EXPECT_EQ(scene->lights[1].shadow_map->storage, ShadowMapStorage::kEightBit);
+    const std::vector<std::pair<std::string, std::string>> bad = {
+        {"    shadow_map: { filter: pfc }\n", "expected one of hard, pcf, vsm (did you mean pcf?)"},
+        {"    shadow_map: { resolution: 8 }\n", "resolution"},
+        {"    shadow_map: { kernel: 16 }\n", "kernel"},
+        {"    shadow_map: { bleeding_reduction: 1 }\n", "bleeding_reduction"},
+        {"    shadow_map: { storage: 16bit }\n", "expected one of float, 8bit, rgba8"},
+        {"    shadow_map: { blur: 2 }\n", "blur"},
+    };
+    for (const auto& [text, message] : bad) {
+        SCOPED_TRACE(text);
+        auto refused =
+            parseScene("lights:\n  - type: point\n    position: [0, 0, 1]\n" + text, "s.yaml");
+        ASSERT_FALSE(refused.isOk());
+        EXPECT_NE(refused.status().message().find(message), std::string::npos)
+            << refused.status().toString();
+        EXPECT_NE(refused.status().message().find("s.yaml:4"), std::string::npos)
+            << refused.status().toString();
+    }
+    auto environment = parseScene(
+        "lights:\n  - type: environment\n    file: e.hdr\n    shadow_map: {}\n", "s.yaml");
+    ASSERT_FALSE(environment.isOk());
+    EXPECT_NE(environment.status().message().find("does not apply to a environment light"),
+              std::string::npos)
+        << environment.status().toString();
+}
+
 // The complete example in docs/scene-format.md parses, and the messages it shows are real.
 TEST(SceneFileTest, DocumentationExamples) {
     std::ifstream in(test::sourceDir() / "docs" / "scene-format.md");
@@ -460,6 +503,10 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_FLOAT_EQ(scene->lens_effects.glare->attenuation, 0.9f);
     ASSERT_TRUE(scene->camera_matching.noise);
     EXPECT_FLOAT_EQ(*scene->camera_matching.noise, 1.0f);
+    ASSERT_TRUE(scene->lights[2].shadow_map);
+    EXPECT_EQ(scene->lights[2].shadow_map->filter, ShadowMapFilter::kVsm);
+    EXPECT_EQ(scene->lights[2].shadow_map->resolution, 1024);
+    EXPECT_FALSE(scene->lights[0].shadow_map);
 
     const std::string h = kHeader;
     const std::vector<std::string> inputs = {

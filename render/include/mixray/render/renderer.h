@@ -154,6 +154,7 @@ struct RenderStats {
     uint64_t shadow_rays = 0;  // occlusion rays: towards lights, and towards the camera for
                                // real surfaces seen through virtual ones
     double seconds = 0;
+    double shadow_map_seconds = 0;  // of `seconds`: rendering the lights' shadow maps
     uint64_t rays() const { return primary_rays + secondary_rays + shadow_rays; }
 };
 

@@ -87,6 +87,31 @@ enum class LightType : uint8_t {
     kEnvironment,  // equirectangular environment map around the scene
 };
 
+// Castro et al. §IV: a light's shadows looked up in depth maps rendered from the light (one of
+// the mixed scene, one of the real scene's ghosts) instead of traced per shading point. The map
+// covers where the virtual objects can shadow; shading points outside it trace rays.
+enum class ShadowMapFilter : uint8_t {
+    kHard,  // the nearest texel's depth test
+    kPcf,   // percentage-closer filtering: pcf_kernel² bilinear depth tests averaged
+    kVsm,   // variance shadow map: blurred depth moments, Chebyshev's bound
+};
+
+enum class ShadowMapStorage : uint8_t {
+    kFloat,       // 32-bit float per value
+    kEightBit,    // their 8-bit path: z (and z² for kVsm) in 8 bits each over the depth range
+    kPackedRgba8  // their bit-packed RGBA texel: z in 32 bits (kVsm: z and z² in 16 bits each)
+};
+
+struct ShadowMapSettings {
+    ShadowMapFilter filter = ShadowMapFilter::kPcf;
+    int resolution = 1024;            // texels on a side
+    int pcf_kernel = 3;               // kPcf: taps on a side, 1..15
+    float vsm_blur_texels = 2;        // kVsm: σ of the moments' separable Gaussian blur
+    float bleeding_reduction = 0.2f;  // kVsm: bounds below this read as full shadow, [0, 1)
+    ShadowMapStorage storage = ShadowMapStorage::kFloat;
+    SourceLocation where;
+};
+
 struct Light {
     std::string name;
     LightType type = LightType::kPoint;
@@ -102,6 +127,9 @@ struct Light {
     float environment_scale = 1;  // multiplies the map's radiance
     Eigen::Isometry3d T_world_environment = Eigen::Isometry3d::Identity();
     bool mirror_lower_hemisphere = false;  // fill the lower half from the upper (fish-eye maps)
+    // Point, sphere and directional lights: shadows from a shadow map; empty: ray-traced
+    // (RenderOptions::soft_shadows).
+    std::optional<ShadowMapSettings> shadow_map;
     SourceLocation where;
 };
 
