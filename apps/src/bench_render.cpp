@@ -33,7 +33,7 @@ struct BenchRenderOptions {
     std::string sizes = "640x480,1280x720";
     int frames = 20;
     int threads = 0;
-    std::string scenes = "teapot,soft,dragons,dof,shadow-maps";
+    std::string scenes = "teapot,soft,dragons,dof,shadow-maps,caustics";
     bool json = false;
     int repeats = 3;
     std::string shared_data;
@@ -72,14 +72,14 @@ Result<std::vector<Size>> parseSizes(const std::string& text) {
 }
 
 Result<std::vector<std::string>> parseScenes(const std::string& text) {
-    static const std::vector<std::string> known = {"teapot", "soft", "dragons", "dof",
-                                                   "shadow-maps"};
+    static const std::vector<std::string> known = {"teapot", "soft",        "dragons",
+                                                   "dof",    "shadow-maps", "caustics"};
     std::vector<std::string> scenes = splitList(text);
     for (const std::string& item : scenes)
         if (std::find(known.begin(), known.end(), item) == known.end())
-            return Status(
-                ErrorCode::kInvalidArgument,
-                "--scenes: unknown scene '" + item + "' (teapot, soft, dragons, dof, shadow-maps)");
+            return Status(ErrorCode::kInvalidArgument,
+                          "--scenes: unknown scene '" + item +
+                              "' (teapot, soft, dragons, dof, shadow-maps, caustics)");
     return scenes;
 }
 
@@ -243,6 +243,70 @@ Result<SceneDescription> dragonScene(const fs::path& shared) {
     return scene;
 }
 
+// A torus of tube radius `tube` around a circle of radius `ring` in z = 0, `around` x `across`
+// quads: Kán & Kaufmann's metal ring (9K triangles).
+std::shared_ptr<TriangleMesh> torusMesh(float ring, float tube, int around, int across) {
+    auto mesh = std::make_shared<TriangleMesh>();
+    for (int i = 0; i < around; ++i) {
+        const float u =
+            2 * static_cast<float>(M_PI) * static_cast<float>(i) / static_cast<float>(around);
+        for (int j = 0; j < across; ++j) {
+            const float v =
+                2 * static_cast<float>(M_PI) * static_cast<float>(j) / static_cast<float>(across);
+            const Eigen::Vector3f centre(ring * std::cos(u), ring * std::sin(u), 0);
+            const Eigen::Vector3f n(std::cos(v) * std::cos(u), std::cos(v) * std::sin(u),
+                                    std::sin(v));
+            mesh->positions.push_back(centre + tube * n);
+            mesh->normals.push_back(n);
+        }
+    }
+    const auto index = [&](int i, int j) {
+        return static_cast<uint32_t>((i % around) * across + (j % across));
+    };
+    for (int i = 0; i < around; ++i)
+        for (int j = 0; j < across; ++j) {
+            mesh->triangles.push_back({index(i, j), index(i + 1, j), index(i + 1, j + 1)});
+            mesh->triangles.push_back({index(i, j), index(i + 1, j + 1), index(i, j + 1)});
+        }
+    return mesh;
+}
+
+// Kán & Kaufmann's Table 1 scenes as far as their models exist here, on the chessboard table
+// under the point lamp: a metal ring (a torus of 9 216 triangles built in code), a glass sphere
+// (their Figures 6 and 8) and a glass dragon (photon_dragon_100k.obj; theirs had 201K
+// triangles). Their glass Buddha is not in ../shared/data.
+Result<SceneDescription> causticScene(const fs::path& shared, const std::string& generator) {
+    SceneDescription scene = teapotScene(shared, false);
+    std::erase_if(scene.objects, [](const SceneObject& o) { return o.name == "teapot"; });
+    SceneObject object;
+    object.name = generator;
+    Material material;
+    material.name = generator;
+    if (generator == "ring") {
+        material.type = MaterialType::kMetal;
+        material.f0 = {0.95f, 0.64f, 0.54f};  // copper-gold, as their ring
+        object.shape.type = ShapeType::kMesh;
+        object.shape.mesh_data = torusMesh(0.05f, 0.006f, 96, 48);
+        object.shape.mesh = "torus (built in code)";
+        object.T_anchor_object = pose(kBoardCentre + Eigen::Vector3d(0, 0, 0.006), 0, 0);
+    } else if (generator == "sphere") {
+        material.type = MaterialType::kGlass;
+        object.shape.type = ShapeType::kSphere;
+        object.shape.radius = 0.04f;
+        object.T_anchor_object = pose(kBoardCentre + Eigen::Vector3d(0, 0, 0.04), 0, 0);
+    } else {
+        material.type = MaterialType::kGlass;
+        object.shape.type = ShapeType::kMesh;
+        object.shape.mesh = shared / "06_models" / "photon_dragon_100k.obj";
+        object.shape.scale = 0.012f;
+        object.T_anchor_object = pose(kBoardCentre, 90, 20);
+    }
+    object.material = material.name;
+    scene.materials[material.name] = material;
+    scene.objects.push_back(object);
+    return scene;
+}
+
 double processCpuSeconds() {
     timespec t{};
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
@@ -260,6 +324,12 @@ struct Config {
     // the orbit's motion between frames scaled to it; 0: none.
     double exposure_fraction = 0;
     std::optional<ShadowMapSettings> shadow_map = {};  // given to every light
+    // caustics: the generator's scene (ring, sphere, dragon), the photons (none: no caustics),
+    // and whether the light moves a little every frame, so that photons are shot every frame
+    // (the paper's fps_r) rather than reused (fps_n).
+    std::string generator = {};
+    std::optional<CausticSettings> caustics = {};
+    bool move_light = false;
 };
 
 std::vector<Config> configsFor(const std::string& scene, int threads,
@@ -348,6 +418,35 @@ std::vector<Config> configsFor(const std::string& scene, int threads,
             add("VSM, z and z² bit-packed in RGBA8", ShadowMapFilter::kVsm,
                 ShadowMapStorage::kPackedRgba8);
         }
+    } else if (scene == "caustics") {
+        // Kán & Kaufmann's Table 1: photons per frame and samples per pixel as theirs.
+        const auto add = [&](const std::string& generator, int photons, int spp, bool reshoot) {
+            RenderOptions o = base;
+            o.samples_per_pixel = spp;
+            Config c{scene, "", o};
+            c.generator = generator;
+            if (photons > 0) {
+                CausticSettings caustics;
+                caustics.photons = photons;
+                caustics.radius_m = 0.004f;
+                c.caustics = caustics;
+            }
+            c.move_light = reshoot;
+            c.name = (generator == "ring" ? "metal ring" : "glass " + generator) + ", " +
+                     (photons > 0 ? std::to_string(photons / 1000) + "K photons " +
+                                        (reshoot ? "shot every frame" : "reused")
+                                  : std::string("no caustics")) +
+                     ", " + std::to_string(spp) + " sample" + (spp > 1 ? "s" : "") + "/pixel";
+            out.push_back(c);
+        };
+        add("ring", 0, 1, false);
+        add("ring", 280000, 1, true);
+        add("ring", 280000, 1, false);
+        add("ring", 280000, 4, false);
+        add("sphere", 150000, 1, true);
+        add("sphere", 150000, 1, false);
+        add("dragon", 240000, 1, true);
+        add("dragon", 240000, 1, false);
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -423,10 +522,12 @@ struct Figures {
     int frames = 0;
     double fps = 0;
     double frame_ms = 0;
-    double pixels_traced = 0;  // per frame
-    double shadow_map_ms = 0;  // per frame: rendering the shadow maps
-    Image composite;           // the logged frame's, for image differences between rows
-    Image camera;              // the logged frame's camera image
+    double pixels_traced = 0;                           // per frame
+    double shadow_map_ms = 0;                           // per frame: rendering the shadow maps
+    double caustic_shoot_ms = 0, caustic_build_ms = 0;  // per frame: t_p and t_b
+    double caustic_photons = 0;                         // per frame, stored
+    Image composite;  // the logged frame's, for image differences between rows
+    Image camera;     // the logged frame's camera image
     std::optional<double> rmse_vs_reference;        // shadow-maps: against the first row, 0..255
     double primary = 0, secondary = 0, shadow = 0;  // rays per frame
     double mrays_per_s = 0;
@@ -438,8 +539,8 @@ struct Figures {
     bool log_matches_stats = false;
 };
 
-Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, int frames,
-                         int repeats) {
+Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::vector<Light>& lights,
+                         Size size, int frames, int repeats) {
     const double f = 0.9 * size.width;
     RenderInputs inputs;
     inputs.camera = calibration::CameraModel::pinhole(
@@ -456,6 +557,13 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
         paintCameraImage(inputs.camera, inputs.T_world_cam, image);
         const double cpu_start = processCpuSeconds();
         const auto start = std::chrono::steady_clock::now();
+        if (config.move_light) {
+            // A light that moves re-shoots the photons: 10 µm a frame, as if tracked.
+            std::vector<Light> moved = lights;
+            for (Light& light : moved)
+                light.position.x() += 1e-5 * (i + 2);
+            MIXRAY_RETURN_IF_ERROR(renderer.setLights(moved));
+        }
         MIXRAY_RETURN_IF_ERROR(renderer.render(inputs, out, &stats));
         return std::pair{
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
@@ -476,6 +584,9 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
         total += seconds->first;
         fig.pixels_traced += static_cast<double>(stats.pixels_traced);
         fig.shadow_map_ms += 1e3 * stats.shadow_map_seconds;
+        fig.caustic_shoot_ms += 1e3 * stats.caustic_shoot_seconds;
+        fig.caustic_build_ms += 1e3 * stats.caustic_build_seconds;
+        fig.caustic_photons += static_cast<double>(stats.caustic_photons);
         fig.primary += static_cast<double>(stats.primary_rays);
         fig.secondary += static_cast<double>(stats.secondary_rays);
         fig.shadow += static_cast<double>(stats.shadow_rays);
@@ -484,7 +595,8 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, Size size, in
     fig.frame_ms = 1e3 * total / frames;
     fig.mrays_per_s = (fig.primary + fig.secondary + fig.shadow) / total / 1e6;
     for (double* v :
-         {&fig.pixels_traced, &fig.shadow_map_ms, &fig.primary, &fig.secondary, &fig.shadow})
+         {&fig.pixels_traced, &fig.shadow_map_ms, &fig.caustic_shoot_ms, &fig.caustic_build_ms,
+          &fig.caustic_photons, &fig.primary, &fig.secondary, &fig.shadow})
         *v /= frames;
 
     // One frame logged, then the same frame (same pose, same seed: the same rays) timed
@@ -521,6 +633,10 @@ void printFigures(const Figures& f) {
                 f.frame_ms, f.pixels_traced, 100 * f.pixels_traced / pixels);
     std::printf("  rays/frame  primary %9.0f  secondary %9.0f  shadow %9.0f   %7.2f Mrays/s\n",
                 f.primary, f.secondary, f.shadow, f.mrays_per_s);
+    if (f.caustic_photons > 0)
+        std::printf("  caustics: t_p %7.2f ms  t_b %6.2f ms  t_r %7.2f ms  (%.0f photons stored)\n",
+                    f.caustic_shoot_ms, f.caustic_build_ms,
+                    f.frame_ms - f.caustic_shoot_ms - f.caustic_build_ms, f.caustic_photons);
     if (f.shadow_map_ms > 0 || f.rmse_vs_reference)
         std::printf(
             "  shadow maps %7.2f ms of the frame; composite RMSE vs the reference %.2f "
@@ -553,6 +669,10 @@ nlohmann::json toJson(const Figures& f) {
             {"frame_ms", f.frame_ms},
             {"pixels_traced", f.pixels_traced},
             {"shadow_map_ms", f.shadow_map_ms},
+            {"caustics",
+             {{"t_p_ms", f.caustic_shoot_ms},
+              {"t_b_ms", f.caustic_build_ms},
+              {"photons_stored", f.caustic_photons}}},
             {"rmse_vs_reference",
              f.rmse_vs_reference ? nlohmann::json(*f.rmse_vs_reference) : nlohmann::json()},
             {"rays_per_frame",
@@ -652,7 +772,7 @@ int runBenchRender(BenchRenderOptions options) {
     nlohmann::json results = nlohmann::json::array();
     for (const std::string& name : *scenes) {
         std::vector<fs::path> needed = {shared / "06_models" / "newell_teapot.obj"};
-        if (name == "dragons")
+        if (name == "dragons" || name == "caustics")
             needed.push_back(shared / "06_models" / "photon_dragon_100k.obj");
         const auto missing = std::find_if(needed.begin(), needed.end(),
                                           [](const fs::path& p) { return !fs::exists(p); });
@@ -685,6 +805,13 @@ int runBenchRender(BenchRenderOptions options) {
         std::map<std::pair<int, int>, Image> references;
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
+            if (name == "caustics") {
+                auto generator_scene = causticScene(shared, config.generator);
+                if (!generator_scene)
+                    return fail("bench render", generator_scene.status());
+                with_lens = std::move(generator_scene).value();
+                with_lens.caustics = config.caustics;
+            }
             if (config.shadow_map)
                 for (Light& light : with_lens.lights)
                     light.shadow_map = config.shadow_map;
@@ -699,7 +826,8 @@ int runBenchRender(BenchRenderOptions options) {
             if (!renderer)
                 return fail("bench render", renderer.status());
             for (const Size& size : *sizes) {
-                auto figures = benchOne(**renderer, config, size, options.frames, options.repeats);
+                auto figures = benchOne(**renderer, config, with_lens.lights, size, options.frames,
+                                        options.repeats);
                 if (!figures)
                     return fail("bench render", figures.status());
                 if (name == "shadow-maps") {
@@ -730,10 +858,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
     auto* render = bench.add_subcommand(
         "render",
         "Frames/s and rays/s of the Embree renderer on RT²AR's scenes (teapot on a chessboard "
-        "table; soft shadows; two 1.1M-triangle dragons; depth of field; shadow maps), against "
-        "bare Embree "
-        "tracing the same "
-        "rays on the same BVH in the same run");
+        "table; soft shadows; two 1.1M-triangle dragons; depth of field; shadow maps; "
+        "caustics), against bare Embree tracing the same rays on the same BVH in the same run");
     auto options = std::make_shared<BenchRenderOptions>();
     render->add_option("--size", options->sizes, "Image sizes, WIDTHxHEIGHT[,WIDTHxHEIGHT...]")
         ->capture_default_str();
@@ -745,7 +871,7 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         ->capture_default_str();
     render
         ->add_option("--scenes", options->scenes,
-                     "Scenes: teapot, soft, dragons, dof, shadow-maps (comma list)")
+                     "Scenes: teapot, soft, dragons, dof, shadow-maps, caustics (comma list)")
         ->capture_default_str();
     render
         ->add_option("--repeats", options->repeats,

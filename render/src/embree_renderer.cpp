@@ -18,22 +18,21 @@ namespace mixray::render::detail {
 EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                                std::vector<ObjectData> objects, std::vector<LightData> lights,
                                std::filesystem::path scene_source,
-                               std::optional<size_t> depth_object, const LensEffects& lens_effects,
-                               const std::optional<LensAperture>& aperture,
-                               const CameraMatching& matching)
+                               std::optional<size_t> depth_object, const SceneEffects& effects)
     : options_(std::move(options)),
       materials_(std::move(materials)),
       objects_(std::move(objects)),
       lights_(std::move(lights)),
       scene_source_(std::move(scene_source)),
-      depth_object_(depth_object) {
-    if (lens_effects.any())
-        lens_effects_.emplace(lens_effects);
-    if (aperture)
-        lens_ = {aperture->diameter_m() / 2, aperture->focus_distance_m};
-    if (matching.noise) {
+      depth_object_(depth_object),
+      caustic_settings_(effects.caustics) {
+    if (effects.lens_effects.any())
+        lens_effects_.emplace(effects.lens_effects);
+    if (effects.aperture)
+        lens_ = {effects.aperture->diameter_m() / 2, effects.aperture->focus_distance_m};
+    if (effects.camera_matching.noise) {
         grain_.emplace();
-        grain_->strength = *matching.noise;
+        grain_->strength = *effects.camera_matching.noise;
     }
 }
 
@@ -43,6 +42,11 @@ Status EmbreeRenderer::init() {
         return built.status();
     scene_ = std::move(built).value();
     integrator_.emplace(options_, materials_, objects_, *scene_, depth_object_);
+    if (caustic_settings_) {
+        caustics_.emplace(*caustic_settings_, objects_, materials_);
+        if (!caustics_->any())
+            caustics_.reset();  // no specular object: nothing to shoot at
+    }
     return Status::ok();
 }
 
@@ -55,6 +59,30 @@ Status EmbreeRenderer::setLights(const std::vector<Light>& lights) {
         return loaded.status();
     lights_ = std::move(loaded).value();
     return Status::ok();
+}
+
+void EmbreeRenderer::markCausticTiles(const calibration::CameraModel& camera, const Frame& f,
+                                      int tiles_x, int ts) {
+    const int tiles_y = static_cast<int>(tile_mask_.size()) / tiles_x;
+    const float radius = caustic_settings_->radius_m;
+    for (const PhotonGrid* grid : {&f.caustics->mixed(), &f.caustics->real()}) {
+        for (const Photon& ph : grid->photons()) {
+            const Eigen::Vector3d p_cam = f.R_cam_world * ph.p.cast<double>() + f.t_cam_world;
+            if (!(p_cam.z() > 0))
+                continue;
+            const auto px = camera.project(p_cam);
+            if (!px)
+                continue;
+            const double reach = radius * camera.fx / p_cam.z() + 1;
+            const int x0 = std::max(0, static_cast<int>((px->x() - reach) / ts));
+            const int x1 = std::min(tiles_x - 1, static_cast<int>((px->x() + reach) / ts));
+            const int y0 = std::max(0, static_cast<int>((px->y() - reach) / ts));
+            const int y1 = std::min(tiles_y - 1, static_cast<int>((px->y() + reach) / ts));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x)
+                    tile_mask_[static_cast<size_t>(y * tiles_x + x)] = 1;
+        }
+    }
 }
 
 double EmbreeRenderer::renderShadowMaps(const Frame& f) {
@@ -225,8 +253,14 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     double shadow_map_seconds = 0;
     arena.execute([&] {
         shadow_map_seconds = renderShadowMaps(f);
+        if (caustics_) {
+            caustics_->update(f, *scene_, *integrator_);
+            f.caustics = &*caustics_;
+        }
         if (use_mask) {
             footprintMask(f.footprint, rays_.cones, rays_.directions, w, h, spp, ts, tile_mask_);
+            if (f.caustics)
+                markCausticTiles(in.camera, f, tiles_x, ts);
             // The footprint is of the image pose's pinhole rays; through the lens content
             // spreads by up to half its circle of confusion, and over the exposure by how far
             // the camera moved.
@@ -270,6 +304,12 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         stats->secondary_rays = secondary;
         stats->shadow_rays = shadow;
         stats->shadow_map_seconds = shadow_map_seconds;
+        if (caustics_) {
+            const CausticTimes& t = caustics_->times();
+            stats->caustic_shoot_seconds = t.reshot ? t.shoot_s : 0;
+            stats->caustic_build_seconds = t.reshot ? t.build_s : 0;
+            stats->caustic_photons = t.stored_mixed + t.stored_real;
+        }
         stats->seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }

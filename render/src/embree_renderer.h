@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "camera_rays.h"
+#include "caustics.h"
 #include "film.h"
 #include "frame_context.h"
 #include "integrator.h"
@@ -21,6 +22,15 @@ namespace mixray::render::detail {
 // folder) or taken from memory.
 Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
                                           const std::vector<Light>& scene_lights);
+
+// What a scene sets beyond its objects and lights: the camera's lens and look, and the light
+// transport the renderer adds (SceneDescription's fields of the same names).
+struct SceneEffects {
+    LensEffects lens_effects;
+    std::optional<LensAperture> aperture;
+    CameraMatching camera_matching;
+    std::optional<CausticSettings> caustics;
+};
 
 // A tile's primary hits, origins and directions: reused by the thread, so the loop never allocates.
 struct TileScratch {
@@ -36,8 +46,7 @@ public:
     EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                    std::vector<ObjectData> objects, std::vector<LightData> lights,
                    std::filesystem::path scene_source, std::optional<size_t> depth_object,
-                   const LensEffects& lens_effects, const std::optional<LensAperture>& aperture,
-                   const CameraMatching& matching);
+                   const SceneEffects& effects);
 
     // Builds the BVH.
     Status init();
@@ -64,6 +73,9 @@ private:
     // The lights' shadow maps for this frame (Light::shadow_map), inside the render arena; the
     // seconds they took, 0 when no light asks for one.
     double renderShadowMaps(const Frame& f);
+    // Marks the tiles a caustic photon (of either scene) lands in, with the kernel around it.
+    void markCausticTiles(const calibration::CameraModel& camera, const Frame& f, int tiles_x,
+                          int ts);
 
     RenderOptions options_;
     std::vector<MaterialData> materials_;
@@ -83,6 +95,8 @@ private:
     Film film_;
     std::optional<LensEffectsPass> lens_effects_;  // the scene has some
     std::optional<Grain> grain_;                   // the scene matches the camera's noise
+    std::optional<CausticSettings> caustic_settings_;
+    std::optional<CausticMaps> caustics_;  // once the BVH is built, with caustic_settings_
     std::vector<uint8_t> tile_mask_;
     // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
     std::vector<TileScratch> scratch_;

@@ -72,6 +72,8 @@ inline void logRay(RayList* log, RayLog::Kind kind, RTCScene scene, RTCScene gho
 }
 
 // Per-frame tracing context: read-only during the parallel loop.
+class CausticMaps;
+
 struct Frame {
     const RenderInputs* inputs = nullptr;
     Eigen::Matrix3f R_world_cam;
@@ -94,6 +96,7 @@ struct Frame {
         Vec3 t_open, t_close;
     };
     std::optional<Shutter> shutter;
+    const CausticMaps* caustics = nullptr;  // the scene's caustics, this frame's photons
 };
 
 inline uint64_t hashIndex(uint64_t seed, uint64_t a, uint64_t b) {

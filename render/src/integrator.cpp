@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 
+#include "caustics.h"
 #include "shadow_map.h"
 
 namespace mixray::render::detail {
@@ -133,6 +134,14 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
         }
         out.m += unshadowed.cwiseProduct(visible.m);
         out.r += unshadowed.cwiseProduct(visible.r);
+    }
+    if (f.caustics) {
+        // Caustic irradiance from the photon maps, reflected diffusely.
+        const Pair e = f.caustics->irradiance(
+            s.p, s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+        const Vec3 brdf = albedo / optics::kPi;
+        out.m += brdf.cwiseProduct(e.m);
+        out.r += brdf.cwiseProduct(e.r);
     }
     return out;
 }
@@ -278,7 +287,9 @@ bool DifferentialIntegrator::depthSurfaceInfluenced(const Frame& f, const Vec3& 
         return false;
     const MaterialData& surface =
         materials_[static_cast<size_t>(objects_[*depth_object_].material)];
-    if (surface.material.reflectance > 0)
+    // The point is known only to within `margin`, wider than the caustic kernel: wherever there
+    // are caustics, the tiles they reach are shaded whole.
+    if (surface.material.reflectance > 0 || (f.caustics && f.caustics->landed()))
         return true;
     for (const LightData* light : f.lights) {
         Vec3 dir;
@@ -373,6 +384,8 @@ bool DifferentialIntegrator::ghostInfluenced(const Frame& f, const Surface& s,
                                              const Vec3& d) const {
     if (f.virtual_bounds.empty())
         return false;
+    if (f.caustics && f.caustics->near(s.p))
+        return true;
     const Material& mat = s.material->material;
     const bool lambert = mat.type == MaterialType::kDiffuse || mat.type == MaterialType::kPhong;
     if (mat.type == MaterialType::kGlass)

@@ -254,6 +254,12 @@ Status SceneDescription::validate() const {
         if (!(g->attenuation > 0 && g->attenuation < 1))
             return corrupt(g->where, "lens_effects.glare.attenuation", "must be in (0, 1)");
     }
+    if (caustics) {
+        if (caustics->photons < 1000 || caustics->photons > 100'000'000)
+            return corrupt(caustics->where, "caustics.photons", "must be 1000..100000000");
+        if (!(caustics->radius_m > 0 && caustics->radius_m <= 1))
+            return corrupt(caustics->where, "caustics.radius_m", "must be in (0, 1] metres");
+    }
     return Status::ok();
 }
 

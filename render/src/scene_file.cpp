@@ -66,9 +66,10 @@ constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like 
 // ---------------------------------------------------------------------------------------------
 // Schema
 
-constexpr std::array<std::string_view, 8> kRootKeys = {
-    "version", "materials",     "objects",      "lights",
-    "camera",  "depth_surface", "lens_effects", "camera_matching"};
+constexpr std::array<std::string_view, 9> kRootKeys = {
+    "version",       "materials",    "objects",         "lights",  "camera",
+    "depth_surface", "lens_effects", "camera_matching", "caustics"};
+constexpr std::array<std::string_view, 2> kCausticsKeys = {"photons", "radius_m"};
 constexpr std::array<std::string_view, 2> kCameraMatchingKeys = {"noise", "motion_blur"};
 constexpr std::array<std::string_view, 1> kMotionBlurKeys = {"exposure_ms"};
 constexpr std::array<std::string_view, 1> kDepthSurfaceKeys = {"reflectance"};
@@ -701,6 +702,26 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
         for (const Item& e : *elements)
             MIXRAY_RETURN_IF_ERROR(parseLight(e, scene, names));
     }
+    if (const Item* c = find(*fields, "caustics")) {
+        auto settings =
+            r_.readMap(*c, kCausticsKeys, "a caustics mapping with photons: and radius_m:");
+        if (!settings)
+            return settings.status();
+        CausticSettings& caustics = scene.caustics.emplace();
+        caustics.where = c->where;
+        if (const Item* n = find(*settings, "photons")) {
+            auto v = r_.integer(*n, 1000, 100'000'000);
+            if (!v)
+                return v.status();
+            caustics.photons = static_cast<int>(*v);
+        }
+        if (const Item* r = find(*settings, "radius_m")) {
+            auto v = scalar(*r, 0, 1, true);
+            if (!v)
+                return v.status();
+            caustics.radius_m = *v;
+        }
+    }
     if (const Item* camera = find(*fields, "camera"))
         MIXRAY_RETURN_IF_ERROR(parseCamera(*camera, scene));
     if (const Item* depth = find(*fields, "depth_surface")) {
@@ -873,6 +894,7 @@ Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_p
     scene.camera = objects->camera;
     scene.lens_effects = objects->lens_effects;  // how the virtual objects pass the lens
     scene.camera_matching = objects->camera_matching;
+    scene.caustics = objects->caustics;  // the virtual objects' caustics on the real scene
     for (SceneObject o : real->objects) {
         o.role = ObjectRole::kGhost;
         scene.objects.push_back(std::move(o));

@@ -192,8 +192,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
 
     auto renderer = std::make_unique<detail::EmbreeRenderer>(
         options, std::move(materials), std::move(objects), std::move(lights).value(),
-        scene.source_path, depth_object, scene.lens_effects,
-        scene.camera ? scene.camera->aperture : std::nullopt, scene.camera_matching);
+        scene.source_path, depth_object,
+        detail::SceneEffects{scene.lens_effects,
+                             scene.camera ? scene.camera->aperture : std::nullopt,
+                             scene.camera_matching, scene.caustics});
     MIXRAY_RETURN_IF_ERROR(renderer->init());
     return std::unique_ptr<Renderer>(std::move(renderer));
 }

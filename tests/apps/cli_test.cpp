@@ -421,6 +421,28 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     EXPECT_EQ(figures[4]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
 }
 
+// Kán & Kaufmann's Table 1: each row's photon shooting and grid times where the photons are shot
+// again, none where they are reused, and the row without caustics has none at all.
+TEST(Cli, BenchRenderTimesTheCausticsPhases) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "photon_dragon_100k.obj");
+    CliRun json =
+        mixray("bench render --size 96x72 --frames 2 --repeats 1 --scenes caustics --json");
+    ASSERT_EQ(json.exit_code, 0) << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 8u);
+    EXPECT_EQ(figures[0]["caustics"]["photons_stored"].get<double>(), 0);
+    for (size_t i = 1; i < figures.size(); ++i) {
+        const std::string config = figures[i]["config"].get<std::string>();
+        SCOPED_TRACE(config);
+        EXPECT_GT(figures[i]["caustics"]["photons_stored"].get<double>(), 100);
+        if (config.find("shot every frame") != std::string::npos)
+            EXPECT_GT(figures[i]["caustics"]["t_p_ms"].get<double>(), 0);
+        else
+            EXPECT_EQ(figures[i]["caustics"]["t_p_ms"].get<double>(), 0);
+    }
+}
+
 // Castro et al.'s Tabela I: ray-traced soft shadows (the reference), hard shadows, then per map
 // size the hard, PCF, packed-PCF, VSM and 8-bit VSM maps, each with its map time and its
 // composite's difference from the reference.

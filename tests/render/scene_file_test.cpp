@@ -480,6 +480,28 @@ TEST(SceneFileTest, ShadowMapSettings) {
         << environment.status().toString();
 }
 
+// Caustics: both settings read, defaults kept, bad values named.
+TEST(SceneFileTest, CausticSettings) {
+    auto scene = parseScene("caustics: { photons: 50000 }\n", "scene.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    ASSERT_TRUE(scene->caustics);
+    EXPECT_EQ(scene->caustics->photons, 50000);
+    EXPECT_FLOAT_EQ(scene->caustics->radius_m, 0.005f);
+    EXPECT_FALSE(parseScene("lights: []\n", "scene.yaml")->caustics);
+    for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
+             {"caustics: { photons: 10 }\n", "photons"},
+             {"caustics: { radius_m: 0 }\n", "radius_m"},
+             {"caustics: { radius: 0.01 }\n", "radius"},
+             {"caustics: 3\n", "caustics"}}) {
+        auto bad = parseScene(text, "s.yaml");
+        ASSERT_FALSE(bad.isOk()) << text;
+        EXPECT_NE(bad.status().message().find(message), std::string::npos)
+            << bad.status().toString();
+        EXPECT_NE(bad.status().message().find("s.yaml:1"), std::string::npos)
+            << bad.status().toString();
+    }
+}
+
 // The complete example in docs/scene-format.md parses, and the messages it shows are real.
 TEST(SceneFileTest, DocumentationExamples) {
     std::ifstream in(test::sourceDir() / "docs" / "scene-format.md");
@@ -507,6 +529,9 @@ TEST(SceneFileTest, DocumentationExamples) {
     EXPECT_EQ(scene->lights[2].shadow_map->filter, ShadowMapFilter::kVsm);
     EXPECT_EQ(scene->lights[2].shadow_map->resolution, 1024);
     EXPECT_FALSE(scene->lights[0].shadow_map);
+    ASSERT_TRUE(scene->caustics);
+    EXPECT_EQ(scene->caustics->photons, 150000);
+    EXPECT_FLOAT_EQ(scene->caustics->radius_m, 0.005f);
 
     const std::string h = kHeader;
     const std::vector<std::string> inputs = {
@@ -614,6 +639,7 @@ objects:
     material: clay
     pose: { translation: [0.1, 0.2, 0] }
 lens_effects: { glare: { passes: 2 } }
+caustics: { photons: 20000 }
 )";
     auto composed = composeArScene(real, objects);
     ASSERT_TRUE(composed.isOk()) << composed.status().toString();
@@ -630,6 +656,8 @@ lens_effects: { glare: { passes: 2 } }
     ASSERT_TRUE(scene.lens_effects.glare.has_value());
     EXPECT_EQ(scene.lens_effects.glare->passes, 2);
     EXPECT_FALSE(scene.lens_effects.bloom.has_value());
+    ASSERT_TRUE(scene.caustics.has_value());
+    EXPECT_EQ(scene.caustics->photons, 20000);
     EXPECT_EQ(scene.materials.size(), 2u);
     // The missing mesh: a sphere of its material on the same spot, raised by its radius.
     const SceneObject& pot = scene.objects[3];
@@ -692,9 +720,9 @@ TEST(SceneFileTest, ComposeArSceneOnTheLensEffectsFixture) {
     EXPECT_EQ(lens.glare->passes, 3);
 }
 
-// The depth-of-field and all-effects demo objects compose too, bringing the lens's aperture
-// (the pose still from tracking) and the camera matching.
-TEST(SceneFileTest, ComposeArSceneOnTheDepthOfFieldAndEffectsFixtures) {
+// The depth-of-field, all-effects and caustics demo objects compose too, bringing the lens's
+// aperture (the pose still from tracking), the camera matching and the caustics.
+TEST(SceneFileTest, ComposeArSceneOnTheEffectsFixtures) {
     for (const char* objects :
          {"scenes/sim_tabletop_dof.yaml", "scenes/sim_tabletop_effects.yaml"}) {
         auto composed = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
@@ -709,6 +737,12 @@ TEST(SceneFileTest, ComposeArSceneOnTheDepthOfFieldAndEffectsFixtures) {
     ASSERT_TRUE(effects.isOk());
     EXPECT_TRUE(effects->scene.lens_effects.bloom && effects->scene.lens_effects.glare);
     EXPECT_TRUE(effects->scene.camera_matching.noise);
+    auto caustics = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
+                                   test::fixturesDir() / "scenes/sim_tabletop_caustics.yaml");
+    ASSERT_TRUE(caustics.isOk()) << caustics.status().toString();
+    ASSERT_TRUE(caustics->scene.caustics);
+    EXPECT_EQ(caustics->scene.caustics->photons, 150000);
+    EXPECT_EQ(caustics->inserted.objects.size(), 2u);
 }
 
 TEST(SceneFileTest, ValidateScenesBuiltInCode) {

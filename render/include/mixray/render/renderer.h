@@ -155,6 +155,11 @@ struct RenderStats {
                                // real surfaces seen through virtual ones
     double seconds = 0;
     double shadow_map_seconds = 0;  // of `seconds`: rendering the lights' shadow maps
+    // Of `seconds`, caustics (SceneDescription::caustics): shooting the photons (t_p) and
+    // sorting them into their grids (t_b); both 0 on a frame that reused the last frame's.
+    double caustic_shoot_seconds = 0;
+    double caustic_build_seconds = 0;
+    uint64_t caustic_photons = 0;  // stored this frame, both scenes
     uint64_t rays() const { return primary_rays + secondary_rays + shadow_rays; }
 };
 

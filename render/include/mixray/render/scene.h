@@ -206,6 +206,16 @@ struct CameraMatching {
     bool any() const { return noise.has_value() || motion_blur_exposure_ms.has_value(); }
 };
 
+// Kán & Kaufmann §3.2: caustics by photon mapping. Photons are shot from the point, sphere
+// (from its centre) and directional lights at the bounding spheres of the specular objects
+// (mirror, metal, glass; virtual and ghosts alike) and gathered with a fixed Epanechnikov kernel
+// of radius_m. Plain value.
+struct CausticSettings {
+    int photons = 150000;     // per frame, over all lights
+    float radius_m = 0.005f;  // the kernel's bandwidth: narrow, sharp and noisier
+    SourceLocation where;
+};
+
 // A whole scene. Plain value; reentrant.
 struct SceneDescription {
     std::map<std::string, Material> materials;
@@ -215,7 +225,8 @@ struct SceneDescription {
     DepthSurface depth_surface;
     LensEffects lens_effects;
     CameraMatching camera_matching;
-    std::filesystem::path source_path;  // where it was loaded from, for messages
+    std::optional<CausticSettings> caustics;  // none: no caustics
+    std::filesystem::path source_path;        // where it was loaded from, for messages
 
     // kCorruptData with the entry's location on the first problem: unknown material names,
     // non-positive sizes, IOR < 1, non-finite numbers, bad anchors, duplicate names.
