@@ -27,9 +27,11 @@ using yaml::Item;
 
 constexpr std::array<std::string_view, 5> kTopKeys = {"version", "created", "target", "cameras",
                                                       "depth"};
-constexpr std::array<std::string_view, 9> kCameraKeys = {
-    "name",   "model", "parent", "T_parent_camera", "pose_covariance", "intrinsics_stddev",
-    "rms_px", "views", "weak"};
+constexpr std::array<std::string_view, 10> kCameraKeys = {
+    "name",  "model", "parent", "T_parent_camera", "pose_covariance", "intrinsics_stddev", "rms_px",
+    "views", "weak",  "lens"};
+constexpr std::array<std::string_view, 3> kLensKeys = {"f_number", "focal_length_mm",
+                                                       "focus_distance_m"};
 constexpr std::array<std::string_view, 4> kDepthKeys = {"stream", "depth_camera", "color_camera",
                                                         "correction"};
 constexpr std::array<std::string_view, 5> kCorrectionKeys = {"scale", "offset_m", "alpha0",
@@ -275,6 +277,26 @@ private:
                 return v.status();
             c.weak = *v;
         }
+        if (const Item* lens = find(*fields, "lens")) {
+            auto settings =
+                r_.readMap(*lens, kLensKeys,
+                           "a lens mapping with f_number:, focal_length_mm: and focus_distance_m:");
+            if (!settings)
+                return settings.status();
+            LensSettings l;
+            const std::array<std::pair<std::string_view, double*>, 3> values = {
+                {{"f_number", &l.f_number},
+                 {"focal_length_mm", &l.focal_length_mm},
+                 {"focus_distance_m", &l.focus_distance_m}}};
+            for (const auto& [key, out] : values) {
+                MIXRAY_RETURN_IF_ERROR(r_.require(*settings, *lens, key));
+                auto v = r_.number(*find(*settings, key), 0, 1e4, true);
+                if (!v)
+                    return v.status();
+                *out = *v;
+            }
+            c.lens = l;
+        }
         return c;
     }
 
@@ -507,6 +529,13 @@ Status validateCalibrationFile(const CalibrationFile& file) {
             return invalid(where + "rms_px: must be finite and non-negative");
         if (c.views < 0)
             return invalid(where + "views: must be non-negative");
+        if (c.lens &&
+            !(c.lens->f_number > 0 && c.lens->focal_length_mm > 0 && c.lens->focus_distance_m > 0 &&
+              std::isfinite(c.lens->f_number) && std::isfinite(c.lens->focal_length_mm) &&
+              std::isfinite(c.lens->focus_distance_m)))
+            return invalid(where +
+                           "lens: f_number, focal_length_mm and focus_distance_m must be "
+                           "finite and above 0");
     }
     for (const CalibratedCamera& c : file.cameras) {
         auto chain = chainOf(file, c.name);
@@ -802,6 +831,10 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
             o << "    views: " << c.views << "\n";
         if (!c.weak.empty())
             o << "    weak: " << detail::yamlQuoted(c.weak) << "\n";
+        if (c.lens)
+            o << "    lens: {f_number: " << num(c.lens->f_number)
+              << ", focal_length_mm: " << num(c.lens->focal_length_mm)
+              << ", focus_distance_m: " << num(c.lens->focus_distance_m) << "}\n";
     }
     if (!file.depth.empty()) {
         o << "depth:\n";

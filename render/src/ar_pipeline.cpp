@@ -8,6 +8,20 @@
 #include <thread>
 
 namespace mixray::render {
+
+void applyCalibratedLens(const calibration::CalibratedCamera& camera, SceneDescription& scene) {
+    if (!camera.lens || (scene.camera && scene.camera->aperture))
+        return;
+    if (!scene.camera) {
+        scene.camera.emplace();
+        scene.camera->has_pose = false;
+    }
+    LensAperture aperture;
+    aperture.f_number = static_cast<float>(camera.lens->f_number);
+    aperture.focal_length_mm = static_cast<float>(camera.lens->focal_length_mm);
+    aperture.focus_distance_m = static_cast<float>(camera.lens->focus_distance_m);
+    scene.camera->aperture = aperture;
+}
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -206,9 +220,12 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         // The camera: the calibration's model of the colour stream, else the scene's, else the
         // tracking setup's.
         std::optional<calibration::CameraModel> model;
-        if (options.calibration)
-            if (const calibration::CalibratedCamera* c = options.calibration->find(color.name))
+        if (options.calibration) {
+            if (const calibration::CalibratedCamera* c = options.calibration->find(color.name)) {
                 model = c->model;
+                applyCalibratedLens(*c, scene);
+            }
+        }
         if (!model && scene.camera && scene.camera->model)
             model = scene.camera->model;
         if (!model && options.setup)

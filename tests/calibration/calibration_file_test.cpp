@@ -64,6 +64,7 @@ CalibrationFile fullFile() {
     CalibratedCamera loose;  // no pose: not calibrated
     loose.name = "spare";
     loose.model = CameraModel::pinhole(320, 240, 300, 300, 159.5, 119.5);
+    loose.lens = LensSettings{2.8, 4.5, 0.8};
     f.cameras = {color, ir, env, loose};
     CalibratedDepth d;
     d.stream = "kinect/depth";
@@ -105,6 +106,12 @@ void expectSameCamera(const CalibratedCamera& a, const CalibratedCamera& b) {
     EXPECT_EQ(a.intrinsics_stddev, b.intrinsics_stddev);
     EXPECT_EQ(a.rms_px, b.rms_px);
     EXPECT_EQ(a.views, b.views);
+    ASSERT_EQ(a.lens.has_value(), b.lens.has_value());
+    if (a.lens) {
+        EXPECT_EQ(a.lens->f_number, b.lens->f_number);
+        EXPECT_EQ(a.lens->focal_length_mm, b.lens->focal_length_mm);
+        EXPECT_EQ(a.lens->focus_distance_m, b.lens->focus_distance_m);
+    }
 }
 
 TEST(CalibrationFile, WritesAndReadsBackEveryFieldExactly) {
@@ -348,6 +355,11 @@ TEST(CalibrationFile, ErrorsNameFileLineAndField) {
          "11:22: cameras[1].pose_covariance: expected 6 rows of 6 numbers"},
         {10, std::string(kPose) + "\n    intrinsics_stddev: [1, 2, 3]",
          "11:24: cameras[1].intrinsics_stddev: expected a list of 4 standard deviations"},
+        {6, std::string(kPose) + "\n    lens: {f_number: 2, focal_length_mm: 50}",
+         "7:11: cameras[0].lens.focus_distance_m: missing required field"},
+        {6,
+         std::string(kPose) + "\n    lens: {f_number: 0, focal_length_mm: 50, focus_distance_m: 1}",
+         "7:22: cameras[0].lens.f_number: expected a number above 0"},
         {12, "  - {stream: d, depth_camera: c, color_camera: b}",
          "12:31: depth[0].depth_camera: no camera \"c\" in the file (cameras: a, b)"},
         {12,

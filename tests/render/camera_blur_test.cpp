@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "camera_rays.h"
+#include "mixray/render/ar_pipeline.h"
 #include "renderer_test_util.h"
 
 namespace mixray::render::test {
@@ -203,6 +204,36 @@ RenderInputs::ShutterPoses shutterPoses(const Eigen::Vector3d& travel, double tu
     s.T_world_cam_close.linear() =
         s.T_world_cam_close.linear() * Eigen::AngleAxisd(turn_rad / 2, Eigen::Vector3d::UnitY());
     return s;
+}
+
+// The calibration file's lens settings give the scene's camera its aperture (the pose stays
+// tracking's), and the scene's own aperture wins over them.
+TEST(DepthOfField, TheCalibratedLensSetsTheApertureUnlessTheSceneDoes) {
+    calibration::CalibratedCamera camera;
+    camera.name = "kinect/color";
+    camera.lens = calibration::LensSettings{2, 50, 0.86};
+    SceneDescription scene = smallObjectScene(ShapeType::kSphere, {});
+    applyCalibratedLens(camera, scene);
+    ASSERT_TRUE(scene.camera && scene.camera->aperture);
+    EXPECT_FALSE(scene.camera->has_pose);
+    EXPECT_FLOAT_EQ(scene.camera->aperture->f_number, 2);
+    EXPECT_FLOAT_EQ(scene.camera->aperture->focal_length_mm, 50);
+    EXPECT_FLOAT_EQ(scene.camera->aperture->focus_distance_m, 0.86f);
+    // Rendered, the point blurs as with the same aperture from the scene file.
+    const Spread from_calibration = maskSpread(renderFromAbove(scene, spreadOptions()).mask);
+    const Spread from_scene = maskSpread(
+        renderFromAbove(smallObjectScene(ShapeType::kSphere, aperture(0.86f)), spreadOptions())
+            .mask);
+    EXPECT_GT(from_calibration.var_x, 0);
+    EXPECT_EQ(from_calibration.total, from_scene.total);
+    EXPECT_EQ(from_calibration.var_x, from_scene.var_x);
+    SceneDescription own = smallObjectScene(ShapeType::kSphere, aperture(3));
+    applyCalibratedLens(camera, own);
+    EXPECT_FLOAT_EQ(own.camera->aperture->focus_distance_m, 3);
+    camera.lens.reset();
+    SceneDescription none = smallObjectScene(ShapeType::kSphere, {});
+    applyCalibratedLens(camera, none);
+    EXPECT_FALSE(none.camera);
 }
 
 TEST(MotionBlur, APointSmearsAlongTheImagePathOfTheCamerasTravelOrTurn) {

@@ -19,6 +19,15 @@
 namespace mixray::calibration {
 
 // One calibrated camera. Plain value.
+// The lens's own settings for the session, which a calibration cannot measure: written into the
+// file by whoever set the lens (the renderer's depth of field follows them, Kán & Kaufmann
+// §3.1).
+struct LensSettings {
+    double f_number = 0;          // > 0
+    double focal_length_mm = 0;   // the lens's own focal length, > 0
+    double focus_distance_m = 0;  // where it is focused, > 0
+};
+
 struct CalibratedCamera {
     std::string name;  // the stream it calibrates ("kinect/color"), or a user's name
     CameraModel model;
@@ -37,6 +46,7 @@ struct CalibratedCamera {
     // What the views left weakly determined, kept on purpose (Observability::summary of a
     // solve accepted with CalibrationOptions::accept_weak); empty: nothing, or not known.
     std::string weak;
+    std::optional<LensSettings> lens;  // absent: not known
 };
 
 // A depth stream and how it registers into a colour camera.

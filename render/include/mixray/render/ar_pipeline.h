@@ -22,6 +22,11 @@
 
 namespace mixray::render {
 
+// The scene's camera takes the calibrated lens's settings (CalibratedCamera::lens) as its
+// aperture where the scene gives none, so virtual objects blur as the lens was set; the
+// scene's own aperture wins. The pose stays tracking's.
+void applyCalibratedLens(const calibration::CalibratedCamera& camera, SceneDescription& scene);
+
 // Where frames come from.
 struct ArSource {
     enum class Pace {
