@@ -158,6 +158,10 @@ private:
     Result<std::string> name(const Item& item);
     Result<std::string> anchor(const Item& item);
     Result<float> scalar(const Item& item, double min, double max, bool min_exclusive);
+    // Reads `key` of `fields` into `out` when it is there, in [min, max] (min excluded when
+    // `min_exclusive`); `out` keeps its value when the key is absent.
+    Status optionalScalar(const Fields& fields, std::string_view key, double min, double max,
+                          bool min_exclusive, float& out);
     // The index in `names` of the item's word.
     Result<size_t> oneOf(const Item& item, std::span<const std::string_view> names);
     // A linear RGB colour: a number (grey) or [r, g, b], each in [min, max].
@@ -192,6 +196,17 @@ Result<float> SceneParser::scalar(const Item& item, double min, double max, bool
     if (!v)
         return v.status();
     return static_cast<float>(*v);
+}
+
+Status SceneParser::optionalScalar(const Fields& fields, std::string_view key, double min,
+                                   double max, bool min_exclusive, float& out) {
+    if (const Item* v = find(fields, key)) {
+        auto x = scalar(*v, min, max, min_exclusive);
+        if (!x)
+            return x.status();
+        out = *x;
+    }
+    return Status::ok();
 }
 
 Result<size_t> SceneParser::oneOf(const Item& item, std::span<const std::string_view> names) {
@@ -634,21 +649,15 @@ Status SceneParser::parseCamera(const Item& item, SceneDescription& scene) {
             return aperture_fields.status();
         LensAperture aperture;
         aperture.where = a->where;
-        const auto read = [&](std::string_view key, double min, double max, bool required,
-                              float& out) -> Status {
-            const Item* v = find(*aperture_fields, key);
-            if (v == nullptr)
-                return required ? r_.fail(*a, "aperture." + std::string(key) + " is required")
-                                : Status::ok();
-            auto x = scalar(*v, min, max, /*min_exclusive=*/min == 0);
-            if (!x)
-                return x.status();
-            out = *x;
-            return Status::ok();
-        };
-        MIXRAY_RETURN_IF_ERROR(read("f_number", 0.5, 128, false, aperture.f_number));
-        MIXRAY_RETURN_IF_ERROR(read("focal_length_mm", 0, 2000, true, aperture.focal_length_mm));
-        MIXRAY_RETURN_IF_ERROR(read("focus_distance_m", 0, 1e4, true, aperture.focus_distance_m));
+        for (const std::string_view key : {"focal_length_mm", "focus_distance_m"})
+            if (!find(*aperture_fields, key))
+                return r_.fail(*a, "aperture." + std::string(key) + " is required");
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*aperture_fields, "f_number", 0.5, 128, false, aperture.f_number));
+        MIXRAY_RETURN_IF_ERROR(optionalScalar(*aperture_fields, "focal_length_mm", 0, 2000, true,
+                                              aperture.focal_length_mm));
+        MIXRAY_RETURN_IF_ERROR(optionalScalar(*aperture_fields, "focus_distance_m", 0, 1e4, true,
+                                              aperture.focus_distance_m));
         camera.aperture = aperture;
     }
     return Status::ok();
@@ -715,12 +724,8 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
                 return v.status();
             caustics.photons = static_cast<int>(*v);
         }
-        if (const Item* r = find(*settings, "radius_m")) {
-            auto v = scalar(*r, 0, 1, true);
-            if (!v)
-                return v.status();
-            caustics.radius_m = *v;
-        }
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*settings, "radius_m", 0, 1, true, caustics.radius_m));
     }
     if (const Item* camera = find(*fields, "camera"))
         MIXRAY_RETURN_IF_ERROR(parseCamera(*camera, scene));
@@ -730,12 +735,8 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
         if (!depth_fields)
             return depth_fields.status();
         scene.depth_surface.where = depth->where;
-        if (const Item* v = find(*depth_fields, "reflectance")) {
-            auto s = scalar(*v, 0, 1, false);
-            if (!s)
-                return s.status();
-            scene.depth_surface.reflectance = *s;
-        }
+        MIXRAY_RETURN_IF_ERROR(optionalScalar(*depth_fields, "reflectance", 0, 1, false,
+                                              scene.depth_surface.reflectance));
     }
     if (const Item* lens = find(*fields, "lens_effects"))
         MIXRAY_RETURN_IF_ERROR(parseLensEffects(*lens, scene));
@@ -745,24 +746,21 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
         if (!matching_fields)
             return matching_fields.status();
         scene.camera_matching.where = matching->where;
-        if (const Item* noise = find(*matching_fields, "noise")) {
-            auto strength = scalar(*noise, 0, 10, false);
-            if (!strength)
-                return strength.status();
-            scene.camera_matching.noise = *strength;
+        if (find(*matching_fields, "noise")) {
+            float strength = 0;
+            MIXRAY_RETURN_IF_ERROR(
+                optionalScalar(*matching_fields, "noise", 0, 10, false, strength));
+            scene.camera_matching.noise = strength;
         }
         if (const Item* blur = find(*matching_fields, "motion_blur")) {
             auto blur_fields =
                 r_.readMap(*blur, kMotionBlurKeys, "a motion_blur mapping with exposure_ms:");
             if (!blur_fields)
                 return blur_fields.status();
-            scene.camera_matching.motion_blur_exposure_ms = 0;
-            if (const Item* e = find(*blur_fields, "exposure_ms")) {
-                auto exposure = scalar(*e, 0, 1000, false);
-                if (!exposure)
-                    return exposure.status();
-                scene.camera_matching.motion_blur_exposure_ms = *exposure;
-            }
+            float exposure_ms = 0;
+            MIXRAY_RETURN_IF_ERROR(
+                optionalScalar(*blur_fields, "exposure_ms", 0, 1000, false, exposure_ms));
+            scene.camera_matching.motion_blur_exposure_ms = exposure_ms;
         }
     }
     return Status::ok();
@@ -773,17 +771,6 @@ Status SceneParser::parseLensEffects(const Item& item, SceneDescription& scene) 
         r_.readMap(item, kLensEffectKeys, "a lens_effects mapping with bloom: and glare:");
     if (!fields)
         return fields.status();
-    // Each reads `key` of `from` into `out` when it is there.
-    const auto read = [&](const Fields& from, std::string_view key, double min, double max,
-                          bool min_exclusive, float& out) -> Status {
-        if (const Item* v = find(from, key)) {
-            auto x = scalar(*v, min, max, min_exclusive);
-            if (!x)
-                return x.status();
-            out = *x;
-        }
-        return Status::ok();
-    };
     if (const Item* b = find(*fields, "bloom")) {
         auto bloom_fields =
             r_.readMap(*b, kBloomKeys, "a bloom mapping with threshold:, strength:, radius_px:");
@@ -791,9 +778,12 @@ Status SceneParser::parseLensEffects(const Item& item, SceneDescription& scene) 
             return bloom_fields.status();
         Bloom bloom;
         bloom.where = b->where;
-        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "threshold", 0, 1e6, true, bloom.threshold));
-        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "strength", 0, 10, false, bloom.strength));
-        MIXRAY_RETURN_IF_ERROR(read(*bloom_fields, "radius_px", 0.5, 64, false, bloom.radius_px));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*bloom_fields, "threshold", 0, 1e6, true, bloom.threshold));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*bloom_fields, "strength", 0, 10, false, bloom.strength));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*bloom_fields, "radius_px", 0.5, 64, false, bloom.radius_px));
         scene.lens_effects.bloom = bloom;
     }
     if (const Item* g = find(*fields, "glare")) {
@@ -803,9 +793,12 @@ Status SceneParser::parseLensEffects(const Item& item, SceneDescription& scene) 
             return glare_fields.status();
         Glare glare;
         glare.where = g->where;
-        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "threshold", 0, 1e6, true, glare.threshold));
-        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "strength", 0, 10, false, glare.strength));
-        MIXRAY_RETURN_IF_ERROR(read(*glare_fields, "attenuation", 0, 1, true, glare.attenuation));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*glare_fields, "threshold", 0, 1e6, true, glare.threshold));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*glare_fields, "strength", 0, 10, false, glare.strength));
+        MIXRAY_RETURN_IF_ERROR(
+            optionalScalar(*glare_fields, "attenuation", 0, 1, true, glare.attenuation));
         if (const Item* v = find(*glare_fields, "passes")) {
             auto n = scalar(*v, 1, 4, false);
             if (!n)
