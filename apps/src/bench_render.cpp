@@ -549,6 +549,7 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
     inputs.camera_image = image.view();
     RenderLayers out;
     // Wall-clock and process CPU seconds of one render() call.
+    int light_moves = 0;  // move_light: every render() call, repeats of a pose too
     const auto frame = [&](int i, RenderStats& stats) -> Result<std::pair<double, double>> {
         inputs.T_world_cam = cameraPose(i);
         if (config.exposure_fraction > 0)
@@ -561,7 +562,7 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
             // A light that moves re-shoots the photons: 10 µm a frame, as if tracked.
             std::vector<Light> moved = lights;
             for (Light& light : moved)
-                light.position.x() += 1e-5 * (i + 2);
+                light.position.x() += 1e-5 * ++light_moves;
             MIXRAY_RETURN_IF_ERROR(renderer.setLights(moved));
         }
         MIXRAY_RETURN_IF_ERROR(renderer.render(inputs, out, &stats));
