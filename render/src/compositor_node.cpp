@@ -46,7 +46,8 @@ double percentile(std::vector<double>& sorted, double p) {
 }  // namespace
 
 std::vector<Light> lightsFromEstimates(const std::vector<tracking::EstimatedLight>& estimates,
-                                       std::shared_ptr<const FloatImage> environment_map) {
+                                       std::shared_ptr<const FloatImage> environment_map,
+                                       const EstimatedLightSettings& settings) {
     std::vector<Light> out;
     for (size_t i = 0; i < estimates.size(); ++i) {
         const tracking::EstimatedLight& e = estimates[i];
@@ -65,6 +66,7 @@ std::vector<Light> lightsFromEstimates(const std::vector<tracking::EstimatedLigh
             l.direction = -e.to_light_world.normalized();
             l.intensity = rgb(e.intensity);
         }
+        l.shadow_map = settings.shadow_map;
         out.push_back(std::move(l));
     }
     if (environment_map) {
@@ -489,10 +491,12 @@ Status CompositorNode::composite(const Pending& set) {
         auto lights = tracking::decodeLightRecord(bytes);
         if (!lights)
             return lights.status().withContext(options_.light_stream);
+        // The fish-eye's map, else the one built from the colour frames (the light node
+        // publishes one or the other).
         std::shared_ptr<const FloatImage> map;
         int64_t map_stamp = 0;
         for (const tracking::LightGroup& g : lights->groups)
-            if (g.name == "environment" && g.good_stamp_ns > 0)
+            if ((g.name == "environment" || g.name == "camera_environment") && g.good_stamp_ns > 0)
                 map_stamp = g.good_stamp_ns;
         if (map_stamp > 0) {
             auto found = environment_maps_.find(map_stamp);
@@ -508,7 +512,8 @@ Status CompositorNode::composite(const Pending& set) {
         for (const tracking::LightGroup& g : lights->groups)
             if (g.name == "render")
                 render_lights = g.lights;
-        std::vector<Light> scene_lights = lightsFromEstimates(render_lights, map);
+        std::vector<Light> scene_lights =
+            lightsFromEstimates(render_lights, map, scene_.estimated_lights);
         if (lights_version_ == 0 || map_stamp != last_map_stamp_ns_ ||
             scene_lights.size() != lights_.size() || [&] {
                 for (size_t i = 0; i < scene_lights.size(); ++i) {

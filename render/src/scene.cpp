@@ -227,6 +227,9 @@ Status SceneDescription::validate() const {
             return corrupt(l.where, path + ".name", "duplicate light name \"" + l.name + "\"");
         MIXRAY_RETURN_IF_ERROR(validateLight(l, path));
     }
+    if (estimated_lights.shadow_map)
+        MIXRAY_RETURN_IF_ERROR(
+            validateShadowMap(*estimated_lights.shadow_map, "estimated_lights.shadow_map"));
     if (camera)
         MIXRAY_RETURN_IF_ERROR(validateCamera(*camera, file_where));
     if (!(depth_surface.reflectance >= 0 && depth_surface.reflectance <= 1))

@@ -66,9 +66,10 @@ constexpr std::string_view kAnchorRule = "an anchor: world or marker:<id> (like 
 // ---------------------------------------------------------------------------------------------
 // Schema
 
-constexpr std::array<std::string_view, 9> kRootKeys = {
-    "version",       "materials",    "objects",         "lights",  "camera",
-    "depth_surface", "lens_effects", "camera_matching", "caustics"};
+constexpr std::array<std::string_view, 10> kRootKeys = {
+    "version",       "materials",    "objects",         "lights",   "camera",
+    "depth_surface", "lens_effects", "camera_matching", "caustics", "estimated_lights"};
+constexpr std::array<std::string_view, 1> kEstimatedLightKeys = {"shadow_map"};
 constexpr std::array<std::string_view, 2> kCausticsKeys = {"photons", "radius_m"};
 constexpr std::array<std::string_view, 2> kCameraMatchingKeys = {"noise", "motion_blur"};
 constexpr std::array<std::string_view, 1> kMotionBlurKeys = {"exposure_ms"};
@@ -727,6 +728,19 @@ Status SceneParser::parse(std::string_view text, SceneDescription& scene) {
         MIXRAY_RETURN_IF_ERROR(
             optionalScalar(*settings, "radius_m", 0, 1, true, caustics.radius_m));
     }
+    if (const Item* estimated = find(*fields, "estimated_lights")) {
+        auto settings = r_.readMap(*estimated, kEstimatedLightKeys,
+                                   "an estimated_lights mapping with shadow_map:");
+        if (!settings)
+            return settings.status();
+        scene.estimated_lights.where = estimated->where;
+        if (const Item* m = find(*settings, "shadow_map")) {
+            auto map = parseShadowMap(*m);
+            if (!map)
+                return map.status();
+            scene.estimated_lights.shadow_map = *map;
+        }
+    }
     if (const Item* camera = find(*fields, "camera"))
         MIXRAY_RETURN_IF_ERROR(parseCamera(*camera, scene));
     if (const Item* depth = find(*fields, "depth_surface")) {
@@ -888,6 +902,7 @@ Result<ComposedArScene> composeArScene(const std::filesystem::path& real_scene_p
     scene.lens_effects = objects->lens_effects;  // how the virtual objects pass the lens
     scene.camera_matching = objects->camera_matching;
     scene.caustics = objects->caustics;  // the virtual objects' caustics on the real scene
+    scene.estimated_lights = objects->estimated_lights;
     for (SceneObject o : real->objects) {
         o.role = ObjectRole::kGhost;
         scene.objects.push_back(std::move(o));

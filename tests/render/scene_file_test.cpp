@@ -11,6 +11,7 @@
 #include <random>
 #include <string>
 
+#include "mixray/render/compositor_node.h"
 #include "test_data.h"
 
 namespace mixray::render {
@@ -480,6 +481,52 @@ TEST(SceneFileTest, ShadowMapSettings) {
         << environment.status().toString();
 }
 
+// The lights tracking estimates take the scene's estimated_lights settings: a shadow map for
+// each point, sphere and directional estimate, none for the environment map.
+TEST(SceneFileTest, EstimatedLightSettings) {
+    auto scene = parseScene(
+        "estimated_lights:\n  shadow_map: { filter: vsm, resolution: 256, blur_texels: 3 }\n",
+        "scene.yaml");
+    ASSERT_TRUE(scene.isOk()) << scene.status().toString();
+    ASSERT_TRUE(scene->estimated_lights.shadow_map);
+    EXPECT_EQ(scene->estimated_lights.shadow_map->filter, ShadowMapFilter::kVsm);
+    EXPECT_EQ(scene->estimated_lights.shadow_map->resolution, 256);
+    EXPECT_FLOAT_EQ(scene->estimated_lights.shadow_map->vsm_blur_texels, 3);
+    EXPECT_FALSE(parseScene("version: 1\n", "s.yaml")->estimated_lights.shadow_map);
+
+    tracking::EstimatedLight sun;
+    sun.to_light_world = {0, 0, 1};
+    tracking::EstimatedLight lamp = sun;
+    lamp.position_world = Eigen::Vector3d(0, 0, 2);
+    lamp.angular_radius_rad = 0.05;
+    FloatImage room;
+    room.width = 8;
+    room.height = 4;
+    room.pixels.assign(8 * 4 * 3, 0.5f);
+    const auto map = std::make_shared<const FloatImage>(std::move(room));
+    const std::vector<Light> lights =
+        lightsFromEstimates({sun, lamp}, map, scene->estimated_lights);
+    ASSERT_EQ(lights.size(), 3u);
+    EXPECT_EQ(lights[0].type, LightType::kDirectional);
+    EXPECT_EQ(lights[1].type, LightType::kSphere);
+    EXPECT_EQ(lights[2].type, LightType::kEnvironment);
+    EXPECT_TRUE(lights[0].shadow_map && lights[1].shadow_map);
+    EXPECT_FALSE(lights[2].shadow_map);
+    EXPECT_FALSE(lightsFromEstimates({sun}, nullptr)[0].shadow_map);
+
+    for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
+             {"estimated_lights: { shadow_map: { kernel: 16 } }\n", "kernel"},
+             {"estimated_lights: { shadows: {} }\n", "shadows"},
+             {"estimated_lights: 3\n", "an estimated_lights mapping"}}) {
+        auto refused = parseScene(text, "s.yaml");
+        ASSERT_FALSE(refused.isOk()) << text;
+        EXPECT_NE(refused.status().message().find(message), std::string::npos)
+            << refused.status().toString();
+        EXPECT_NE(refused.status().message().find("s.yaml:1"), std::string::npos)
+            << refused.status().toString();
+    }
+}
+
 // Caustics: both settings read, defaults kept, bad values named.
 TEST(SceneFileTest, CausticSettings) {
     auto scene = parseScene("caustics: { photons: 50000 }\n", "scene.yaml");
@@ -737,6 +784,10 @@ TEST(SceneFileTest, ComposeArSceneOnTheEffectsFixtures) {
     ASSERT_TRUE(effects.isOk());
     EXPECT_TRUE(effects->scene.lens_effects.bloom && effects->scene.lens_effects.glare);
     EXPECT_TRUE(effects->scene.camera_matching.noise);
+    ASSERT_TRUE(effects->scene.caustics);
+    EXPECT_EQ(effects->scene.caustics->photons, 100000);
+    ASSERT_TRUE(effects->scene.estimated_lights.shadow_map);
+    EXPECT_EQ(effects->scene.estimated_lights.shadow_map->filter, ShadowMapFilter::kPcf);
     auto caustics = composeArScene(test::fixturesDir() / "sessions/sim_tabletop.scene.yaml",
                                    test::fixturesDir() / "scenes/sim_tabletop_caustics.yaml");
     ASSERT_TRUE(caustics.isOk()) << caustics.status().toString();

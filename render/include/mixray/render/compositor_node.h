@@ -31,9 +31,11 @@ namespace mixray::render {
 // Scene lights from estimated ones (a light record's "render" group): a light with a position
 // and an apparent size becomes a sphere of that size (soft shadows as the real light casts
 // them, intensity E·d² for the same irradiance at the scene), else a directional light; plus
-// the environment map, when there is one, as an environment light.
+// the environment map, when there is one, as an environment light. The others take
+// `settings`' shadow map.
 std::vector<Light> lightsFromEstimates(const std::vector<tracking::EstimatedLight>& estimates,
-                                       std::shared_ptr<const FloatImage> environment_map);
+                                       std::shared_ptr<const FloatImage> environment_map,
+                                       const EstimatedLightSettings& settings = {});
 
 // One rung of the quality ladder: what the renderer may give up to hold a frame rate.
 struct QualityStep {
@@ -70,11 +72,13 @@ private:
 
 struct CompositorOptions {
     std::string name = "compositor";
-    std::string color_stream;            // rgb8 or bgr8; required
-    std::string depth_stream;            // depth16 that occludes; empty: none
-    std::string pose_stream;             // pose records placing the camera; empty: fixed pose
-    std::string light_stream;            // light records; empty: the scene's own lights
-    std::string environment_map_stream;  // environment-map records; empty: none
+    std::string color_stream;  // rgb8 or bgr8; required
+    std::string depth_stream;  // depth16 that occludes; empty: none
+    std::string pose_stream;   // pose records placing the camera; empty: fixed pose
+    std::string light_stream;  // light records; empty: the scene's own lights
+    // Environment-map records (the fish-eye's or the camera-built), rendered while the light
+    // records' "environment" or "camera_environment" group names them; empty: none.
+    std::string environment_map_stream;
     std::string output_stream = "composite/color";
 
     calibration::CameraModel camera;                                      // the colour camera

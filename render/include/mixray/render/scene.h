@@ -216,6 +216,15 @@ struct CausticSettings {
     SourceLocation where;
 };
 
+// How the lights tracking estimates are rendered: in the AR pipeline they replace the scene's
+// own lights (render::lightsFromEstimates), so settings a scene file gives its lights are given
+// to them here. Plain value.
+struct EstimatedLightSettings {
+    // Point, sphere and directional estimates: shadows from a shadow map; none: ray-traced.
+    std::optional<ShadowMapSettings> shadow_map;
+    SourceLocation where;
+};
+
 // A whole scene. Plain value; reentrant.
 struct SceneDescription {
     std::map<std::string, Material> materials;
@@ -226,7 +235,8 @@ struct SceneDescription {
     LensEffects lens_effects;
     CameraMatching camera_matching;
     std::optional<CausticSettings> caustics;  // none: no caustics
-    std::filesystem::path source_path;        // where it was loaded from, for messages
+    EstimatedLightSettings estimated_lights;
+    std::filesystem::path source_path;  // where it was loaded from, for messages
 
     // kCorruptData with the entry's location on the first problem: unknown material names,
     // non-positive sizes, IOR < 1, non-finite numbers, bad anchors, duplicate names.
