@@ -32,4 +32,14 @@ int fail(const std::string& command, const Status& status) {
     return exitCodeFor(status);
 }
 
+CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width) {
+    return command
+        .add_option("--camera-environment", width,
+                    "Without a fish-eye camera: width of the environment map built from the "
+                    "colour camera's own tracked frames, which metal and glass reflect and which "
+                    "lights the virtual objects (0: none; even, 16 to 8192)")
+        ->check(CLI::Range(0, 8192))
+        ->capture_default_str();
+}
+
 }  // namespace mixray::cli

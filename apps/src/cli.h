@@ -26,6 +26,12 @@ int exitCodeFor(const Status& status);
 // Prints "mixray <command>: <status>" to stderr and returns the matching exit code.
 int fail(const std::string& command, const Status& status);
 
+// --camera-environment WIDTH of the commands that composite (run, demo): without a fish-eye,
+// the environment map built from the colour camera's own tracked frames
+// (tracking::PipelineOptions::camera_environment); 0: none.
+inline constexpr int kDefaultCameraEnvironmentWidth = 128;
+CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width);
+
 // A subcommand and what to run when it was chosen.
 struct Command {
     CLI::App* app = nullptr;

@@ -49,6 +49,8 @@ struct DemoOptions {
     uint64_t max_frames = 0;
     bool truth = true;
     bool depth = true;
+    bool environment = true;  // estimate lights and the map from the fish-eye
+    int camera_environment = kDefaultCameraEnvironmentWidth;
 };
 
 double angleDeg(const Vector3d& a, const Vector3d& b) {
@@ -170,6 +172,10 @@ int runDemo(const DemoOptions& options) {
     ar.tracking.utc_minus_host_ns = *utc_offset;
     ar.setup = *setup;
     ar.use_depth = options.depth;
+    ar.tracking.environment = options.environment;
+    if (options.camera_environment > 0)
+        ar.tracking.camera_environment =
+            tracking::CameraEnvironmentOptions{.width = options.camera_environment};
 
     fs::path real_scene = options.real_scene;
     if (real_scene.empty()) {
@@ -507,6 +513,10 @@ void registerDemoCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--max-frames", o->max_frames, "Stop after this many frames (0: all)");
     sub->add_flag("!--no-truth", o->truth, "Skip the ground-truth comparison");
     sub->add_flag("!--no-depth", o->depth, "Do not hide virtual objects behind Kinect depth");
+    sub->add_flag("!--no-environment", o->environment,
+                  "Leave the fish-eye environment camera out (the environment the colour camera "
+                  "builds stands in)");
+    addCameraEnvironmentOption(*sub, o->camera_environment);
     commands.push_back({sub, [o] { return runDemo(*o); }});
 }
 

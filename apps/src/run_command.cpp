@@ -45,6 +45,7 @@ struct RunOptions {
     int shadow_samples = 8;
     int max_depth = 2;
     int threads = 0;
+    int camera_environment = kDefaultCameraEnvironmentWidth;
 };
 
 bool isRigFile(const fs::path& path) {
@@ -191,6 +192,9 @@ int runRun(const RunOptions& options) {
     ar.render.depth_secondary = render::DepthSecondaryRays::kNone;
     ar.record = options.record;
     ar.target_fps = options.target_fps;
+    if (options.camera_environment > 0)
+        ar.tracking.camera_environment =
+            tracking::CameraEnvironmentOptions{.width = options.camera_environment};
 
     // The live view: a sink on the pipeline's graph, with the tracking overlay on the colour
     // tile and the pipeline's figures beside the tiles.
@@ -327,6 +331,7 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
         ->capture_default_str();
     sub->add_option("--threads", o->threads, "Render threads (0: all cores)")
         ->check(CLI::Range(0, 1024));
+    addCameraEnvironmentOption(*sub, o->camera_environment);
     commands.push_back({sub, [o] { return runRun(*o); }});
 }
 

@@ -210,7 +210,7 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         p->tracking_ = std::move(nodes).value();
         pose_stream = p->tracking_->options().pose_stream;
         light_stream = p->tracking_->options().light_stream;
-        if (p->tracking_->hasEnvironment())
+        if (p->tracking_->hasEnvironmentMaps())
             map_stream = p->tracking_->options().environment_map_stream;
     }
 

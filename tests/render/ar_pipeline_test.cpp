@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -428,6 +429,98 @@ TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
     EXPECT_EQ(silent_fresh, 0) << "a dead camera's estimate claimed to be current";
     EXPECT_EQ(talking_aged, 0) << "an estimate marked stale while its camera still sent images";
     EXPECT_GE(pose_not_valid, 1) << "the blacked-out frames still gave a current pose";
+}
+
+// Issue 14, the environment from the camera itself: with the fish-eye left out, the light node
+// builds the environment from the tracked colour frames, publishes a map after the first frame
+// and then every `interval`, and every light record names the map in use; the compositor lights
+// the virtual objects with it, so the glass ball shows the room instead of black. With the
+// fish-eye in, its maps win and none is built.
+TEST(ArPipeline, WithoutAFisheyeTheCompositorUsesTheEnvironmentTheCameraBuilt) {
+    struct Run {
+        std::map<uint64_t, std::vector<uint8_t>> composites;
+        std::map<uint64_t, int64_t> map_stamps;  // colour frame → camera map in use (0: none)
+        std::map<uint64_t, int64_t> frame_stamps;
+        std::map<uint64_t, bool> lit_by_map;  // the renderer had an environment light
+        uint64_t maps = 0;
+        bool fisheye_group = false;
+    };
+    const auto run = [](bool fisheye, bool camera_environment) {
+        ArPipelineOptions options = sessionPipelineOptions();
+        options.tracking.environment = fisheye;
+        if (camera_environment)
+            options.tracking.camera_environment = tracking::CameraEnvironmentOptions{.width = 64};
+        options.tracking.camera_environment_interval = 10;
+        auto r = std::make_shared<Run>();
+        std::mutex mutex;
+        options.on_composite = [&mutex, r](const CompositeFrame& c) {
+            const uint64_t i = c.color.meta().sequence;
+            const ImageView image = c.composite.image();
+            std::lock_guard lock(mutex);
+            r->composites[i].assign(image.data, image.data + image.size_bytes);
+            r->frame_stamps[i] = c.color.meta().host_stamp_ns;
+            r->map_stamps[i] = 0;
+            if (c.lights)
+                for (const auto& g : c.lights->groups) {
+                    if (g.name == "camera_environment")
+                        r->map_stamps[i] = g.good_stamp_ns;
+                    r->fisheye_group = r->fisheye_group || g.name == "environment";
+                }
+            r->lit_by_map[i] = false;
+            if (c.lights_used)
+                for (const Light& l : *c.lights_used)
+                    r->lit_by_map[i] = r->lit_by_map[i] ||
+                                       (l.type == LightType::kEnvironment && l.environment_image);
+        };
+        std::unique_ptr<ArPipeline> pipeline;
+        runToEnd(sessionSource(ArSource::Pace::kFast), std::move(options), pipeline);
+        r->maps = pipeline ? pipeline->stats().tracking->environment_maps : 0;
+        return r;
+    };
+    const auto black = run(false, false);
+    const auto built = run(false, true);
+    ASSERT_FALSE(HasFailure());
+    ASSERT_EQ(built->composites.size(), 36u);
+    ASSERT_EQ(black->composites.size(), 36u);
+
+    // Every session frame has a fresh pose: maps after frames 0, 10, 20 and 30.
+    EXPECT_EQ(built->maps, 4u);
+    EXPECT_EQ(black->maps, 0u);
+    EXPECT_FALSE(built->fisheye_group);
+    for (uint64_t i = 0; i < 36; ++i) {
+        SCOPED_TRACE("colour frame " + std::to_string(i));
+        EXPECT_EQ(built->map_stamps.at(i), built->frame_stamps.at(i / 10 * 10));
+        EXPECT_TRUE(built->lit_by_map.at(i));
+        EXPECT_FALSE(black->lit_by_map.at(i));
+        EXPECT_EQ(black->map_stamps.at(i), 0);
+    }
+    // The room the camera saw lights the objects and shows in the glass: the composite is
+    // brighter where it changed, on every frame.
+    for (uint64_t i = 0; i < 36; i += 5) {
+        const std::vector<uint8_t>& a = black->composites.at(i);
+        const std::vector<uint8_t>& b = built->composites.at(i);
+        ASSERT_EQ(a.size(), b.size());
+        int64_t changed = 0, gain = 0;
+        for (size_t k = 0; k < a.size(); ++k)
+            if (a[k] != b[k]) {
+                ++changed;
+                gain += int64_t{b[k]} - int64_t{a[k]};
+            }
+        std::printf(
+            "frame %2llu: %lld bytes changed by the camera's environment, mean %+.1f codes\n",
+            static_cast<unsigned long long>(i), static_cast<long long>(changed),
+            changed ? static_cast<double>(gain) / static_cast<double>(changed) : 0.0);
+        EXPECT_GT(changed, 1000) << "frame " << i;
+        EXPECT_GT(gain, 10 * changed) << "frame " << i << ": " << changed << " bytes changed";
+    }
+
+    // The fish-eye in the graph: its maps, not the camera's.
+    const auto with_fisheye = run(true, true);
+    ASSERT_FALSE(HasFailure());
+    EXPECT_EQ(with_fisheye->maps, 3u) << "one per fish-eye image";
+    EXPECT_TRUE(with_fisheye->fisheye_group);
+    for (const auto& [i, stamp] : with_fisheye->map_stamps)
+        EXPECT_EQ(stamp, 0) << "frame " << i << " named a camera-built map";
 }
 
 TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {

@@ -55,13 +55,8 @@ Status EnvironmentLightNode::connect(Graph& graph) {
     if (!light_out)
         return light_out.status();
     light_out_ = std::move(light_out).value();
-    StreamInfo map = makeEnvironmentMapStreamInfo(options_->environment_map_stream, env.name,
-                                                  setup.map_width, setup.map_width / 2);
-    map.device = options_->name;
-    map.clock_domain = env.clock_domain;
-    map.nominal_fps = env.nominal_fps;
-    // Maps are published rarely and held by the compositor until a newer one comes.
-    auto map_out = addPooledStream(graph, map, 4);
+    auto map_out = detail::addEnvironmentMapStream(graph, options_->environment_map_stream,
+                                                   options_->name, env, setup.map_width);
     if (!map_out)
         return map_out.status();
     map_out_ = std::move(map_out).value();
@@ -114,26 +109,17 @@ void EnvironmentLightNode::publishMap(const FrameRef& image,
     if (!estimate.value || !estimate.value->environment_map || estimate.good_stamp_ns <= 0 ||
         estimate.good_stamp_ns == published_map_stamp_ns_)
         return;
-    WritableFrame out = detail::acquireRecordBuffer(map_out_, options_->lossless, stop_);
-    Result<size_t> bytes = Status(ErrorCode::kUnavailable, "no buffer");
-    if (out) {
-        bytes = encodeEnvironmentMapRecord(
-            *estimate.value->environment_map,
+    FrameMetadata meta = image.meta();
+    meta.sequence = maps_published_;
+    if (!detail::publishEnvironmentMap(
+            *graph_, map_out_, *estimate.value->environment_map,
             toEnvironmentMapHeader(image.meta().sequence, image.meta().device_stamp_ns, estimate),
-            out.image().data, out.capacityBytes());
-    }
-    if (!bytes) {
-        graph_->countLost(map_out_.id);
+            meta, options_->lossless, stop_)) {
         std::lock_guard lock(stats_mutex_);
         ++stats_.publish_failures;
         return;
     }
-    out.setPayloadBytes(*bytes);
-    FrameMetadata meta = image.meta();
-    meta.stream = map_out_.id;
-    meta.sequence = maps_published_++;
-    out.meta() = meta;
-    graph_->publish(std::move(out).publish());
+    ++maps_published_;
     published_map_stamp_ns_ = estimate.good_stamp_ns;
     std::lock_guard lock(stats_mutex_);
     ++stats_.environment_maps;

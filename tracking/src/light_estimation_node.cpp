@@ -207,6 +207,19 @@ Status LightEstimationNode::connect(Graph& graph) {
         return out.status();
     light_out_ = std::move(out).value();
 
+    if (pipeline_.camera_environment && !has_environment_stream_) {
+        auto created = CameraEnvironment::create(*pipeline_.camera_environment);
+        if (!created)
+            return created.status().withContext("camera_environment");
+        camera_environment_.emplace(std::move(created).value());
+        auto maps =
+            detail::addEnvironmentMapStream(graph, options_->environment_map_stream, options_->name,
+                                            info, pipeline_.camera_environment->width);
+        if (!maps)
+            return maps.status();
+        camera_map_out_ = std::move(maps).value();
+    }
+
     probes_.resize(pipeline_.probes ? setup.probes.size() : 0);
     return Status::ok();
 }
@@ -225,7 +238,10 @@ void LightEstimationNode::run() {
         runLive();
         probe_worker_.reset();
     }
-    finish(Status::ok(), {light_out_.id});
+    if (camera_environment_)
+        finish(Status::ok(), {light_out_.id, camera_map_out_.id});
+    else
+        finish(Status::ok(), {light_out_.id});
 }
 
 void LightEstimationNode::takeEnvironment() {
@@ -464,6 +480,13 @@ void LightEstimationNode::estimate(const FrameRef& pose_frame, const Result<Pose
         record.groups.push_back(toLightGroup("environment", f.environment));
     if (f.sun.value || !f.sun.reason.empty())
         record.groups.push_back(toLightGroup("sun", f.sun));
+    if (camera_environment_) {
+        if (fresh_pose && color)
+            addToCameraEnvironment(color, *pose, meta);
+        else if (!camera_environment_estimate_.value)
+            camera_environment_estimate_.keep("no colour frame with a fresh pose yet", stamp);
+        record.groups.push_back(toLightGroup("camera_environment", camera_environment_estimate_));
+    }
 
     // Observers first: whoever consumes the record may then find the frame it came from.
     if (on_lights_)
@@ -472,6 +495,34 @@ void LightEstimationNode::estimate(const FrameRef& pose_frame, const Result<Pose
                                                   meta, options_->lossless, stop_);
     std::lock_guard lock(stats_mutex_);
     ++(published ? stats_.light_records : stats_.publish_failures);
+}
+
+void LightEstimationNode::addToCameraEnvironment(const FrameRef& color, const PoseRecord& pose,
+                                                 const FrameMetadata& meta) {
+    const int64_t stamp = meta.host_stamp_ns;
+    if (Status added =
+            camera_environment_->add(color.image(), options_->setup.camera.model, pose.transform());
+        !added) {
+        // The last map stands; the group says why this frame did not join it.
+        camera_environment_estimate_.keep(added.message(), stamp);
+        return;
+    }
+    if (camera_environment_estimate_.value &&
+        ++camera_frames_since_map_ < pipeline_.camera_environment_interval)
+        return;
+    camera_frames_since_map_ = 0;
+    camera_environment_estimate_.update(
+        EnvironmentEstimate{{}, std::make_shared<const FloatImage>(camera_environment_->map())},
+        stamp);
+    FrameMetadata map_meta = meta;
+    map_meta.sequence = stats().camera_environment_maps;
+    const bool published = detail::publishEnvironmentMap(
+        *graph_, camera_map_out_, *camera_environment_estimate_.value->environment_map,
+        toEnvironmentMapHeader(pose.frame_sequence, pose.frame_device_stamp_ns,
+                               camera_environment_estimate_),
+        map_meta, options_->lossless, stop_);
+    std::lock_guard lock(stats_mutex_);
+    ++(published ? stats_.camera_environment_maps : stats_.publish_failures);
 }
 
 }  // namespace mixray::tracking

@@ -26,6 +26,34 @@ bool publishRecord(Graph& graph, const PooledStream& out, const uint8_t* bytes, 
     return true;
 }
 
+Result<PooledStream> addEnvironmentMapStream(Graph& graph, const std::string& name,
+                                             const std::string& device, const StreamInfo& of,
+                                             int width) {
+    StreamInfo map = makeEnvironmentMapStreamInfo(name, of.name, width, width / 2);
+    map.device = device;
+    map.clock_domain = of.clock_domain;
+    map.nominal_fps = of.nominal_fps;
+    return addPooledStream(graph, map, 4);
+}
+
+bool publishEnvironmentMap(Graph& graph, const PooledStream& out, const FloatImage& map,
+                           const EnvironmentMapHeader& header, FrameMetadata meta, bool lossless,
+                           const std::atomic<bool>& stop) {
+    WritableFrame frame = acquireRecordBuffer(out, lossless, stop);
+    Result<size_t> bytes = Status(ErrorCode::kUnavailable, "no buffer");
+    if (frame)
+        bytes = encodeEnvironmentMapRecord(map, header, frame.image().data, frame.capacityBytes());
+    if (!bytes) {
+        graph.countLost(out.id);
+        return false;
+    }
+    frame.setPayloadBytes(*bytes);
+    meta.stream = out.id;
+    frame.meta() = meta;
+    graph.publish(std::move(frame).publish());
+    return true;
+}
+
 uint64_t skipToNewest(FrameQueue& queue, FrameRef& frame) {
     uint64_t skipped = 0;
     while (auto newer = queue.tryPop()) {

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "mixray/graph/graph.h"
+#include "mixray/tracking/light_record.h"
 
 namespace mixray::tracking::detail {
 
@@ -31,6 +32,19 @@ bool publishEncoded(Graph& graph, const PooledStream& out, const Result<Bytes>& 
     }
     return publishRecord(graph, out, bytes->data(), bytes->size(), meta, lossless, stop);
 }
+
+// Adds the stream of environment maps built from stream `of` (its clock domain and rate),
+// width x width/2, published by `device`. Maps are published rarely and held by the
+// compositor until a newer one comes: a pool of a few.
+Result<PooledStream> addEnvironmentMapStream(Graph& graph, const std::string& name,
+                                             const std::string& device, const StreamInfo& of,
+                                             int width);
+
+// Publishes `map` as one environment-map record of `out` with `header` and `meta` (its stream
+// set to out's), as publishRecord() does. False (counted lost) when it was not published.
+bool publishEnvironmentMap(Graph& graph, const PooledStream& out, const FloatImage& map,
+                           const EnvironmentMapHeader& header, FrameMetadata meta, bool lossless,
+                           const std::atomic<bool>& stop);
 
 // Live: replaces `frame` by the newest frame waiting in `queue`; how many it skipped.
 uint64_t skipToNewest(FrameQueue& queue, FrameRef& frame);

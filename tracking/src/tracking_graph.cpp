@@ -111,6 +111,13 @@ Status TrackingNodeOptions::validate() const {
     if (queue_capacity < 2 || output_buffers < 2)
         return {ErrorCode::kInvalidArgument,
                 "tracking nodes: queue_capacity and output_buffers must be at least 2"};
+    if (pipeline.camera_environment) {
+        MIXRAY_RETURN_IF_ERROR(
+            pipeline.camera_environment->validate().withContext("camera_environment"));
+        if (pipeline.camera_environment_interval < 1)
+            return {ErrorCode::kInvalidArgument,
+                    "tracking nodes: camera_environment_interval must be at least 1"};
+    }
     return setup.validate();
 }
 
@@ -150,6 +157,10 @@ Result<TrackingNodes> TrackingNodes::add(Graph& graph, TrackingNodeOptions optio
     return nodes;
 }
 
+bool TrackingNodes::hasEnvironmentMaps() const {
+    return environment_ || lights_->buildsCameraEnvironment();
+}
+
 bool TrackingNodes::waitDone(std::chrono::nanoseconds timeout) const {
     return lights_->waitDone(timeout);
 }
@@ -169,11 +180,12 @@ TrackingNodeStats TrackingNodes::stats() const {
     s.color_skipped = m.color_skipped;
     s.light_records = l.light_records;
     s.publish_failures = m.publish_failures + l.publish_failures;
+    s.environment_maps = l.camera_environment_maps;
     if (environment_) {
         const EnvironmentLightStats e = environment_->stats();
         s.environment_frames = e.environment_frames;
         s.environment_skipped = e.environment_skipped;
-        s.environment_maps = e.environment_maps;
+        s.environment_maps += e.environment_maps;
         s.publish_failures += e.publish_failures;
     }
     return s;

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,8 +17,9 @@
 namespace mixray::tracking {
 
 struct LightEstimationStats {
-    uint64_t light_records = 0;     // published
-    uint64_t publish_failures = 0;  // light records not published: their pool was exhausted
+    uint64_t light_records = 0;            // published
+    uint64_t publish_failures = 0;         // light records not published: their pool was exhausted
+    uint64_t camera_environment_maps = 0;  // camera-built environment maps published
 };
 
 // For each pose record of options.pose_stream (MarkerTrackingNode's), matched to its colour
@@ -32,8 +34,10 @@ struct LightEstimationStats {
 // images were captured before the frame, and waits until their records came. Live, the newest
 // environment record wins, and the probes are estimated on a thread beside the node
 // (at most every PipelineOptions::probe_interval_ms), so the records keep the
-// colour rate. Ends its stream when the pose stream ends. Thread-safe: stats(), waitDone() and
-// status() from any thread.
+// colour rate. Without a fish-eye stream, and with PipelineOptions::camera_environment, it also
+// builds the environment from the colour frames it has fresh poses for and publishes its maps. Ends
+// its streams when the pose stream ends. Thread-safe: stats(), waitDone() and status() from any
+// thread.
 class LightEstimationNode : public TrackingGraphNode {
 public:
     // Called on the node's thread before the record of colour frame `color_sequence` is
@@ -49,6 +53,8 @@ public:
     // The colour and pose streams must exist; the environment streams are used when they do.
     Status connect(Graph& graph) override;
     LightEstimationStats stats() const;
+    // After connect(): whether this node publishes camera-built environment maps.
+    bool buildsCameraEnvironment() const { return camera_environment_.has_value(); }
 
 private:
     class ProbeWorker;
@@ -65,6 +71,10 @@ private:
     // known): `pose_frame` carries the record `pose` decoded from it.
     void estimate(const FrameRef& pose_frame, const Result<PoseRecord>& pose,
                   const FrameRef& color);
+    // Adds a colour frame with a fresh pose to the camera environment and publishes the map
+    // when one is due.
+    void addToCameraEnvironment(const FrameRef& color, const PoseRecord& pose,
+                                const FrameMetadata& meta);
 
     std::shared_ptr<const TrackingNodeOptions> options_;
     PipelineOptions pipeline_;  // options_->pipeline as this node runs it
@@ -75,6 +85,8 @@ private:
     std::shared_ptr<FrameQueue> environment_record_queue_;  // their estimates
     bool has_environment_stream_ = false;  // the setup's environment stream is in the graph
     PooledStream light_out_;
+    std::optional<CameraEnvironment> camera_environment_;  // without a fish-eye, when asked
+    PooledStream camera_map_out_;
 
     // Run state, touched by the node's thread only.
     std::deque<int64_t> environment_stamps_;    // lossless: images whose records are awaited
@@ -84,7 +96,9 @@ private:
     Estimate<EstimatedLight> sun_;
     std::vector<Estimate<ProbeResult>> probes_;
     Estimate<IntensityFit> intensities_;
-    std::unique_ptr<ProbeWorker> probe_worker_;  // live
+    std::unique_ptr<ProbeWorker> probe_worker_;                  // live
+    Estimate<EnvironmentEstimate> camera_environment_estimate_;  // the map last published
+    uint32_t camera_frames_since_map_ = 0;
     int64_t last_probe_stamp_ns_ = 0;
     bool probed_ = false;
 

@@ -15,6 +15,7 @@
 #include "mixray/graph/recording.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/rig.h"
+#include "mixray/tracking/camera_environment.h"
 #include "mixray/tracking/estimate.h"
 #include "mixray/tracking/light_intensity.h"
 #include "mixray/tracking/lights.h"
@@ -66,6 +67,15 @@ struct PipelineOptions {
     std::optional<int64_t> utc_minus_host_ns;
     // Or the UTC of the first colour frame (ns since the Unix epoch), which fixes the offset.
     std::optional<int64_t> utc_first_frame_ns;
+    // Without a fish-eye in the graph (the setup has none, the recording lacks its stream, or
+    // `environment` is off), LightEstimationNode builds the environment from the tracked colour
+    // frames themselves (CameraEnvironment) and publishes its map on the environment-map stream
+    // after the first frame with a fresh pose and then after every camera_environment_interval
+    // more; each light record's "camera_environment" group names the map in use by its
+    // good_stamp_ns, and the compositor renders it as an environment light, so metal and glass
+    // reflect the room instead of black. nullopt: none.
+    std::optional<CameraEnvironmentOptions> camera_environment;
+    uint32_t camera_environment_interval = 10;
 };
 
 // The site of the recording's rig (its rig.yaml attachment, or `rig_path`), if it has one.

@@ -57,7 +57,7 @@ struct TrackingNodeStats {
     uint64_t light_records = 0;        // light records published (one per tracked colour frame)
     uint64_t environment_frames = 0;   // environment frames estimated
     uint64_t environment_skipped = 0;  // live: environment frames a newer one replaced
-    uint64_t environment_maps = 0;     // environment maps published
+    uint64_t environment_maps = 0;     // environment maps published (fish-eye or camera-built)
     uint64_t publish_failures = 0;     // records not published: their pool was exhausted
 };
 
@@ -123,6 +123,9 @@ public:
 
     const TrackingNodeOptions& options() const { return *options_; }
     bool hasEnvironment() const { return environment_ != nullptr; }
+    // Whether options().environment_map_stream exists: the fish-eye's maps, or those the light
+    // node builds from the colour frames.
+    bool hasEnvironmentMaps() const;
     MarkerTrackingNode& markers() const { return *markers_; }
     LightEstimationNode& lights() const { return *lights_; }
     EnvironmentLightNode* environment() const { return environment_; }
