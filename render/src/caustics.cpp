@@ -2,13 +2,14 @@
 #include "caustics.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <unordered_map>
 
 #include "integrator.h"
 
@@ -58,11 +59,17 @@ size_t PhotonGrid::cellOf(const Vec3& p, int dx, int dy, int dz) const {
     return static_cast<size_t>(h & (cell_start_.size() - 2));
 }
 
-void PhotonGrid::build(std::vector<Photon> photons, float radius) {
-    radius_ = radius;
+size_t PhotonGrid::tableFor(size_t photons) {
     size_t table = 1024;
-    while (table < 2 * photons.size())
+    while (table < 2 * photons)
         table *= 2;
+    return table;
+}
+
+void PhotonGrid::build(std::vector<Photon> photons, float radius, size_t table) {
+    radius_ = radius;
+    if (table == 0)
+        table = tableFor(photons.size());
     cell_start_.assign(table + 1, 0);
     std::vector<uint32_t> cell(photons.size());
     for (size_t i = 0; i < photons.size(); ++i) {
@@ -234,7 +241,10 @@ std::vector<Photon> CausticMaps::shoot(const Frame& f, RTCScene target, bool rea
                         o.bound_radius * 1.001f + 1e-4f, g,
                         !real_only || !generators_[g].is_virtual});
     }
-    tbb::enumerable_thread_specific<std::vector<Photon>> stored;
+    // Blocks of photons stored in block order: the same photons in the same order on every run,
+    // and a ghost generator's in the same order in both scenes (changedPhotons() relies on it).
+    constexpr int kBlock = 256;
+    std::vector<std::vector<Photon>> stored;
     if (aims.empty() || f.lights.empty())
         return {};
     const int per_light = std::max(1, settings_.photons / static_cast<int>(f.lights.size()));
@@ -270,52 +280,51 @@ std::vector<Photon> CausticMaps::shoot(const Frame& f, RTCScene target, bool rea
             const Vec3 axis = directional ? travel : Vec3((aim.centre - from).normalized());
             const Vec3 u = axis.unitOrthogonal(), v = axis.cross(u);
             const Vec3 power_per = light.light.intensity * (catches[a] / static_cast<float>(count));
-            tbb::parallel_for(
-                tbb::blocked_range<int>(0, count, 256), [&](const tbb::blocked_range<int>& r) {
-                    std::vector<Photon>& out = stored.local();
-                    for (int i = r.begin(); i < r.end(); ++i) {
-                        optics::Rng rng(hashIndex(kPhotonSeed ^ (static_cast<uint64_t>(l) << 32),
-                                                  aim.generator, static_cast<uint64_t>(i)));
-                        // Stratified and jittered over the disk or the cone.
-                        const float su = (static_cast<float>(i % side) + rng.uniform()) /
-                                         static_cast<float>(side);
-                        const float sv = (static_cast<float>(i / side % side) + rng.uniform()) /
-                                         static_cast<float>(side);
-                        Vec3 origin, dir;
-                        if (directional) {
-                            const Vec2 q = concentricDisk(su, sv) * aim.radius;
-                            const Vec3 point = aim.centre + q.x() * u + q.y() * v;
-                            dir = axis;
-                            origin = point - (aim.radius + kDirectionalLead_m) * axis;
-                        } else {
-                            const float cos_t = 1 - su * (1 - cos_half[a]);
-                            const float sin_t = std::sqrt(std::max(0.f, 1 - cos_t * cos_t));
-                            const float phi = 2 * optics::kPi * sv;
-                            dir = (sin_t * std::cos(phi) * u + sin_t * std::sin(phi) * v +
-                                   cos_t * axis)
-                                      .normalized();
-                            origin = from;
-                        }
-                        // Aims overlapping along this direction share it: each sampled it.
-                        int overlap = 0;
-                        for (size_t b = 0; b < aims.size(); ++b) {
-                            if (!aims[b].shot)
-                                continue;
-                            if (directional) {
-                                const Vec3 c = aims[b].centre - origin;
-                                overlap += (c - c.dot(dir) * dir).norm() <= aims[b].radius ? 1 : 0;
-                            } else {
-                                overlap +=
-                                    dir.dot((aims[b].centre - from).normalized()) >= cos_half[b]
-                                        ? 1
-                                        : 0;
-                            }
-                        }
-                        tracePhoton(origin, dir,
-                                    power_per / static_cast<float>(std::max(1, overlap)), target,
-                                    integrator, rng, out);
+            const size_t first_block = stored.size();
+            const int blocks = (count + kBlock - 1) / kBlock;
+            stored.resize(first_block + static_cast<size_t>(blocks));
+            tbb::parallel_for(0, blocks, [&](int block) {
+                std::vector<Photon>& out = stored[first_block + static_cast<size_t>(block)];
+                for (int i = block * kBlock; i < std::min(count, (block + 1) * kBlock); ++i) {
+                    optics::Rng rng(hashIndex(kPhotonSeed ^ (static_cast<uint64_t>(l) << 32),
+                                              aim.generator, static_cast<uint64_t>(i)));
+                    // Stratified and jittered over the disk or the cone.
+                    const float su =
+                        (static_cast<float>(i % side) + rng.uniform()) / static_cast<float>(side);
+                    const float sv = (static_cast<float>(i / side % side) + rng.uniform()) /
+                                     static_cast<float>(side);
+                    Vec3 origin, dir;
+                    if (directional) {
+                        const Vec2 q = concentricDisk(su, sv) * aim.radius;
+                        const Vec3 point = aim.centre + q.x() * u + q.y() * v;
+                        dir = axis;
+                        origin = point - (aim.radius + kDirectionalLead_m) * axis;
+                    } else {
+                        const float cos_t = 1 - su * (1 - cos_half[a]);
+                        const float sin_t = std::sqrt(std::max(0.f, 1 - cos_t * cos_t));
+                        const float phi = 2 * optics::kPi * sv;
+                        dir = (sin_t * std::cos(phi) * u + sin_t * std::sin(phi) * v + cos_t * axis)
+                                  .normalized();
+                        origin = from;
                     }
-                });
+                    // Aims overlapping along this direction share it: each sampled it.
+                    int overlap = 0;
+                    for (size_t b = 0; b < aims.size(); ++b) {
+                        if (!aims[b].shot)
+                            continue;
+                        if (directional) {
+                            const Vec3 c = aims[b].centre - origin;
+                            overlap += (c - c.dot(dir) * dir).norm() <= aims[b].radius ? 1 : 0;
+                        } else {
+                            overlap += dir.dot((aims[b].centre - from).normalized()) >= cos_half[b]
+                                           ? 1
+                                           : 0;
+                        }
+                    }
+                    tracePhoton(origin, dir, power_per / static_cast<float>(std::max(1, overlap)),
+                                target, integrator, rng, out);
+                }
+            });
         }
     }
     std::vector<Photon> all;
@@ -339,6 +348,50 @@ std::vector<float> CausticMaps::stateOf(const Frame& f) const {
     return state;
 }
 
+namespace {
+
+// The photons of `a` that `b` has not and of `b` that `a` has not, as multisets, by their
+// exact position and power.
+std::vector<Photon> changedPhotons(const std::vector<Photon>& a, const std::vector<Photon>& b) {
+    using Key = std::array<uint32_t, 6>;
+    struct KeyHash {
+        size_t operator()(const Key& k) const {
+            uint64_t h = 1469598103934665603ull;
+            for (uint32_t v : k)
+                h = (h ^ v) * 1099511628211ull;
+            return static_cast<size_t>(h);
+        }
+    };
+    const auto keyOf = [](const Photon& ph) {
+        Key k;
+        std::memcpy(k.data(), ph.p.data(), 3 * sizeof(float));
+        std::memcpy(k.data() + 3, ph.power.data(), 3 * sizeof(float));
+        return k;
+    };
+    std::unordered_map<Key, int, KeyHash> count;
+    count.reserve(a.size());
+    for (const Photon& ph : a)
+        ++count[keyOf(ph)];
+    std::vector<Photon> out;
+    for (const Photon& ph : b) {
+        auto found = count.find(keyOf(ph));
+        if (found != count.end() && found->second > 0)
+            --found->second;
+        else
+            out.push_back(ph);
+    }
+    for (const Photon& ph : a) {
+        auto found = count.find(keyOf(ph));
+        if (found->second > 0) {
+            --found->second;
+            out.push_back(ph);
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
 void CausticMaps::update(const Frame& f, const EmbreeScene& scene,
                          const DifferentialIntegrator& integrator) {
     std::vector<float> state = stateOf(f);
@@ -352,8 +405,19 @@ void CausticMaps::update(const Frame& f, const EmbreeScene& scene,
     const auto shot = std::chrono::steady_clock::now();
     times_.stored_mixed = mixed.size();
     times_.stored_real = real.size();
-    mixed_.build(std::move(mixed), settings_.radius_m);
-    real_.build(std::move(real), settings_.radius_m);
+    // Without photons in one scene (no ghost generator, say), all of the other's changed.
+    changed_in_ = real.empty()    ? ChangedIn::kMixed
+                  : mixed.empty() ? ChangedIn::kReal
+                                  : ChangedIn::kOwn;
+    changed_.build(
+        changed_in_ == ChangedIn::kOwn ? changedPhotons(mixed, real) : std::vector<Photon>{},
+        settings_.radius_m);
+    times_.changed = changed_in_ == ChangedIn::kMixed  ? mixed.size()
+                     : changed_in_ == ChangedIn::kReal ? real.size()
+                                                       : changed_.photons().size();
+    const size_t table = PhotonGrid::tableFor(std::max(mixed.size(), real.size()));
+    mixed_.build(std::move(mixed), settings_.radius_m, table);
+    real_.build(std::move(real), settings_.radius_m, table);
     const auto built = std::chrono::steady_clock::now();
     times_.shoot_s = std::chrono::duration<double>(shot - start).count();
     times_.build_s = std::chrono::duration<double>(built - shot).count();

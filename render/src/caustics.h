@@ -30,7 +30,10 @@ struct Photon {
 // k-d tree answers k-nearest queries this kernel does not need.
 class PhotonGrid {
 public:
-    void build(std::vector<Photon> photons, float radius);
+    // `table`: the hash table's buckets, a power of two, 0 to size it to the photons. Two grids
+    // with the same table and the same photons in the same order gather bit-identical sums.
+    void build(std::vector<Photon> photons, float radius, size_t table = 0);
+    static size_t tableFor(size_t photons);
     // Σ Φ_i K(|p − p_i|) over photons on the side `n` faces: irradiance, W/m².
     Vec3 irradiance(const Vec3& p, const Vec3& n) const;
     // Whether any photon lies within the kernel of p.
@@ -58,6 +61,7 @@ struct CausticTimes {
     double build_s = 0;  // t_b: sorting them into the grids
     bool reshot = false;
     size_t stored_mixed = 0, stored_real = 0;
+    size_t changed = 0;  // photons only one scene has
 };
 
 class CausticMaps {
@@ -72,17 +76,31 @@ public:
     void update(const Frame& f, const EmbreeScene& scene, const DifferentialIntegrator& integrator);
 
     // Caustic irradiance at surface point p (normal n, on the side light arrives from) in the
-    // mixed and the real scene.
-    Pair irradiance(const Vec3& p, const Vec3& n) const {
-        return {mixed_.irradiance(p, n), real_.irradiance(p, n)};
+    // mixed and the real scene; only those `mode` asks for.
+    Pair irradiance(const Vec3& p, const Vec3& n, Mode mode = Mode::kBoth) const {
+        Pair out;
+        if (mode != Mode::kReal)
+            out.m = mixed_.irradiance(p, n);
+        if (mode != Mode::kMixed)
+            out.r = real_.irradiance(p, n);
+        return out;
     }
-    // Whether a caustic of either scene reaches p: the footprint must shade it.
-    bool near(const Vec3& p) const { return mixed_.near(p) || real_.near(p); }
+    // Whether a caustic one scene has and the other has not reaches p: the footprint must shade
+    // it. Photons the two scenes share (a real generator's, where nothing virtual is in their
+    // way) gather bit-identical sums in both, so they change no pixel: the grids share a table
+    // and the photons their order.
+    bool near(const Vec3& p) const { return changed().near(p); }
     // Whether any photon landed this frame.
     bool landed() const { return !mixed_.photons().empty() || !real_.photons().empty(); }
 
     const PhotonGrid& mixed() const { return mixed_; }
     const PhotonGrid& real() const { return real_; }
+    // The photons only one of the scenes has: what the footprint must cover.
+    const PhotonGrid& changed() const {
+        return changed_in_ == ChangedIn::kMixed  ? mixed_
+               : changed_in_ == ChangedIn::kReal ? real_
+                                                 : changed_;
+    }
     const CausticTimes& times() const { return times_; }
     bool any() const { return !generators_.empty(); }
 
@@ -102,7 +120,11 @@ private:
     CausticSettings settings_;
     const std::vector<ObjectData>& objects_;
     std::vector<CausticGenerator> generators_;
-    PhotonGrid mixed_, real_;
+    PhotonGrid mixed_, real_, changed_;
+    // Where the changed photons are: all of one scene's when the other has none (no ghost
+    // generator, say), else changed_.
+    enum class ChangedIn : uint8_t { kMixed, kReal, kOwn };
+    ChangedIn changed_in_ = ChangedIn::kOwn;
     std::vector<float> last_state_;
     CausticTimes times_;
 };

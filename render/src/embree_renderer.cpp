@@ -65,24 +65,32 @@ void EmbreeRenderer::markCausticTiles(const calibration::CameraModel& camera, co
                                       int tiles_x, int ts) {
     const int tiles_y = static_cast<int>(tile_mask_.size()) / tiles_x;
     const float radius = caustic_settings_->radius_m;
-    for (const PhotonGrid* grid : {&f.caustics->mixed(), &f.caustics->real()}) {
-        for (const Photon& ph : grid->photons()) {
-            const Eigen::Vector3d p_cam = f.R_cam_world * ph.p.cast<double>() + f.t_cam_world;
-            if (!(p_cam.z() > 0))
-                continue;
-            const auto px = camera.project(p_cam);
-            if (!px)
-                continue;
-            const double reach = radius * camera.fx / p_cam.z() + 1;
-            const int x0 = std::max(0, static_cast<int>((px->x() - reach) / ts));
-            const int x1 = std::min(tiles_x - 1, static_cast<int>((px->x() + reach) / ts));
-            const int y0 = std::max(0, static_cast<int>((px->y() - reach) / ts));
-            const int y1 = std::min(tiles_y - 1, static_cast<int>((px->y() + reach) / ts));
-            for (int y = y0; y <= y1; ++y)
-                for (int x = x0; x <= x1; ++x)
-                    tile_mask_[static_cast<size_t>(y * tiles_x + x)] = 1;
-        }
-    }
+    // Only photons one scene has and the other has not change pixels (CausticMaps::near()).
+    // In parallel (150K photons project in several ms on one core); a tile is only ever set,
+    // so relaxed atomic stores suffice.
+    const std::vector<Photon>& photons = f.caustics->changed().photons();
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, photons.size(), 4096),
+        [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i < r.end(); ++i) {
+                const Eigen::Vector3d p_cam =
+                    f.R_cam_world * photons[i].p.cast<double>() + f.t_cam_world;
+                if (!(p_cam.z() > 0))
+                    continue;
+                const auto px = camera.project(p_cam);
+                if (!px)
+                    continue;
+                const double reach = radius * camera.fx / p_cam.z() + 1;
+                const int x0 = std::max(0, static_cast<int>((px->x() - reach) / ts));
+                const int x1 = std::min(tiles_x - 1, static_cast<int>((px->x() + reach) / ts));
+                const int y0 = std::max(0, static_cast<int>((px->y() - reach) / ts));
+                const int y1 = std::min(tiles_y - 1, static_cast<int>((px->y() + reach) / ts));
+                for (int y = y0; y <= y1; ++y)
+                    for (int x = x0; x <= x1; ++x)
+                        std::atomic_ref<uint8_t>(tile_mask_[static_cast<size_t>(y * tiles_x + x)])
+                            .store(1, std::memory_order_relaxed);
+            }
+        });
 }
 
 double EmbreeRenderer::renderShadowMaps(const Frame& f) {

@@ -271,7 +271,8 @@ SceneDescription glassBallScene(bool with_caustics) {
     return scene;
 }
 
-Image renderGlassBall(const SceneDescription& scene, bool footprint, bool virtual_active) {
+Image renderGlassBall(const SceneDescription& scene, bool footprint, bool virtual_active,
+                      RenderStats* stats = nullptr) {
     RenderOptions options;
     options.threads = 2;
     options.screen_footprint = footprint;
@@ -291,7 +292,7 @@ Image renderGlassBall(const SceneDescription& scene, bool footprint, bool virtua
     in.camera_image = camera.view();
     in.T_world_cam = test::lookDown({0, 0, 0.6});
     RenderLayers out;
-    EXPECT_TRUE((*renderer)->render(in, out).isOk());
+    EXPECT_TRUE((*renderer)->render(in, out, stats).isOk());
     if (!virtual_active) {
         EXPECT_EQ(std::vector<uint8_t>(out.composite.bytes().begin(), out.composite.bytes().end()),
                   std::vector<uint8_t>(camera.bytes().begin(), camera.bytes().end()))
@@ -317,6 +318,36 @@ TEST(Caustics, AVirtualGlassBallsCausticBrightensTheRealFloor) {
               std::vector<uint8_t>(everywhere.bytes().begin(), everywhere.bytes().end()))
         << "the screen footprint misses pixels the caustic reaches";
     renderGlassBall(glassBallScene(true), true, false);
+}
+
+// A real mirror ball beside the virtual glass ball throws its own caustic over the floor; it is
+// in the camera image already, so it must cancel: the screen footprint shades only what the
+// virtual ball changes (photons the two scenes share are left out of it), and still gives the
+// same bytes as tracing every pixel.
+TEST(Caustics, ARealMirrorsCausticCancelsAndLeavesTheFootprintAlone) {
+    SceneDescription scene = glassBallScene(true);
+    scene.materials["chrome"] = test::material(MaterialType::kMirror, "chrome");
+    SceneObject mirror = test::object("mirror", ObjectRole::kGhost, ShapeType::kSphere, "chrome",
+                                      {-0.12, 0.05, 0.06});
+    mirror.shape.radius = 0.06f;
+    scene.objects.insert(scene.objects.begin() + 1, mirror);  // the glass ball stays last
+    RenderStats alone, beside, everywhere_stats;
+    renderGlassBall(glassBallScene(true), true, true, &alone);
+    const Image with = renderGlassBall(scene, true, true, &beside);
+    const Image everywhere = renderGlassBall(scene, false, true, &everywhere_stats);
+    std::printf(
+        "pixels traced: glass ball alone %llu, beside a real mirror ball %llu, every pixel "
+        "%llu; photons %llu\n",
+        static_cast<unsigned long long>(alone.pixels_traced),
+        static_cast<unsigned long long>(beside.pixels_traced),
+        static_cast<unsigned long long>(everywhere_stats.pixels_traced),
+        static_cast<unsigned long long>(beside.caustic_photons));
+    EXPECT_EQ(std::vector<uint8_t>(with.bytes().begin(), with.bytes().end()),
+              std::vector<uint8_t>(everywhere.bytes().begin(), everywhere.bytes().end()))
+        << "the screen footprint misses pixels the caustics change";
+    EXPECT_LT(beside.pixels_traced, 2 * alone.pixels_traced)
+        << "the real mirror's own caustic spread the footprint";
+    renderGlassBall(scene, true, false);  // nothing virtual: the camera image
 }
 
 }  // namespace
