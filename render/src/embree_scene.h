@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,12 @@ struct ObjectData {
     Eigen::Matrix3f R_world_object = Eigen::Matrix3f::Identity();
     Eigen::Vector3f t_world_object = Eigen::Vector3f::Zero();
 };
+
+// A scene object's geometry loaded into an ObjectData (name, role, pose, meshes scaled and
+// bounded; the material left to the caller): mesh files resolved against the scene file's
+// folder. `hint`, when given, gets the mesh file's own material. Errors name the object.
+Result<ObjectData> loadObjectGeometry(const SceneDescription& scene, const SceneObject& object,
+                                      std::optional<MeshMaterialHint>* hint = nullptr);
 
 class ShadowMap;
 

@@ -94,8 +94,9 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
                                     const Vec3& albedo, Mode mode, SampleState& st) const {
     Pair out;
     const Material& mat = s.material->material;
-    const Vec3 origin =
-        s.p + offsetFor(s.p) * (s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+    // The geometric normal on the side the ray came from, where light can arrive.
+    const Vec3 n_facing = s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric);
+    const Vec3 origin = s.p + offsetFor(s.p) * n_facing;
     for (const LightData* light : f.lights) {
         Vec3 wi;
         float dist = kInf;
@@ -123,8 +124,7 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
         const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
         std::optional<Pair> from_map;
         if (light->shadow_map && options_.shadows)
-            from_map = light->shadow_map->visibility(
-                s.p, s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+            from_map = light->shadow_map->visibility(s.p, n_facing, mode);
         Pair visible =
             from_map ? *from_map : shadows_.visibility(*light, origin, wi, dist, mode, st);
         // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
@@ -137,8 +137,7 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
     }
     if (f.caustics) {
         // Caustic irradiance from the photon maps, reflected diffusely.
-        const Pair e = f.caustics->irradiance(
-            s.p, s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric));
+        const Pair e = f.caustics->irradiance(s.p, n_facing, mode);
         const Vec3 brdf = albedo / optics::kPi;
         out.m += brdf.cwiseProduct(e.m);
         out.r += brdf.cwiseProduct(e.r);

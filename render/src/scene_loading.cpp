@@ -112,39 +112,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
     std::vector<ObjectData> objects;
     for (const SceneObject& obj : scene.objects) {
         const std::string where = "object '" + obj.name + "' (" + obj.where.toString() + ")";
-        ObjectData data;
-        data.name = obj.name;
-        data.role = obj.role;
-        data.shape = obj.shape.type;
-        data.anchor = obj.anchor;
-        data.T_anchor_object = obj.T_anchor_object.cast<float>();
         std::optional<MeshMaterialHint> hint;
-        if (obj.shape.type == ShapeType::kSphere) {
-            data.sphere_radius = obj.shape.radius;
-            data.bound_radius = obj.shape.radius;
-        } else if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
-            data.meshes.push_back(*obj.shape.mesh_data);
-            for (Vec3& p : data.meshes.back().positions)
-                p *= obj.shape.scale;
-            boundMeshes(data);
-        } else if (obj.shape.type == ShapeType::kMesh) {
-            auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
-            if (!loaded)
-                return loaded.status().withContext(where);
-            for (LoadedMesh& mesh : loaded.value()) {
-                if (!hint)
-                    hint = mesh.material;
-                data.meshes.push_back(std::move(mesh.mesh));
-            }
-            boundMeshes(data);
-        } else {
-            data.meshes.push_back(makeShapeMesh(obj.shape));
-            boundMeshes(data);
-        }
-        if (obj.shape.type != ShapeType::kSphere &&
-            std::all_of(data.meshes.begin(), data.meshes.end(),
-                        [](const TriangleMesh& m) { return m.empty(); }))
-            return Status(ErrorCode::kCorruptData, where + ": shape has no triangles");
+        auto loaded = detail::loadObjectGeometry(scene, obj, &hint);
+        if (!loaded)
+            return loaded.status();
+        ObjectData data = std::move(loaded).value();
         if (const auto it = material_index.find(obj.material); it != material_index.end()) {
             data.material = it->second;
         } else if (obj.material.empty()) {
@@ -200,4 +172,44 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
     return std::unique_ptr<Renderer>(std::move(renderer));
 }
 
+namespace detail {
+
+Result<ObjectData> loadObjectGeometry(const SceneDescription& scene, const SceneObject& obj,
+                                      std::optional<MeshMaterialHint>* hint) {
+    const std::string where = "object '" + obj.name + "' (" + obj.where.toString() + ")";
+    ObjectData data;
+    data.name = obj.name;
+    data.role = obj.role;
+    data.shape = obj.shape.type;
+    data.anchor = obj.anchor;
+    data.T_anchor_object = obj.T_anchor_object.cast<float>();
+    if (obj.shape.type == ShapeType::kSphere) {
+        data.sphere_radius = obj.shape.radius;
+        data.bound_radius = obj.shape.radius;
+        return data;
+    }
+    if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
+        data.meshes.push_back(*obj.shape.mesh_data);
+        for (Vec3& p : data.meshes.back().positions)
+            p *= obj.shape.scale;
+    } else if (obj.shape.type == ShapeType::kMesh) {
+        auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
+        if (!loaded)
+            return loaded.status().withContext(where);
+        for (LoadedMesh& mesh : loaded.value()) {
+            if (hint && !*hint)
+                *hint = mesh.material;
+            data.meshes.push_back(std::move(mesh.mesh));
+        }
+    } else {
+        data.meshes.push_back(makeShapeMesh(obj.shape));
+    }
+    boundMeshes(data);
+    if (std::all_of(data.meshes.begin(), data.meshes.end(),
+                    [](const TriangleMesh& m) { return m.empty(); }))
+        return Status(ErrorCode::kCorruptData, where + ": shape has no triangles");
+    return data;
+}
+
+}  // namespace detail
 }  // namespace mixray::render

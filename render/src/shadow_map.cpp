@@ -425,7 +425,7 @@ float ShadowMap::lookup(const Layer& layer, const LightSpace& q, float depth) co
     return 1;
 }
 
-std::optional<Pair> ShadowMap::visibility(const Vec3& p, const Vec3& n) const {
+std::optional<Pair> ShadowMap::visibility(const Vec3& p, const Vec3& n, Mode mode) const {
     const float texel = texelSize(p);
     const LightSpace q = toLight(p + kNormalOffsetTexels * texel * n);
     const float edge = static_cast<float>(res_) - 0.5f;
@@ -435,7 +435,12 @@ std::optional<Pair> ShadowMap::visibility(const Vec3& p, const Vec3& n) const {
     // A texel's depth and the storage's rounding, as a fraction of the range.
     const float bias = (texel + depthStep_m()) / range;
     const float depth = std::min(1.f, (q.depth - near_) / range) - bias;
-    return Pair{Vec3::Constant(lookup(mixed_, q, depth)), Vec3::Constant(lookup(real_, q, depth))};
+    Pair out;
+    if (mode != Mode::kReal)
+        out.m = Vec3::Constant(lookup(mixed_, q, depth));
+    if (mode != Mode::kMixed)
+        out.r = Vec3::Constant(lookup(real_, q, depth));
+    return out;
 }
 
 }  // namespace mixray::render::detail

@@ -31,8 +31,9 @@ public:
 
     // The fractions of the light surface point `p` sees in the mixed and the real scene;
     // `n` is its geometric normal on the side facing the light (the lookup moves along it by a
-    // texel and a half against self-shadowing). Empty outside the map: trace rays there.
-    std::optional<Pair> visibility(const Vec3& p, const Vec3& n) const;
+    // texel and a half against self-shadowing). Only the scenes `mode` asks for are looked up,
+    // as ShadowRays::visibility does. Empty outside the map: trace rays there.
+    std::optional<Pair> visibility(const Vec3& p, const Vec3& n, Mode mode = Mode::kBoth) const;
 
     // How far apart texels are, in metres across the light's rays, at `p`.
     float texelSize(const Vec3& p) const;

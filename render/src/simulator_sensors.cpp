@@ -45,28 +45,10 @@ Result<std::unique_ptr<SimGeometry>> SimGeometry::build(const SceneDescription& 
         if (o.anchor != "world")
             return Status(ErrorCode::kInternal,
                           "simulator: object '" + o.name + "' is not anchored to the world");
-        ObjectData d;
-        d.name = o.name;
-        d.role = o.role;
-        d.shape = o.shape.type;
-        d.anchor = o.anchor;
-        d.T_anchor_object = o.T_anchor_object.cast<float>();
-        if (o.shape.type == ShapeType::kSphere) {
-            d.sphere_radius = o.shape.radius;
-            d.bound_radius = o.shape.radius;
-        } else if (o.shape.type == ShapeType::kMesh) {
-            if (o.shape.mesh_data) {
-                d.meshes.push_back(*o.shape.mesh_data);
-            } else {
-                auto loaded = loadMeshFile(o.shape.mesh, o.shape.scale);
-                if (!loaded)
-                    return loaded.status().withContext("simulator: object '" + o.name + "'");
-                for (LoadedMesh& m : *loaded)
-                    d.meshes.push_back(std::move(m.mesh));
-            }
-        } else {
-            d.meshes.push_back(makeShapeMesh(o.shape));
-        }
+        auto loaded = loadObjectGeometry(scene, o);
+        if (!loaded)
+            return loaded.status().withContext("simulator");
+        ObjectData d = std::move(loaded).value();
         d.active = true;
         d.R_world_object = d.T_anchor_object.linear();
         d.t_world_object = d.T_anchor_object.translation();
