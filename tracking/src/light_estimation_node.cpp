@@ -507,7 +507,9 @@ void LightEstimationNode::addToCameraEnvironment(const FrameRef& color, const Po
         camera_environment_estimate_.keep(added.message(), stamp);
         return;
     }
-    if (camera_environment_estimate_.value &&
+    // A map is due after `interval` frames, and at once after a frame that could not join (the
+    // group went stale saying why; the next map makes it fresh again).
+    if (camera_environment_estimate_.value && !camera_environment_estimate_.stale &&
         ++camera_frames_since_map_ < pipeline_.camera_environment_interval)
         return;
     camera_frames_since_map_ = 0;
