@@ -39,11 +39,11 @@ Vec2 concentricDisk(float u, float v) {
 
 }  // namespace
 
-void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size, const ThinLens& lens, bool timed) {
+bool updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
+                    int tile_size, const ThinLens& lens, bool timed, const std::stop_token& stop) {
     if (!rays.directions.empty() && sameModel(rays.model, camera) && rays.samples == spp &&
         rays.seed == seed && rays.lens == lens && (!timed || !rays.times.empty()))
-        return;
+        return true;
     rays = {camera, spp, seed, lens, {}, {}, {}, {}, {}};
     const int n = static_cast<int>(std::lround(std::sqrt(spp)));
     const int w = camera.width;
@@ -54,6 +54,8 @@ void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
     if (timed)
         rays.times.resize(rays.directions.size());
     tbb::parallel_for(0, camera.height, [&](int y) {
+        if (stop.stop_requested())
+            return;
         std::vector<int> strata(static_cast<size_t>(spp));
         // A fresh shuffle of the pixel's strata into `strata`.
         const auto shuffle = [&](optics::Rng& rng) {
@@ -102,7 +104,12 @@ void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
             }
         }
     });
+    if (stop.stop_requested()) {
+        rays = {};  // part-built: the next frame builds it again
+        return false;
+    }
     rays.cones = detail::tileCones(camera, rays.directions, spp, tile_size);
+    return true;
 }
 
 // The primary hits of the tile [x0, x1) x [y0, y1) in 16-ray packets of 4x4-pixel blocks,

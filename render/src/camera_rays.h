@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <stop_token>
 #include <vector>
 
 #include "frame_context.h"
@@ -66,9 +67,12 @@ struct RayCache {
 // one sits on the pixel centre) drawn from `seed`, their points on `lens`'s aperture, their
 // times in the exposure when `timed` (kept once made, so a pipeline that blurs some frames and
 // not others does not rebuild it), and the cones of tiles of `tile_size`; keeps it as it is
-// when nothing changed.
-void updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
-                    int tile_size, const ThinLens& lens = {}, bool timed = false);
+// when nothing changed. Building it unprojects every sample through the lens model (seconds
+// at 64 samples per pixel under the sanitizers), so it checks `stop` row by row: false, and
+// the cache left empty, when a stop was requested before it was done.
+bool updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int spp, uint64_t seed,
+                    int tile_size, const ThinLens& lens = {}, bool timed = false,
+                    const std::stop_token& stop = {});
 
 // The primary hits, world origins and world directions of the samples of the tile
 // [x0, x1) x [y0, y1) of frame `f`, in `hits`, `origins` and `dirs`

@@ -117,15 +117,15 @@ BareTraceTimes EmbreeRenderer::traceBare(const RayLog& log, int repeats) const {
     return traceBareEmbree(scene_->all(), scene_->ghosts(), log, options_.threads, repeats);
 }
 
+Status frameCancelled() {
+    return Status(ErrorCode::kCancelled, "render: stopped on request before the frame was done");
+}
+
 Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     MIXRAY_RETURN_IF_ERROR(checkInputs(in));
-    const auto cancelled = [] {
-        return Status(ErrorCode::kCancelled,
-                      "render: stopped on request before the frame was done");
-    };
     if (in.stop.stop_requested())
-        return cancelled();
+        return frameCancelled();
     Frame f;
     MIXRAY_RETURN_IF_ERROR(prepareFrame(in, f));
 
@@ -299,7 +299,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         });
     });
     if (stopped)
-        return cancelled();
+        return frameCancelled();
     if (in.ray_log != nullptr) {
         in.ray_log->rays.clear();
         for (const RayList& l : tile_logs)

@@ -23,6 +23,9 @@ namespace mixray::render::detail {
 Result<std::vector<LightData>> loadLights(const std::filesystem::path& scene_source,
                                           const std::vector<Light>& scene_lights);
 
+// kCancelled: RenderInputs::stop was requested before the frame was done.
+Status frameCancelled();
+
 // What a scene sets beyond its objects and lights: the camera's lens and look, and the light
 // transport the renderer adds (SceneDescription's fields of the same names).
 struct SceneEffects {

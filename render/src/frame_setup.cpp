@@ -336,8 +336,9 @@ Status EmbreeRenderer::prepareFrame(const RenderInputs& in, Frame& f) {
             f.lights.push_back(&light);
         }
     }
-    updateRayCache(rays_, in.camera, options_.samples_per_pixel, options_.seed, options_.tile_size,
-                   lens_, in.shutter.has_value());
+    if (!updateRayCache(rays_, in.camera, options_.samples_per_pixel, options_.seed,
+                        options_.tile_size, lens_, in.shutter.has_value(), in.stop))
+        return frameCancelled();
     return Status::ok();
 }
 
