@@ -47,6 +47,12 @@ if(NOT TARGET civetweb::civetweb)
 endif()
 mixray_pkg(TURBOJPEG libturbojpeg libturbojpeg0-dev)
 
+# Rigs across hosts (drivers/dds): Fast DDS 2.9, and fastddsgen to make its types from the IDL.
+find_package(fastrtps 2.9 QUIET)
+mixray_require(fastrtps_FOUND "eProsima Fast DDS 2.9" "libfastrtps-dev libfastcdr-dev")
+find_program(FASTDDSGEN fastddsgen)
+mixray_require(FASTDDSGEN "fastddsgen" fastddsgen)
+
 # Algorithms.
 find_package(Eigen3 3.4 QUIET NO_MODULE)
 mixray_require(Eigen3_FOUND "Eigen 3" libeigen3-dev)
@@ -99,4 +105,10 @@ if(MIXRAY_BUILD_TESTS)
     mixray_pkg(ERFA erfa liberfa-dev)
     # umockdev: emulated /dev and /sys for the V4L2 backend's tests (a UVC camera in software).
     mixray_pkg(UMOCKDEV umockdev-1.0 libumockdev-dev)
+    # Cyclone DDS: the second, independent DDS implementation the ROS 2 interoperability tests
+    # receive mixray's topics with; its idlc makes the test's C types from the same IDL.
+    find_package(CycloneDDS QUIET)
+    mixray_require(CycloneDDS_FOUND "Cyclone DDS" "cyclonedds-dev cyclonedds-tools")
+    find_program(CYCLONEDDS_IDLC idlc)
+    mixray_require(CYCLONEDDS_IDLC "Cyclone DDS's idlc" cyclonedds-tools)
 endif()

@@ -1,0 +1,76 @@
+// A graph sink that publishes streams over DDS: to other mixray hosts (mixray_msgs/msg/Frame,
+// every byte and all metadata) and, for images, to ROS 2 (sensor_msgs/msg/Image).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mixray/dds/dds_options.h"
+#include "mixray/graph/graph.h"
+#include "mixray/graph/result.h"
+
+namespace mixray::dds {
+
+// What a DdsPublisher publishes and how.
+struct DdsPublisherOptions {
+    DdsOptions dds;
+    // Graph streams to publish, by name; empty: every stream in the graph at connect().
+    std::vector<std::string> streams;
+    // Frames each stream's edge holds for the publisher's thread: when DDS is slower than the
+    // stream, the oldest is dropped and counted; the graph never waits (1..64).
+    size_t queue_capacity = 2;
+    // Frames DDS keeps per stream for readers that ask for a lost fragment again (1..64).
+    int history_depth = 2;
+    // Image streams also as ROS 2 topics rt/<rig>/<stream>/image_raw (sensor_msgs/msg/Image);
+    // empty: no ROS 2 topics. Stream names keep their '/': rt/<rig>/kinect/color/image_raw.
+    std::string ros2_rig;
+
+    // kInvalidArgument naming the field.
+    Status validate() const;
+};
+
+// One stream's figures.
+struct DdsStreamStats {
+    std::string stream;
+    std::string topic;
+    uint64_t frames_in = 0;       // frames the graph handed to the publisher's edge
+    uint64_t dropped = 0;         // replaced on the edge before DDS took them (DDS too slow)
+    uint64_t written = 0;         // frames handed to DDS
+    uint64_t write_errors = 0;    // frames DDS refused
+    uint64_t ros_written = 0;     // sensor_msgs/Image messages handed to DDS
+    int matched_readers = 0;      // mixray readers of the frame topic now
+    int ros_matched_readers = 0;  // readers of the ROS 2 topic now
+};
+
+// Subscribes to its streams over live edges (the graph never waits for the network) and
+// publishes each frame from a thread per stream. Announces every stream on
+// kAnnouncementTopic (TRANSIENT_LOCAL, so hosts that join later learn it) and withdraws the
+// announcements at stop().
+// Thread-safety: create/connect/start/stop by the graph's owner; stats() from any thread.
+class DdsPublisher : public Node {
+public:
+    static Result<std::unique_ptr<DdsPublisher>> create(DdsPublisherOptions options);
+    ~DdsPublisher() override;
+    DdsPublisher(const DdsPublisher&) = delete;
+    DdsPublisher& operator=(const DdsPublisher&) = delete;
+
+    std::string name() const override { return "dds-publisher"; }
+    // Subscribes to the streams. kNotFound for a named stream the graph lacks.
+    Status connect(Graph& graph) override;
+    // Joins DDS and creates the writers. kUnavailable when the participant cannot be made.
+    Status start() override;
+    void stop() override;
+
+    std::vector<DdsStreamStats> stats() const;
+    // This host's name in the topics.
+    std::string host() const;
+
+private:
+    struct Impl;
+    explicit DdsPublisher(DdsPublisherOptions options);
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mixray::dds

@@ -1,0 +1,56 @@
+// Conversions between graph frames and streams and their mixray_msgs messages, and the DDS
+// types that carry them. Internal to drivers/dds.
+#pragma once
+
+#include <fastdds/dds/topic/TypeSupport.hpp>
+#include <memory>
+#include <string>
+
+#include "mixray/graph/frame.h"
+#include "mixray/graph/result.h"
+#include "mixray/graph/stream.h"
+#include "mixray_msgs/msg/FramePubSubTypes.h"
+#include "mixray_msgs/msg/StreamAnnouncementPubSubTypes.h"
+
+namespace mixray::dds::detail {
+
+using FrameMessage = mixray_msgs::msg::dds_::Frame_;
+using AnnouncementMessage = mixray_msgs::msg::dds_::StreamAnnouncement_;
+
+// A generated type whose deserialize() survives any bytes: fastcdr throws more exceptions than
+// the generated code catches (a bad encapsulation, an impossible length), and a throw from a
+// DDS receive thread would end the process. Every topic mixray reads uses one of these.
+template <typename Generated>
+class GuardedType : public Generated {
+public:
+    bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) override {
+        try {
+            return Generated::deserialize(payload, data);
+        } catch (...) {
+            return false;
+        }
+    }
+};
+
+// The topic type of frames and of announcements (type names as mixray_msgs puts them on the
+// wire: "mixray_msgs::msg::dds_::Frame_").
+eprosima::fastdds::dds::TypeSupport frameType();
+eprosima::fastdds::dds::TypeSupport announcementType();
+
+// Fills `message` from a frame. Reuses the message's data buffer.
+void toMessage(const FrameMetadata& meta, const ImageView& image, FrameMessage* message);
+
+// kCorruptData naming the problem when `message` is not a frame of `stream`.
+Status checkMessage(const FrameMessage& message, const StreamInfo& stream);
+
+// The metadata `message` carries, exactly as sent (stream, graph stamp: unset).
+FrameMetadata metadataOf(const FrameMessage& message);
+
+// The announcement of graph stream `stream` published by `host`.
+AnnouncementMessage toAnnouncement(const StreamInfo& stream, const std::string& host);
+
+// The stream an announcement describes, its name and device as announced. kCorruptData naming
+// the problem when a field is not something this build knows (kind, format, size, protocol).
+Result<StreamInfo> streamOf(const AnnouncementMessage& announcement);
+
+}  // namespace mixray::dds::detail

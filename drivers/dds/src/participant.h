@@ -1,0 +1,68 @@
+// One Fast DDS participant set up from DdsOptions, with the publisher, subscriber and topics
+// that mixray's writers and readers share. Internal to drivers/dds.
+#pragma once
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+
+#include "mixray/dds/dds_options.h"
+#include "mixray/graph/result.h"
+
+namespace mixray::dds::detail {
+
+namespace fdds = eprosima::fastdds::dds;
+
+// Owns a DomainParticipant and everything made from it; the destructor deletes them all.
+// Thread-safe: Fast DDS entities are, and topic() locks.
+class Participant {
+public:
+    // `role` names the participant in DDS discovery ("mixray publish on <host>").
+    static Result<std::shared_ptr<Participant>> create(const DdsOptions& options,
+                                                       std::string_view role);
+    ~Participant();
+    Participant(const Participant&) = delete;
+    Participant& operator=(const Participant&) = delete;
+
+    fdds::DomainParticipant* participant() const { return participant_; }
+    fdds::Publisher* publisher() const { return publisher_; }
+    fdds::Subscriber* subscriber() const { return subscriber_; }
+    const DdsOptions& options() const { return options_; }
+
+    // The topic `name` of `type` (registered on first use), created once and shared.
+    Result<fdds::Topic*> topic(const std::string& name, const fdds::TypeSupport& type);
+
+private:
+    explicit Participant(DdsOptions options) : options_(std::move(options)) {}
+
+    DdsOptions options_;
+    fdds::DomainParticipant* participant_ = nullptr;
+    fdds::Publisher* publisher_ = nullptr;
+    fdds::Subscriber* subscriber_ = nullptr;
+    std::mutex mutex_;
+    std::map<std::string, fdds::Topic*> topics_;
+};
+
+// The frame topics' writer and reader QoS, in one place so both ends agree.
+//   reliable, volatile, keep last `depth`: a reader that falls behind loses the oldest frames
+//   (counted by their sequence gaps), and the writer never waits for it;
+//   asynchronous publication: write() hands the frame to Fast DDS's sender thread and returns,
+//   which is also what lets Fast DDS fragment frames over UDP's 64 KiB datagrams;
+//   automatic liveliness with the options' lease: a vanished host is noticed within it.
+fdds::DataWriterQos frameWriterQos(const DdsOptions& options, int depth);
+fdds::DataReaderQos frameReaderQos(const DdsOptions& options, int depth);
+
+// The announcement topic's: reliable, transient-local, one sample per host and stream.
+fdds::DataWriterQos announcementWriterQos();
+fdds::DataReaderQos announcementReaderQos();
+
+}  // namespace mixray::dds::detail

@@ -1,0 +1,317 @@
+// The graph over DDS on one machine: frames cross between two graphs bit for bit with their
+// metadata, streams end, hosts leave and come back, and bad input is refused.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <thread>
+
+#include "mixray/dds/dds_backend.h"
+#include "mixray/dds/dds_publisher.h"
+#include "mixray/dds/frame_message.h"
+#include "mixray/graph/clock.h"
+#include "mixray/graph/graph.h"
+
+namespace mixray::dds {
+namespace {
+
+using namespace std::chrono_literals;
+
+// A domain of this test process alone, so tests running side by side never hear each other.
+int testDomain() {
+    return 1 + static_cast<int>(getpid() % 200);
+}
+
+DdsOptions loopback(const std::string& host) {
+    DdsOptions options;
+    options.domain = testDomain();
+    options.host = host;
+    options.transport = DdsTransport::kUdp;
+    return options;
+}
+
+StreamInfo colorStream() {
+    StreamInfo info;
+    info.name = "cam/color";
+    info.device = "cam";
+    info.kind = StreamKind::kColor;
+    info.format = ImageDesc::packed(PixelFormat::kRGB8, 640, 480);
+    info.nominal_fps = 30;
+    info.clock_domain = deviceClockDomain("test", "cam");
+    info.tags["model"] = "test camera";
+    return info;
+}
+
+// Frame i's pixels: every byte depends on its position and i.
+void fill(MutableImageView image, uint64_t i) {
+    const size_t bytes = image.desc.bufferBytes();
+    for (size_t k = 0; k < bytes; ++k)
+        image.data[k] = static_cast<uint8_t>((k * 131 + i * 7 + (k >> 9)) & 0xff);
+}
+
+FrameMetadata metaOf(uint64_t i, StreamId stream, ClockDomainId domain) {
+    FrameMetadata meta;
+    meta.stream = stream;
+    meta.sequence = 100 + i;
+    meta.device_stamp_ns = 5'000'000'000 + static_cast<int64_t>(i) * 33'333'333;
+    meta.host_stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             std::chrono::steady_clock::now().time_since_epoch())
+                             .count();
+    meta.clock_domain = domain;
+    meta.exposure_us = 1000 + static_cast<int64_t>(i);
+    meta.status = i % 5 == 3 ? FrameStatus::kIncomplete : FrameStatus::kOk;
+    return meta;
+}
+
+TEST(DdsFrame, SerializedFramesReadBackExactlyAndMisfitsAreRefused) {
+    const StreamInfo stream = colorStream();
+    Image image(stream.format);
+    fill(image.mutableView(), 3);
+    const FrameMetadata meta = metaOf(3, 0, stream.clock_domain);
+    const std::vector<uint8_t> bytes = serializeFrame(meta, image.view());
+
+    FrameMetadata back;
+    Image back_image;
+    ASSERT_TRUE(deserializeFrame(bytes, stream, &back, &back_image).isOk());
+    EXPECT_TRUE(sameImage(back_image.view(), image.view()));
+    EXPECT_EQ(back.sequence, meta.sequence);
+    EXPECT_EQ(back.device_stamp_ns, meta.device_stamp_ns);
+    EXPECT_EQ(back.host_stamp_ns, meta.host_stamp_ns);
+    EXPECT_EQ(back.clock_domain, meta.clock_domain);
+    EXPECT_EQ(back.exposure_us, meta.exposure_us);
+    EXPECT_EQ(back.status, meta.status);
+
+    // Truncated anywhere: refused, never a crash.
+    for (size_t cut : {size_t{0}, size_t{3}, size_t{20}, bytes.size() / 2, bytes.size() - 1}) {
+        const Status status =
+            deserializeFrame(std::span(bytes.data(), cut), stream, &back, &back_image);
+        EXPECT_EQ(status.code(), ErrorCode::kCorruptData) << cut;
+    }
+    // A frame of another layout than the stream's.
+    StreamInfo mono = stream;
+    mono.format = ImageDesc::packed(PixelFormat::kMono8, 640, 480);
+    const Status wrong_format = deserializeFrame(bytes, mono, &back, &back_image);
+    EXPECT_EQ(wrong_format.code(), ErrorCode::kCorruptData);
+    EXPECT_NE(wrong_format.message().find("rgb8"), std::string::npos) << wrong_format.toString();
+    StreamInfo small = stream;
+    small.format = ImageDesc::packed(PixelFormat::kRGB8, 320, 240);
+    EXPECT_EQ(deserializeFrame(bytes, small, &back, &back_image).code(), ErrorCode::kCorruptData);
+}
+
+TEST(DdsOptionsTest, BadValuesAreNamed) {
+    DdsOptions options;
+    EXPECT_TRUE(options.validate().isOk());
+    options.address = "localhost";
+    EXPECT_NE(options.validate().message().find("address"), std::string::npos);
+    options = {};
+    options.domain = 233;
+    EXPECT_NE(options.validate().message().find("domain"), std::string::npos);
+    options = {};
+    options.peers = {"10.0.0.300"};
+    EXPECT_NE(options.validate().message().find("peers"), std::string::npos);
+
+    DeviceConfig config{
+        .name = "remote", .driver = "dds", .id = "a/cam", .options = {}, .streams = {}};
+    config.options["transport"] = "tcp";
+    DdsDeviceOptions device;
+    const Status bad = parseDdsDeviceOptions(config, &device);
+    EXPECT_NE(bad.message().find("transport"), std::string::npos) << bad.toString();
+    config.options = {{"domian", "3"}};
+    EXPECT_NE(parseDdsDeviceOptions(config, &device).message().find("domian"), std::string::npos);
+    config.options = {{"domain", "7"}, {"peers", "10.0.0.2, 10.0.0.3"}, {"transport", "auto"}};
+    ASSERT_TRUE(parseDdsDeviceOptions(config, &device).isOk());
+    EXPECT_EQ(device.dds.domain, 7);
+    EXPECT_EQ(device.dds.peers, (std::vector<std::string>{"10.0.0.2", "10.0.0.3"}));
+}
+
+// A graph publishing one stream as host `host`.
+struct PublishingHost {
+    Graph graph;
+    PooledStream stream;
+    DdsPublisher* publisher = nullptr;
+
+    explicit PublishingHost(const std::string& host, StreamInfo info = colorStream()) {
+        auto pooled = addPooledStream(graph, info, 8);
+        EXPECT_TRUE(pooled.isOk());
+        stream = *pooled;
+        DdsPublisherOptions options;
+        options.dds = loopback(host);
+        options.ros2_rig = "testrig";
+        auto made = DdsPublisher::create(options);
+        EXPECT_TRUE(made.isOk());
+        publisher = made->get();
+        EXPECT_TRUE(graph.addNode(std::move(*made)).isOk());
+        EXPECT_TRUE(graph.start().isOk());
+    }
+
+    void send(uint64_t i) {
+        WritableFrame frame = stream.pool->acquire();
+        ASSERT_TRUE(frame);
+        fill(frame.image(), i);
+        frame.meta() = metaOf(i, stream.id, graph.stream(stream.id).clock_domain);
+        graph.publish(std::move(frame).publish());
+    }
+};
+
+// Opens the remote device as `name` in `graph`, subscribed losslessly.
+std::shared_ptr<FrameQueue> openRemote(Graph& graph, DdsDevice** device,
+                                       const std::string& id = "hostA/cam") {
+    DdsBackend backend(loopback("hostB"));
+    // Buffers for every frame a test sends before it reads them.
+    DeviceConfig config{
+        .name = "remote", .driver = "dds", .id = id, .options = {{"buffers", "32"}}, .streams = {}};
+    auto opened = backend.open(config);
+    EXPECT_TRUE(opened.isOk()) << opened.status().toString();
+    if (!opened.isOk())
+        return nullptr;
+    *device = static_cast<DdsDevice*>(opened->get());
+    EXPECT_TRUE(graph.addNode(std::move(*opened)).isOk());
+    auto id_local = graph.findStream("remote/color");
+    EXPECT_TRUE(id_local.has_value());
+    auto queue = graph.subscribe(
+        *id_local, {.capacity = 64, .policy = QueuePolicy::kLossless, .name = "test"});
+    EXPECT_TRUE(queue.isOk());
+    EXPECT_TRUE(graph.start().isOk());
+    return *queue;
+}
+
+// Waits until the publisher's writer and the remote device's reader have matched each other
+// (discovery is not symmetric in time, and frames sent before are not resent).
+void waitMatched(const DdsPublisher& publisher, const DdsDevice& device) {
+    const auto until = std::chrono::steady_clock::now() + 10s;
+    while (std::chrono::steady_clock::now() < until) {
+        if (publisher.stats().at(0).matched_readers > 0 && device.stats().at(0).matched_writers > 0)
+            return;
+        std::this_thread::sleep_for(10ms);
+    }
+    FAIL() << "the remote reader never matched";
+}
+
+TEST(DdsGraph, FramesCrossBitExactWithTheirMetadataAndTheStreamEnds) {
+    PublishingHost a("hostA");
+    Graph b;
+    DdsDevice* device = nullptr;
+    auto queue = openRemote(b, &device);
+    ASSERT_TRUE(queue);
+    const StreamInfo local = b.stream(*b.findStream("remote/color"));
+    EXPECT_EQ(local.kind, StreamKind::kColor);
+    EXPECT_EQ(local.format, colorStream().format);
+    EXPECT_EQ(local.nominal_fps, 30);
+    EXPECT_EQ(local.clock_domain, colorStream().clock_domain);
+    EXPECT_EQ(local.tags.at("model"), "test camera");
+    EXPECT_EQ(local.tags.at("dds.host"), "hostA");
+    waitMatched(*a.publisher, *device);
+
+    constexpr uint64_t kFrames = 24;
+    std::vector<FrameMetadata> sent;
+    for (uint64_t i = 0; i < kFrames; ++i) {
+        a.send(i);
+        sent.push_back(metaOf(i, 0, 0));
+        std::this_thread::sleep_for(30ms);  // a 30 fps camera: the live edge keeps up
+    }
+    a.graph.endStream(a.stream.id);
+
+    Image expected(colorStream().format);
+    uint64_t got = 0;
+    for (;;) {
+        auto frame = queue->pop(10s);
+        if (!frame)
+            break;
+        ASSERT_LT(got, kFrames);
+        fill(expected.mutableView(), got);
+        EXPECT_TRUE(sameImage(frame->image(), expected.view())) << "frame " << got;
+        const FrameMetadata& meta = frame->meta();
+        EXPECT_EQ(meta.sequence, 100 + got);
+        EXPECT_EQ(meta.device_stamp_ns, sent[got].device_stamp_ns);
+        EXPECT_EQ(meta.clock_domain, colorStream().clock_domain);
+        EXPECT_EQ(meta.exposure_us, sent[got].exposure_us);
+        EXPECT_EQ(meta.status, sent[got].status);
+        ++got;
+    }
+    EXPECT_EQ(got, kFrames) << "every frame arrives, then the stream ends";
+    EXPECT_TRUE(queue->closed());
+    EXPECT_EQ(device->state(), DeviceState::kEnded);
+    const DdsReceiveStats stats = device->stats().at(0);
+    EXPECT_EQ(stats.published, kFrames);
+    EXPECT_EQ(stats.lost_in_transit, 0u);
+    EXPECT_EQ(stats.rejected, 0u);
+    b.stop();
+    a.graph.stop();
+}
+
+TEST(DdsGraph, AHostThatLeavesIsReconnectingAndRejoins) {
+    auto a = std::make_unique<PublishingHost>("hostA");
+    Graph b;
+    DdsDevice* device = nullptr;
+    auto queue = openRemote(b, &device);
+    ASSERT_TRUE(queue);
+    waitMatched(*a->publisher, *device);
+    a->send(0);
+    ASSERT_TRUE(queue->pop(10s).has_value());
+    EXPECT_EQ(device->state(), DeviceState::kStreaming);
+
+    a.reset();  // the host leaves
+    const auto until = std::chrono::steady_clock::now() + 10s;
+    while (device->state() != DeviceState::kReconnecting &&
+           std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(20ms);
+    EXPECT_EQ(device->state(), DeviceState::kReconnecting);
+    EXPECT_EQ(device->disconnections(), 1u);
+
+    PublishingHost back("hostA");  // and comes back
+    waitMatched(*back.publisher, *device);
+    back.send(1);
+    auto frame = queue->pop(10s);
+    ASSERT_TRUE(frame.has_value());
+    EXPECT_EQ(frame->meta().sequence, 101u);
+    EXPECT_EQ(device->state(), DeviceState::kStreaming);
+    EXPECT_EQ(device->reconnections(), 1u);
+    b.stop();
+}
+
+TEST(DdsGraph, HostClockStampsBecomeTheRemoteHostsClockDomain) {
+    StreamInfo info = colorStream();
+    info.clock_domain = kHostClockDomain;
+    PublishingHost a("hostA", info);
+    Graph b;
+    DdsDevice* device = nullptr;
+    auto queue = openRemote(b, &device);
+    ASSERT_TRUE(queue);
+    const StreamInfo local = b.stream(*b.findStream("remote/color"));
+    EXPECT_EQ(local.clock_domain, deviceClockDomain("dds", "hostA"));
+    waitMatched(*a.publisher, *device);
+    const auto before = std::chrono::steady_clock::now().time_since_epoch();
+    a.send(0);
+    auto frame = queue->pop(10s);
+    ASSERT_TRUE(frame.has_value());
+    // The sender's host stamp is the device stamp in the sender's clock; the host stamp is
+    // this host's arrival.
+    EXPECT_EQ(frame->meta().clock_domain, local.clock_domain);
+    EXPECT_GE(frame->meta().host_stamp_ns,
+              std::chrono::duration_cast<std::chrono::nanoseconds>(before).count());
+    EXPECT_LE(frame->meta().device_stamp_ns, frame->meta().host_stamp_ns);
+    b.stop();
+}
+
+TEST(DdsBackendTest, UnknownDevicesAreNamedWithWhatWasHeard) {
+    PublishingHost a("hostA");
+    DdsBackend backend(loopback("hostB"));
+    DeviceConfig config{
+        .name = "remote", .driver = "dds", .id = "hostA/kinect", .options = {}, .streams = {}};
+    config.options["discovery_timeout_ms"] = "1500";
+    auto opened = backend.open(config);
+    ASSERT_FALSE(opened.isOk());
+    EXPECT_EQ(opened.status().code(), ErrorCode::kNotFound);
+    EXPECT_NE(opened.status().message().find("hostA:cam/color"), std::string::npos)
+        << opened.status().toString();
+
+    auto listed = backend.enumerate();
+    ASSERT_TRUE(listed.isOk());
+    ASSERT_EQ(listed->size(), 1u);
+    EXPECT_EQ(listed->at(0).id, "hostA/cam");
+    EXPECT_EQ(listed->at(0).modes.at(0), "color 640x480@30 rgb8");
+}
+
+}  // namespace
+}  // namespace mixray::dds
