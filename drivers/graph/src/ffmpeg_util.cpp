@@ -48,7 +48,10 @@ std::map<const void*, DemuxerErrors*>& registry() {
     return contexts;
 }
 
-extern "C" void logCallback(void* avcl, int level, const char* format, va_list args) {
+// FFmpeg passes its own printf format: the attribute lets clang check the call below.
+extern "C" __attribute__((format(printf, 3, 0))) void logCallback(void* avcl, int level,
+                                                                  const char* format,
+                                                                  va_list args) {
     DemuxerErrors* errors = nullptr;
     if (avcl && level <= AV_LOG_ERROR) {
         std::lock_guard lock(registryMutex());
