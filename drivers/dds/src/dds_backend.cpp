@@ -33,7 +33,8 @@ int64_t steadyNowNs() {
 // One announced stream as a listener sees it.
 struct Announced {
     std::string host;
-    StreamInfo info;  // as announced: name "device/stream"
+    StreamInfo info;                          // as announced: name "device/stream"
+    std::vector<std::string> device_streams;  // every stream of its device the host publishes
     std::string topic;
     bool disposed = false;  // the stream ended on its host
 };
@@ -66,7 +67,8 @@ public:
                     rejected_.insert(stream.status().message());
                     continue;
                 }
-                streams_[info.instance_handle] = {message.host(), *stream, message.topic(), false};
+                streams_[info.instance_handle] = {message.host(), *stream, message.device_streams(),
+                                                  message.topic(), false};
             } else if (info.instance_state == fdds::NOT_ALIVE_DISPOSED_INSTANCE_STATE) {
                 if (auto found = streams_.find(info.instance_handle); found != streams_.end())
                     found->second.disposed = true;
@@ -446,14 +448,20 @@ Result<std::unique_ptr<Device>> DdsBackend::open(const DeviceConfig& config) {
         }
         return out;
     };
+    // Announcements of one device's streams arrive one by one; each names them all.
     auto complete = [&] {
         const std::vector<Announced> found = matching();
-        if (config.streams.empty())
-            return !found.empty();
-        for (const std::string& s : config.streams) {
+        if (found.empty())
+            return false;
+        std::vector<std::string> wanted;
+        for (const std::string& s : config.streams)
+            wanted.push_back(want_device + "/" + s);
+        if (wanted.empty())
+            wanted = found.front().device_streams;
+        for (const std::string& name : wanted) {
             bool has = false;
             for (const Announced& a : found)
-                has = has || a.info.name == want_device + "/" + s;
+                has = has || a.info.name == name;
             if (!has)
                 return false;
         }

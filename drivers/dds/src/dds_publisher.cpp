@@ -66,6 +66,16 @@ struct DdsPublisher::Impl {
 
     void run(Stream& stream);
     void endStream(Stream& stream);
+    // The names of the published streams of `device`: a receiver opens the device once it has
+    // heard all of them.
+    std::vector<std::string> deviceStreams(const std::string& device) const {
+        std::vector<std::string> out;
+        for (const auto& s : streams) {
+            if (s->info.device == device)
+                out.push_back(s->info.name);
+        }
+        return out;
+    }
     Status createWriters();
 };
 
@@ -105,7 +115,8 @@ void DdsPublisher::Impl::run(Stream& stream) {
 void DdsPublisher::Impl::endStream(Stream& stream) {
     (void)stream.writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(5, 0));
     std::lock_guard lock(mutex);
-    detail::AnnouncementMessage announcement = detail::toAnnouncement(stream.info, host);
+    detail::AnnouncementMessage announcement =
+        detail::toAnnouncement(stream.info, host, deviceStreams(stream.info.device));
     (void)announcer->dispose(&announcement, stream.announcement);
     stream.disposed = true;
 }
@@ -147,7 +158,8 @@ Status DdsPublisher::Impl::createWriters() {
                 return {ErrorCode::kInternal,
                         "dds publisher: cannot create the ROS 2 writer of " + stream->info.name};
         }
-        detail::AnnouncementMessage announcement = detail::toAnnouncement(stream->info, host);
+        detail::AnnouncementMessage announcement =
+            detail::toAnnouncement(stream->info, host, deviceStreams(stream->info.device));
         stream->announcement = announcer->register_instance(&announcement);
         if (!announcer->write(&announcement, stream->announcement))
             return {ErrorCode::kInternal, "dds publisher: cannot announce " + stream->info.name};
@@ -198,21 +210,35 @@ Status DdsPublisher::connect(Graph& graph) {
         stream->queue = *queue;
         d.streams.push_back(std::move(stream));
     }
+    std::lock_guard lock(d.mutex);
+    const Status made = d.createWriters();
+    if (!made.isOk()) {
+        d.participant.reset();
+        for (auto& stream : d.streams)
+            stream->writer = stream->ros_writer = nullptr;
+        return made;
+    }
     return Status::ok();
+}
+
+bool DdsPublisher::waitForReaders(int readers, std::chrono::milliseconds timeout) const {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+        bool all = true;
+        for (const DdsStreamStats& s : stats())
+            all = all && s.matched_readers >= readers;
+        if (all)
+            return true;
+        if (std::chrono::steady_clock::now() >= until)
+            return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
 }
 
 Status DdsPublisher::start() {
     Impl& d = *impl_;
-    {
-        std::lock_guard lock(d.mutex);
-        const Status made = d.createWriters();
-        if (!made.isOk()) {
-            d.participant.reset();
-            for (auto& stream : d.streams)
-                stream->writer = stream->ros_writer = nullptr;
-            return made;
-        }
-    }
+    if (!d.participant)
+        return {ErrorCode::kInternal, "dds publisher: start() before a successful connect()"};
     d.stopping = false;
     for (auto& stream : d.streams)
         stream->thread = std::thread([&d, s = stream.get()] { d.run(*s); });
@@ -234,7 +260,8 @@ void DdsPublisher::stop() {
     // Withdraw the announcements so that other hosts stop listing the streams at once, rather
     // than when this participant's lease runs out.
     for (auto& stream : d.streams) {
-        detail::AnnouncementMessage announcement = detail::toAnnouncement(stream->info, d.host);
+        detail::AnnouncementMessage announcement =
+            detail::toAnnouncement(stream->info, d.host, d.deviceStreams(stream->info.device));
         if (!stream->disposed)
             (void)d.announcer->unregister_instance(&announcement, stream->announcement);
         stream->writer = stream->ros_writer = nullptr;

@@ -86,11 +86,13 @@ FrameMetadata metadataOf(const FrameMessage& message) {
     return meta;
 }
 
-AnnouncementMessage toAnnouncement(const StreamInfo& stream, const std::string& host) {
+AnnouncementMessage toAnnouncement(const StreamInfo& stream, const std::string& host,
+                                   const std::vector<std::string>& device_streams) {
     AnnouncementMessage message;
     message.host(host);
     message.stream(stream.name);
     message.device(stream.device);
+    message.device_streams(device_streams);
     message.topic(frameTopic(host, stream.name));
     message.kind(std::string(toString(stream.kind)));
     message.format(std::string(toString(stream.format.format)));
@@ -161,25 +163,54 @@ Result<StreamInfo> streamOf(const AnnouncementMessage& announcement) {
 
 }  // namespace detail
 
-std::vector<uint8_t> serializeFrame(const FrameMetadata& meta, const ImageView& image) {
-    detail::FrameMessage message;
-    detail::toMessage(meta, image, &message);
-    mixray_msgs::msg::dds_::Frame_PubSubType type;
+namespace {
+
+template <typename Type, typename Message>
+std::vector<uint8_t> serialize(Message& message) {
+    Type type;
     eprosima::fastrtps::rtps::SerializedPayload_t payload(
         type.getSerializedSizeProvider(&message)());
     type.serialize(&message, &payload);
     return {payload.data, payload.data + payload.length};
 }
 
-Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream,
-                        FrameMetadata* meta, Image* image) {
-    detail::GuardedType<mixray_msgs::msg::dds_::Frame_PubSubType> type;
+// What a reader of the topic does with the bytes of a sample.
+template <typename Type, typename Message>
+bool deserialize(std::span<const uint8_t> bytes, Message* message) {
+    detail::GuardedType<Type> type;
     eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<uint32_t>(bytes.size()));
     if (!bytes.empty())
         std::memcpy(payload.data, bytes.data(), bytes.size());
     payload.length = static_cast<uint32_t>(bytes.size());
+    return type.deserialize(&payload, message);
+}
+
+}  // namespace
+
+std::vector<uint8_t> serializeFrame(const FrameMetadata& meta, const ImageView& image) {
     detail::FrameMessage message;
-    if (!type.deserialize(&payload, &message))
+    detail::toMessage(meta, image, &message);
+    return serialize<mixray_msgs::msg::dds_::Frame_PubSubType>(message);
+}
+
+std::vector<uint8_t> serializeAnnouncement(const StreamInfo& stream, const std::string& host) {
+    detail::AnnouncementMessage message = detail::toAnnouncement(stream, host, {stream.name});
+    return serialize<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(message);
+}
+
+Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes) {
+    detail::AnnouncementMessage message;
+    if (!deserialize<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(bytes, &message)) {
+        return Status{ErrorCode::kCorruptData,
+                      "dds announcement: not a mixray_msgs StreamAnnouncement in CDR"};
+    }
+    return detail::streamOf(message);
+}
+
+Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream,
+                        FrameMetadata* meta, Image* image) {
+    detail::FrameMessage message;
+    if (!deserialize<mixray_msgs::msg::dds_::Frame_PubSubType>(bytes, &message))
         return {ErrorCode::kCorruptData, "dds frame: not a mixray_msgs Frame in CDR"};
     MIXRAY_RETURN_IF_ERROR(detail::checkMessage(message, stream));
     *meta = detail::metadataOf(message);

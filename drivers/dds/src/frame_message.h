@@ -46,8 +46,10 @@ Status checkMessage(const FrameMessage& message, const StreamInfo& stream);
 // The metadata `message` carries, exactly as sent (stream, graph stamp: unset).
 FrameMetadata metadataOf(const FrameMessage& message);
 
-// The announcement of graph stream `stream` published by `host`.
-AnnouncementMessage toAnnouncement(const StreamInfo& stream, const std::string& host);
+// The announcement of graph stream `stream` published by `host`, one of `device_streams` (the
+// graph names of every stream of its device that the host publishes).
+AnnouncementMessage toAnnouncement(const StreamInfo& stream, const std::string& host,
+                                   const std::vector<std::string>& device_streams);
 
 // The stream an announcement describes, its name and device as announced. kCorruptData naming
 // the problem when a field is not something this build knows (kind, format, size, protocol).

@@ -2,6 +2,7 @@
 // every byte and all metadata) and, for images, to ROS 2 (sensor_msgs/msg/Image).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -44,8 +45,8 @@ struct DdsStreamStats {
     int ros_matched_readers = 0;  // readers of the ROS 2 topic now
 };
 
-// Subscribes to its streams over live edges (the graph never waits for the network) and
-// publishes each frame from a thread per stream. Announces every stream on
+// Subscribes to its streams over live edges (the graph never waits for the network) and,
+// once started, publishes each frame from a thread per stream. Announces every stream on
 // kAnnouncementTopic (TRANSIENT_LOCAL, so hosts that join later learn it) and withdraws the
 // announcements at stop().
 // Thread-safety: create/connect/start/stop by the graph's owner; stats() from any thread.
@@ -57,13 +58,19 @@ public:
     DdsPublisher& operator=(const DdsPublisher&) = delete;
 
     std::string name() const override { return "dds-publisher"; }
-    // Subscribes to the streams. kNotFound for a named stream the graph lacks.
+    // Subscribes to the streams, joins DDS, creates the writers and announces the streams, so
+    // that other hosts can open them before this graph starts (waitForReaders). kNotFound for
+    // a named stream the graph lacks; kUnavailable when the participant cannot be made.
     Status connect(Graph& graph) override;
-    // Joins DDS and creates the writers. kUnavailable when the participant cannot be made.
+    // Starts publishing the frames.
     Status start() override;
     void stop() override;
 
     std::vector<DdsStreamStats> stats() const;
+    // Waits until every stream's frame topic has at least `readers` mixray readers, so that a
+    // finite source started afterwards loses no frame to discovery: true when they came
+    // within `timeout`.
+    bool waitForReaders(int readers, std::chrono::milliseconds timeout) const;
     // This host's name in the topics.
     std::string host() const;
 

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "mixray/graph/frame.h"
@@ -23,5 +24,11 @@ std::vector<uint8_t> serializeFrame(const FrameMetadata& meta, const ImageView& 
 // does not fit the stream (pixel format, size, stride, payload length, status). Never throws.
 Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream,
                         FrameMetadata* meta, Image* image);
+
+// A stream's announcement as the publisher puts it on the wire (mixray_msgs/msg/
+// StreamAnnouncement in CDR), and read back as the dds backend accepts announcements:
+// kCorruptData saying what is wrong. Never throws.
+std::vector<uint8_t> serializeAnnouncement(const StreamInfo& stream, const std::string& host);
+Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes);
 
 }  // namespace mixray::dds

@@ -1,0 +1,71 @@
+// libFuzzer target for the DDS messages another host sends (drivers/dds): the first byte picks
+// a mixray_msgs Frame (deserializeFrame, against a small rgb8 stream) or a StreamAnnouncement
+// (deserializeAnnouncement); the rest is the CDR sample as a DDS reader receives it. Any bytes
+// give a clean kCorruptData, never a throw or a crash (fastcdr throws more than Fast DDS's
+// generated code catches); an accepted frame fits the stream and serializes and reads back to
+// the same frame; an accepted announcement is a stream the graph can declare.
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <span>
+#include <string>
+
+#include "mixray/dds/frame_message.h"
+
+namespace {
+
+[[noreturn]] void broken(const char* what, const std::string& detail) {
+    std::fprintf(stderr, "dds_message_fuzz: %s: %s\n", what, detail.c_str());
+    std::abort();
+}
+
+mixray::StreamInfo smallStream() {
+    mixray::StreamInfo info;
+    info.name = "cam/color";
+    info.device = "cam";
+    info.kind = mixray::StreamKind::kColor;
+    info.format = mixray::ImageDesc::packed(mixray::PixelFormat::kRGB8, 8, 4);
+    return info;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    using namespace mixray;
+    if (size == 0)
+        return 0;
+    const std::span<const uint8_t> bytes(data + 1, size - 1);
+    if (data[0] % 2 == 0) {
+        const StreamInfo stream = smallStream();
+        FrameMetadata meta;
+        Image image;
+        const Status status = dds::deserializeFrame(bytes, stream, &meta, &image);
+        if (!status.isOk()) {
+            if (status.code() != ErrorCode::kCorruptData)
+                broken("frame rejection is not kCorruptData", status.toString());
+            return 0;
+        }
+        if (image.desc() != stream.format || image.bytes().size() != stream.format.bufferBytes())
+            broken("accepted frame does not fit the stream", "");
+        FrameMetadata again;
+        Image again_image;
+        const auto reserialized = dds::serializeFrame(meta, image.view());
+        if (!dds::deserializeFrame(reserialized, stream, &again, &again_image).isOk() ||
+            again.sequence != meta.sequence || again.device_stamp_ns != meta.device_stamp_ns ||
+            again.status != meta.status || again_image.bytes() != image.bytes())
+            broken("accepted frame does not read back the same", "");
+        return 0;
+    }
+    auto stream = dds::deserializeAnnouncement(bytes);
+    if (!stream.isOk()) {
+        if (stream.status().code() != ErrorCode::kCorruptData)
+            broken("announcement rejection is not kCorruptData", stream.status().toString());
+        return 0;
+    }
+    const ImageDesc& f = stream->format;
+    if (f.width <= 0 || f.height <= 0 || f.format == PixelFormat::kUnknown ||
+        stream->name.rfind(stream->device + "/", 0) != 0)
+        broken("accepted announcement is no stream", stream->name);
+    return 0;
+}
