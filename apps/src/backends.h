@@ -5,13 +5,16 @@
 #include <memory>
 #include <string>
 
+#include "mixray/dds/dds_options.h"
 #include "mixray/graph/device.h"
 #include "mixray/render/ar_pipeline.h"
 
 namespace mixray::cli {
 
-// Every backend linked into the mixray binary, registered in a fresh registry.
-BackendRegistry makeBackendRegistry();
+// Every backend linked into the mixray binary, registered in a fresh registry. `dds`: the DDS
+// settings the dds backend lists remote devices with, and opens them with where a rig
+// device's options do not say.
+BackendRegistry makeBackendRegistry(const dds::DdsOptions& dds = {});
 
 // Teaches replay::openRecording() (mixray info, convert, the replay backend) the recording
 // formats that backends read: OpenNI .oni files through the openni2 backend.

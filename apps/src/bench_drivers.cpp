@@ -333,9 +333,8 @@ void benchPattern(const BenchDriversOptions& o, std::vector<Row>& rows) {
 }
 
 void benchReplay(const BenchDriversOptions& o, std::vector<Row>& rows) {
-    const fs::path path = o.recording.empty()
-                              ? sourceDir() / "fixtures/sessions/pattern_rgbd.mkv"
-                              : fs::path(o.recording);
+    const fs::path path = o.recording.empty() ? sourceDir() / "fixtures/sessions/pattern_rgbd.mkv"
+                                              : fs::path(o.recording);
     Row row{
         "replay", path.filename().string() + ", pace=fast loop", "Matroska reader next()", {}, {},
         ""};

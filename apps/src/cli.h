@@ -48,6 +48,7 @@ void registerDetectCommand(CLI::App& app, Commands& commands);
 void registerDevicesCommand(CLI::App& app, Commands& commands);
 void registerInfoCommand(CLI::App& app, Commands& commands);
 void registerPlayCommand(CLI::App& app, Commands& commands);
+void registerPublishCommand(CLI::App& app, Commands& commands);
 void registerTrackCommand(CLI::App& app, Commands& commands);
 void registerRecordCommand(CLI::App& app, Commands& commands);
 void registerRenderCommand(CLI::App& app, Commands& commands);

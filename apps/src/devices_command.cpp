@@ -4,12 +4,13 @@
 
 #include "backends.h"
 #include "cli.h"
+#include "dds_options_cli.h"
 
 namespace mixray::cli {
 namespace {
 
-int runDevices(bool as_json, bool include_virtual) {
-    BackendRegistry registry = makeBackendRegistry();
+int runDevices(bool as_json, bool include_virtual, const dds::DdsOptions& dds) {
+    BackendRegistry registry = makeBackendRegistry(dds);
     nlohmann::json j = nlohmann::json::array();
     size_t real_devices = 0;
     bool any_failed = false;
@@ -74,8 +75,11 @@ void registerDevicesCommand(CLI::App& app, Commands& commands) {
     sub->add_flag("--json", *json, "Print the list as JSON");
     sub->add_flag("--virtual", *include_virtual,
                   "Also list the virtual test-pattern devices (driver 'pattern')");
+    // Remote devices: what other hosts publish (mixray publish), listened for a second.
+    auto dds = std::make_shared<dds::DdsOptions>();
+    addDdsOptions(*sub, *dds);
     commands.push_back(
-        {sub, [json, include_virtual] { return runDevices(*json, *include_virtual); }});
+        {sub, [json, include_virtual, dds] { return runDevices(*json, *include_virtual, *dds); }});
 }
 
 }  // namespace mixray::cli

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     registerInfoCommand(app, commands);
     registerRecordCommand(app, commands);
     registerPlayCommand(app, commands);
+    registerPublishCommand(app, commands);
     registerConvertCommand(app, commands);
     registerRenderCommand(app, commands);
     registerRunCommand(app, commands);

@@ -1,0 +1,203 @@
+// A rig across three hosts, made of network namespaces joined by veth pairs: hosts A and B run
+// `mixray publish` with their clocks offset on purpose (time namespaces), host C runs
+// `mixray record` of a rig whose devices are theirs. Every frame arrives, bit-exact, in one
+// recording; frames of the two hosts are matched into sets on C's time base.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cctype>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cli_runner.h"
+#include "mixray/graph/mkv.h"
+
+namespace mixray::test {
+namespace {
+
+int shell(const std::string& command) {
+    const int status = std::system((command + " >/dev/null 2>&1").c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Three namespaces: a and b each joined to c by a veth pair. Deleted with the fixture.
+class Hosts : public ::testing::Test {
+protected:
+    void SetUp() override {
+        if (geteuid() != 0)
+            GTEST_SKIP() << "needs root to make network namespaces (CI runs as root)";
+        const std::string id = std::to_string(getpid() % 100000);
+        a_ = "mxa" + id;
+        b_ = "mxb" + id;
+        c_ = "mxc" + id;
+        // A /24 per test process, so parallel runs never share addresses.
+        net_ = "10." + std::to_string(100 + getpid() % 100) + ".";
+        for (const std::string& ns : {a_, b_, c_}) {
+            if (shell("ip netns add " + ns) != 0)
+                GTEST_SKIP() << "ip netns add failed: no network namespaces here";
+            made_.push_back(ns);
+            ASSERT_EQ(shell("ip -n " + ns + " link set lo up"), 0);
+        }
+        link(a_, net_ + "1.2", net_ + "1.1", "va" + id, "vca" + id);
+        link(b_, net_ + "2.2", net_ + "2.1", "vb" + id, "vcb" + id);
+        if (shell("unshare --time --monotonic 1 true") != 0)
+            GTEST_SKIP() << "unshare --time failed: no time namespaces here";
+    }
+
+    void TearDown() override {
+        for (const std::string& ns : made_)
+            shell("ip netns del " + ns);
+    }
+
+    void link(const std::string& ns, const std::string& address, const std::string& c_address,
+              const std::string& name, const std::string& c_name) {
+        ASSERT_EQ(shell("ip link add " + name + " type veth peer name " + c_name), 0);
+        ASSERT_EQ(shell("ip link set " + name + " netns " + ns), 0);
+        ASSERT_EQ(shell("ip link set " + c_name + " netns " + c_), 0);
+        ASSERT_EQ(shell("ip -n " + ns + " addr add " + address + "/24 dev " + name), 0);
+        ASSERT_EQ(shell("ip -n " + c_ + " addr add " + c_address + "/24 dev " + c_name), 0);
+        ASSERT_EQ(shell("ip -n " + ns + " link set " + name + " up"), 0);
+        ASSERT_EQ(shell("ip -n " + c_ + " link set " + c_name + " up"), 0);
+    }
+
+    // `mixray args` in namespace `ns`, its CLOCK_MONOTONIC `offset_s` ahead of the others'.
+    CliProcess startIn(const std::string& ns, int offset_s, const std::vector<std::string>& args,
+                       const std::filesystem::path& output) {
+        std::vector<std::string> argv{"ip",
+                                      "netns",
+                                      "exec",
+                                      ns,
+                                      "unshare",
+                                      "--time",
+                                      "--monotonic",
+                                      std::to_string(offset_s),
+                                      cliPath().string()};
+        argv.insert(argv.end(), args.begin(), args.end());
+        std::vector<char*> c_argv;
+        for (std::string& a : argv)
+            c_argv.push_back(a.data());
+        c_argv.push_back(nullptr);
+        const std::string out = output.string();
+        CliProcess process{-1, output};
+        process.pid = fork();
+        if (process.pid == 0) {
+            const int fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+            if (fd < 0 || dup2(fd, STDOUT_FILENO) < 0 || dup2(fd, STDERR_FILENO) < 0)
+                _exit(127);
+            execvp("ip", c_argv.data());
+            _exit(127);
+        }
+        return process;
+    }
+
+    std::string a_, b_, c_, net_;
+    std::vector<std::string> made_;
+};
+
+// Every frame of a recording by stream name and sequence: its payload.
+std::map<std::pair<std::string, uint64_t>, std::vector<uint8_t>> framesOf(
+    const std::filesystem::path& path) {
+    std::map<std::pair<std::string, uint64_t>, std::vector<uint8_t>> out;
+    auto reader = openMkv(path);
+    EXPECT_TRUE(reader.isOk()) << reader.status().toString();
+    if (!reader.isOk())
+        return out;
+    for (;;) {
+        auto frame = (*reader)->next();
+        if (!frame.isOk())
+            break;
+        const ImageView image = frame->image();
+        const std::string& stream = (*reader)->streams()[frame->meta().stream].name;
+        out[{stream, frame->meta().sequence}].assign(image.data, image.data + image.size_bytes);
+    }
+    return out;
+}
+
+TEST_F(Hosts, ARecordingOnOneHostHoldsEveryFrameOfDevicesOnTwoOthers) {
+    const auto dir = tempDir();
+    // Host A: an RGB-D pattern device stamped by A's clock; host B: a mono device with its
+    // own drifting clock. Both real time, finite.
+    const std::string pattern_a =
+        "  - name: rgbd\n    driver: pattern\n    id: rgbd\n    streams: [color, depth]\n"
+        "    options: {color.width: 320, color.height: 240, depth.width: 320, depth.height: 240,"
+        " fps: 30, frames: 60, realtime: REALTIME}\n";
+    const std::string pattern_b =
+        "  - name: mono\n    driver: pattern\n    id: mono\n"
+        "    options: {mono.width: 640, mono.height: 480, fps: 15, frames: 30, realtime: REALTIME,"
+        " drift_ppm: 100, phase_us: 4000}\n";
+    auto realtime = [](std::string text, const char* value) {
+        return text.replace(text.find("REALTIME"), 8, value);
+    };
+    writeText(dir / "a.yaml", "rig: host-a\ndevices:\n" + realtime(pattern_a, "true"));
+    writeText(dir / "b.yaml", "rig: host-b\ndevices:\n" + realtime(pattern_b, "true"));
+    // The same devices in this process, as fast as they go: the frames to compare with.
+    writeText(dir / "reference.yaml", "rig: reference\ndevices:\n" + realtime(pattern_a, "false") +
+                                          realtime(pattern_b, "false"));
+    const CliRun reference =
+        mixray("record " + q(dir / "reference.yaml") + " -o " + q(dir / "reference.mkv"));
+    ASSERT_EQ(reference.exit_code, 0) << reference.output;
+
+    const std::string domain = std::to_string(1 + getpid() % 200);
+    auto device = [&](const char* name, const char* id, const std::string& c_address,
+                      const std::string& peer) {
+        return std::string("  - name: ") + name + "\n    driver: dds\n    id: " + id +
+               "\n    options: {domain: " + domain + ", address: " + c_address +
+               ", peers: " + peer + ", transport: udp, discovery_timeout_ms: 20000}\n";
+    };
+    writeText(dir / "c.yaml", "rig: host-c\ndevices:\n" +
+                                  device("left", "hostA/rgbd", net_ + "1.1", net_ + "1.2") +
+                                  device("right", "hostB/mono", net_ + "2.1", net_ + "2.2") +
+                                  "sync:\n  streams: [left/color, left/depth, right/mono]\n"
+                                  "  max_skew_ms: 40\n");
+    auto publish = [&](const std::string& host, const std::string& address,
+                       const std::string& peer) {
+        return std::vector<std::string>{
+            "publish",        (dir / (host + ".yaml")).string(),
+            "--host",         "host" + std::string(1, std::toupper(host[0])),
+            "--domain",       domain,
+            "--address",      address,
+            "--peers",        peer,
+            "--transport",    "udp",
+            "--wait-readers", "1"};
+    };
+    // Clocks 1000 s and 2000 s ahead of C's: only a mapping makes their frames meet.
+    CliProcess a = startIn(a_, 1000, publish("a", net_ + "1.2", net_ + "1.1"), dir / "a.log");
+    CliProcess b = startIn(b_, 2000, publish("b", net_ + "2.2", net_ + "2.1"), dir / "b.log");
+    CliProcess c =
+        startIn(c_, 0, {"record", (dir / "c.yaml").string(), "-o", (dir / "c.mkv").string()},
+                dir / "c.log");
+    const CliRun recorded = waitMixray(c);
+    const CliRun published_a = waitMixray(a);
+    const CliRun published_b = waitMixray(b);
+    ASSERT_EQ(recorded.exit_code, 0) << recorded.output;
+    ASSERT_EQ(published_a.exit_code, 0) << published_a.output;
+    ASSERT_EQ(published_b.exit_code, 0) << published_b.output;
+    EXPECT_NE(recorded.output.find("the rig's streams ended"), std::string::npos)
+        << recorded.output;
+
+    const auto expected = framesOf(dir / "reference.mkv");
+    const auto got = framesOf(dir / "c.mkv");
+    ASSERT_EQ(expected.size(), 150u);
+    EXPECT_EQ(got.size(), expected.size()) << "every frame arrives";
+    const std::map<std::string, std::string> renamed{
+        {"left/color", "rgbd/color"}, {"left/depth", "rgbd/depth"}, {"right/mono", "mono/mono"}};
+    size_t identical = 0;
+    for (const auto& [key, payload] : got) {
+        const auto found = expected.find({renamed.at(key.first), key.second});
+        ASSERT_NE(found, expected.end()) << key.first << " " << key.second;
+        identical += found->second == payload;
+    }
+    EXPECT_EQ(identical, got.size()) << "bit-exact across hosts";
+
+    // Sets across hosts on C's time base: the synchroniser reports them in the status line.
+    const size_t sets = recorded.output.rfind("sync ");
+    ASSERT_NE(sets, std::string::npos) << recorded.output;
+    EXPECT_GT(std::stoul(recorded.output.substr(sets + 5)), 10u) << recorded.output;
+}
+
+}  // namespace
+}  // namespace mixray::test
