@@ -16,6 +16,7 @@
 #include "alloc_counter.h"
 #include "backends.h"
 #include "bench_calibrate.h"
+#include "bench_dds.h"
 #include "bench_drivers.h"
 #include "bench_pipeline.h"
 #include "bench_render.h"
@@ -444,6 +445,7 @@ void registerBenchCommand(CLI::App& app, Commands& commands) {
                       "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({graph, [options] { return runBenchGraph(*options); }});
     registerBenchCalibrate(*bench, commands);
+    registerBenchDds(*bench, commands);
     registerBenchDrivers(*bench, commands);
     registerBenchPipeline(*bench, commands);
     registerBenchRender(*bench, commands);

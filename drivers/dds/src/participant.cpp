@@ -3,6 +3,7 @@
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
+#include <fastrtps/xmlparser/XMLProfileManager.h>
 
 #include <cmath>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -60,8 +61,11 @@ fdds::DomainParticipantQos participantQos(const DdsOptions& options, std::string
         // the kernel from dropping a burst (it caps the size at net.core.rmem_max).
         descriptor->sendBufferSize = 8u << 20;
         descriptor->receiveBufferSize = 8u << 20;
-        // Participants of one host get consecutive ids; initial peers are tried up to this id.
-        descriptor->maxInitialPeersRange = 16;
+        // Unicast discovery sends to the ports of a peer's first participant ids. Fast DDS numbers
+        // a process's participants 0, 1, 2, ... and never reuses a number, and the ports of id
+        // 119 reach the next domain's: 64 covers the participants a command makes in its life
+        // (one per dds device and publisher, a few more in the tests and `bench dds`).
+        descriptor->maxInitialPeersRange = 64;
         qos.transport().user_transports.push_back(descriptor);
     }
     if (shared_memory) {
@@ -199,3 +203,14 @@ fdds::DataReaderQos announcementReaderQos() {
 }
 
 }  // namespace mixray::dds::detail
+
+namespace mixray::dds {
+
+void setIntraprocessDelivery(bool enabled) {
+    eprosima::fastrtps::LibrarySettingsAttributes settings;
+    settings.intraprocess_delivery = enabled ? eprosima::fastrtps::INTRAPROCESS_FULL
+                                             : eprosima::fastrtps::INTRAPROCESS_OFF;
+    eprosima::fastrtps::xmlparser::XMLProfileManager::library_settings(settings);
+}
+
+}  // namespace mixray::dds

@@ -62,6 +62,12 @@ Status readDdsOptions(DeviceOptionReader& reader, DdsOptions* options);
 inline constexpr std::string_view kDdsOptionKeys =
     "domain, address, peers, partition, transport, host, lease_s, shared_memory_mib";
 
+// Whether Fast DDS hands samples between a writer and a reader of the same process directly,
+// without serializing them or using the transport (its default). Tests and benchmarks that
+// mean to cross the wire between two graphs of one process turn it off before creating
+// anything. Process-wide.
+void setIntraprocessDelivery(bool enabled);
+
 // The topic a stream's frames are published on: "mixray/<host>/<stream>", stream being the
 // graph name "device/stream".
 std::string frameTopic(std::string_view host, std::string_view stream);

@@ -1,0 +1,113 @@
+#include "mixray/dds/bare_fastdds.h"
+
+#include <atomic>
+#include <chrono>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <thread>
+
+#include "frame_message.h"
+#include "participant.h"
+
+namespace mixray::dds {
+namespace {
+
+namespace fdds = eprosima::fastdds::dds;
+
+int64_t nowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+
+}  // namespace
+
+void waitForWindow(uint64_t sent, const std::atomic<uint64_t>& received, int64_t now_ns) {
+    const int64_t give_up = now_ns + 2'000'000'000;
+    while (sent >= received.load() + kBenchWindow && nowNs() < give_up)
+        std::this_thread::sleep_for(std::chrono::microseconds(20));
+}
+
+Result<BareRun> runBareFastDds(const DdsOptions& writer_options, const DdsOptions& reader_options,
+                               size_t payload_bytes, uint64_t frames, int64_t period_ns) {
+    auto a = detail::Participant::create(writer_options, "mixray bench dds: bare writer");
+    if (!a)
+        return a.status();
+    auto b = detail::Participant::create(reader_options, "mixray bench dds: bare reader");
+    if (!b)
+        return b.status();
+    const std::string name = "mixray/bench/bare";
+    auto topic_a = (*a)->topic(name, detail::frameType());
+    auto topic_b = (*b)->topic(name, detail::frameType());
+    if (!topic_a || !topic_b)
+        return Status{ErrorCode::kInternal, "bench dds: cannot create the bare topic"};
+    constexpr int kDepth = 2;  // as DdsPublisherOptions::history_depth
+    fdds::DataWriter* writer = (*a)->publisher()->create_datawriter(
+        *topic_a, detail::frameWriterQos(writer_options, kDepth));
+    fdds::DataReader* reader =
+        (*b)->subscriber()->create_datareader(*topic_b, detail::frameReaderQos(reader_options, 4));
+    if (!writer || !reader)
+        return Status{ErrorCode::kInternal, "bench dds: cannot create the bare endpoints"};
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    for (;;) {
+        fdds::PublicationMatchedStatus w;
+        fdds::SubscriptionMatchedStatus r;
+        writer->get_publication_matched_status(w);
+        reader->get_subscription_matched_status(r);
+        if (w.current_count > 0 && r.current_count > 0)
+            break;
+        if (std::chrono::steady_clock::now() > until)
+            return Status{ErrorCode::kUnavailable, "bench dds: the bare endpoints never matched"};
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+
+    BareRun run;
+    std::atomic<bool> done{false};
+    std::atomic<uint64_t> received{0};
+    int64_t first_write = 0;
+    int64_t last_take = 0;
+    std::thread taker([&] {
+        detail::FrameMessage message;
+        fdds::SampleInfo info;
+        while (!done.load()) {
+            (void)reader->wait_for_unread_message(eprosima::fastrtps::Duration_t(0, 20'000'000));
+            while (reader->take_next_sample(&message, &info) == ReturnCode_t::RETCODE_OK) {
+                if (!info.valid_data)
+                    continue;
+                last_take = nowNs();
+                run.latency_ms.push_back(
+                    static_cast<double>(last_take - message.device_stamp_ns()) / 1e6);
+                received.fetch_add(1);
+            }
+        }
+    });
+    detail::FrameMessage message;
+    message.format("mono8");
+    message.data().assign(payload_bytes, 0x5a);
+    first_write = nowNs();
+    for (uint64_t i = 0; i < frames; ++i) {
+        if (period_ns > 0) {
+            const int64_t due = first_write + static_cast<int64_t>(i) * period_ns;
+            while (nowNs() < due)
+                std::this_thread::sleep_for(std::chrono::microseconds(200));
+        } else {
+            waitForWindow(run.sent, received, nowNs());
+        }
+        message.sequence_number(i);
+        message.device_stamp_ns(nowNs());
+        if (writer->write(&message))
+            ++run.sent;
+    }
+    // Whatever is still on its way has half a second to arrive.
+    const int64_t give_up = nowNs() + 500'000'000;
+    while (nowNs() < give_up && received.load() < run.sent)
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    done = true;
+    taker.join();
+    run.received = received.load();
+    run.wall_s = static_cast<double>(last_take - first_write) / 1e9;
+    return run;
+}
+
+}  // namespace mixray::dds
