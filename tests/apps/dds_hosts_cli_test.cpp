@@ -8,9 +8,13 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cli_runner.h"
@@ -42,10 +46,28 @@ protected:
             made_.push_back(ns);
             ASSERT_EQ(shell("ip -n " + ns + " link set lo up"), 0);
         }
-        link(a_, net_ + "1.2", net_ + "1.1", "va" + id, "vca" + id);
+        id_ = id;
+        linkA();
         link(b_, net_ + "2.2", net_ + "2.1", "vb" + id, "vcb" + id);
         if (shell("unshare --time --monotonic 1 true") != 0)
             GTEST_SKIP() << "unshare --time failed: no time namespaces here";
+    }
+
+    // Host A's link to C, made again after A was torn down.
+    void linkA() { link(a_, net_ + "1.2", net_ + "1.1", "va" + id_, "vca" + id_); }
+
+    // Tears host A down: its namespace, and with it both ends of its link to C.
+    void tearDownA() {
+        shell("ip netns del " + a_);
+        // The namespace goes when its last process has; C's end of the link goes with it.
+        for (int i = 0; i < 100 && shell("ip -n " + c_ + " link show vca" + id_) == 0; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+
+    void bringBackA() {
+        ASSERT_EQ(shell("ip netns add " + a_), 0);
+        ASSERT_EQ(shell("ip -n " + a_ + " link set lo up"), 0);
+        linkA();
     }
 
     void TearDown() override {
@@ -94,7 +116,7 @@ protected:
         return process;
     }
 
-    std::string a_, b_, c_, net_;
+    std::string a_, b_, c_, net_, id_;
     std::vector<std::string> made_;
 };
 
@@ -198,6 +220,83 @@ TEST_F(Hosts, ARecordingOnOneHostHoldsEveryFrameOfDevicesOnTwoOthers) {
     ASSERT_NE(sets, std::string::npos) << recorded.output;
     EXPECT_GT(std::stoul(recorded.output.substr(sets + 5)), 10u) << recorded.output;
 }
+
+enum class Fault { kHostTornDown, kPartition };
+
+class HostFaults : public Hosts, public ::testing::WithParamInterface<Fault> {};
+
+// Host C runs the rig live (mixray run, no scene: a monitor of its streams) with a local device
+// and host A's. Mid-stream host A is torn down (its publisher killed without a word, its
+// namespace and link deleted) and made again, or the link between them is cut for three seconds.
+// C reports A's device reconnecting, keeps its local stream at its rate, and receives A's
+// streams again when A is back.
+TEST_P(HostFaults, TheLostHostIsReportedAndRejoinsWhileLocalStreamsKeepTheirRate) {
+    const auto dir = tempDir();
+    const std::string domain = std::to_string(1 + getpid() % 200);
+    writeText(dir / "a.yaml",
+              "rig: host-a\ndevices:\n  - name: rgbd\n    driver: pattern\n    id: rgbd\n"
+              "    streams: [color]\n    options: {color.width: 320, color.height: 240, fps: 30,"
+              " frames: 1000000, realtime: true}\n");
+    writeText(dir / "c.yaml",
+              "rig: host-c\ndevices:\n  - name: remote\n    driver: dds\n    id: hostA/rgbd\n"
+              "    options: {domain: " +
+                  domain + ", address: " + net_ + "1.1, peers: " + net_ +
+                  "1.2, transport: udp, lease_s: 1, discovery_timeout_ms: 20000}\n"
+                  "  - name: local\n    driver: pattern\n    id: mono\n"
+                  "    options: {mono.width: 320, mono.height: 240, fps: 15, frames: 1000000,"
+                  " realtime: true}\n");
+    const std::vector<std::string> publish{"publish",     (dir / "a.yaml").string(),
+                                           "--host",      "hostA",
+                                           "--domain",    domain,
+                                           "--address",   net_ + "1.2",
+                                           "--peers",     net_ + "1.1",
+                                           "--transport", "udp"};
+    CliProcess a = startIn(a_, 0, publish, dir / "a.log");
+    CliProcess c = startIn(
+        c_, 0, {"run", (dir / "c.yaml").string(), "--duration", "12", "-o", (dir / "out").string()},
+        dir / "c.log");
+    std::this_thread::sleep_for(std::chrono::seconds(4));
+    if (GetParam() == Fault::kHostTornDown) {
+        kill(a.pid, SIGKILL);  // no goodbye: C learns it from the silence
+        waitMixray(a);
+        tearDownA();
+        std::this_thread::sleep_for(std::chrono::seconds(3));
+        bringBackA();
+        a = startIn(a_, 0, publish, dir / "a2.log");
+    } else {
+        ASSERT_EQ(shell("ip -n " + c_ + " link set vca" + id_ + " down"), 0);
+        std::this_thread::sleep_for(std::chrono::seconds(3));
+        ASSERT_EQ(shell("ip -n " + c_ + " link set vca" + id_ + " up"), 0);
+    }
+    const CliRun ran = waitMixray(c);
+    kill(a.pid, SIGTERM);
+    waitMixray(a);
+    ASSERT_EQ(ran.exit_code, 0) << ran.output;
+    EXPECT_NE(ran.output.find("remote reconnecting"), std::string::npos) << ran.output;
+
+    const auto summary = nlohmann::json::parse(readText(dir / "out" / "summary.json"));
+    std::map<std::string, nlohmann::json> streams;
+    for (const auto& s : summary.at("streams"))
+        streams[s.at("name").get<std::string>()] = s;
+    for (const auto& d : summary.at("devices")) {
+        if (d.at("name") == "remote") {
+            EXPECT_EQ(d.at("state"), "streaming") << "rejoined: " << summary.dump();
+        }
+    }
+    // 12 s of a 15 fps local camera, whatever the network does.
+    EXPECT_GE(streams.at("local/mono").at("published").get<int>(), 15 * 12 * 9 / 10)
+        << summary.dump();
+    // About 4 s before the fault and about 4 s after it, at 30 fps.
+    EXPECT_GE(streams.at("remote/color").at("published").get<int>(), 30 * 6) << summary.dump();
+}
+
+INSTANTIATE_TEST_SUITE_P(Faults, HostFaults,
+                         ::testing::Values(Fault::kHostTornDown, Fault::kPartition),
+                         [](const ::testing::TestParamInfo<Fault>& param) {
+                             return std::string(param.param == Fault::kHostTornDown
+                                                    ? "HostTornDownAndBack"
+                                                    : "LinkCutForThreeSeconds");
+                         });
 
 }  // namespace
 }  // namespace mixray::test

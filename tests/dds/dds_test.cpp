@@ -272,6 +272,55 @@ TEST(DdsGraph, AHostThatLeavesIsReconnectingAndRejoins) {
     b.stop();
 }
 
+// One receiving host stops reading: its consumer never pops, so its graph soon holds every
+// buffer of the stream's pool. The publisher never waits for it, another receiving host gets
+// every frame, and the stalled one counts each frame it could not keep.
+TEST(DdsGraph, ASubscriberThatStopsReadingSlowsNoOneAndCountsItsLosses) {
+    PublishingHost a("hostA");
+    Graph stalled;
+    DdsDevice* stalled_device = nullptr;
+    auto stalled_queue = openRemote(stalled, &stalled_device);
+    Graph healthy;
+    DdsDevice* healthy_device = nullptr;
+    auto healthy_queue = openRemote(healthy, &healthy_device);
+    ASSERT_TRUE(stalled_queue && healthy_queue);
+    waitMatched(*a.publisher, *stalled_device);
+    waitMatched(*a.publisher, *healthy_device);
+
+    constexpr uint64_t kFrames = 40;
+    uint64_t got = 0;
+    std::thread reader([&] {
+        while (healthy_queue->pop(5s))
+            ++got;
+    });
+    // Pools of 32 buffers: the stalled host's graph keeps its first 32 frames; for the rest
+    // its receive thread finds no buffer, drops and counts (it never blocks DDS).
+    const auto start = std::chrono::steady_clock::now();
+    for (uint64_t i = 0; i < kFrames; ++i) {
+        a.send(i);
+        std::this_thread::sleep_for(20ms);
+    }
+    const auto sending = std::chrono::steady_clock::now() - start;
+    a.graph.endStream(a.stream.id);
+    reader.join();
+    EXPECT_EQ(got, kFrames) << "the healthy host gets every frame";
+    EXPECT_LT(sending, 3s) << "the publisher never waited";
+    const DdsStreamStats published = a.publisher->stats().at(0);
+    EXPECT_EQ(published.dropped, 0u);
+    EXPECT_EQ(published.written, kFrames);
+
+    uint64_t stalled_got = 0;
+    while (stalled_queue->pop(2s))
+        ++stalled_got;
+    const DdsReceiveStats stats = stalled_device->stats().at(0);
+    EXPECT_LT(stalled_got, kFrames);
+    EXPECT_EQ(stats.published + stats.pool_exhausted + stats.lost_in_transit, kFrames)
+        << "every frame it did not get is counted: published " << stats.published
+        << ", pool exhausted " << stats.pool_exhausted << ", lost " << stats.lost_in_transit;
+    stalled.stop();
+    healthy.stop();
+}
+
 TEST(DdsGraph, HostClockStampsBecomeTheRemoteHostsClockDomain) {
     StreamInfo info = colorStream();
     info.clock_domain = kHostClockDomain;

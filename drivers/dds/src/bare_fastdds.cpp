@@ -46,7 +46,7 @@ Result<BareRun> runBareFastDds(const DdsOptions& writer_options, const DdsOption
     fdds::DataWriter* writer = (*a)->publisher()->create_datawriter(
         *topic_a, detail::frameWriterQos(writer_options, kDepth));
     fdds::DataReader* reader =
-        (*b)->subscriber()->create_datareader(*topic_b, detail::frameReaderQos(reader_options, 4));
+        (*b)->subscriber()->create_datareader(*topic_b, detail::frameReaderQos(4));
     if (!writer || !reader)
         return Status{ErrorCode::kInternal, "bench dds: cannot create the bare endpoints"};
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);

@@ -327,7 +327,7 @@ Status DdsDevice::start() {
         if (!topic)
             return topic.status();
         stream->reader = d.participant->subscriber()->create_datareader(
-            *topic, detail::frameReaderQos(d.options.dds, d.options.history));
+            *topic, detail::frameReaderQos(d.options.history));
         if (!stream->reader)
             return {ErrorCode::kInternal, "dds device '" + d.config.name +
                                               "': cannot create a reader for " +

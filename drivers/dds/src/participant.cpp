@@ -147,7 +147,7 @@ namespace {
 
 // What frame writers and readers agree on.
 template <typename Qos>
-Qos frameQos(Qos qos, const DdsOptions& options, int depth) {
+Qos frameQos(Qos qos, int depth) {
     qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
     qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
     qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
@@ -157,7 +157,6 @@ Qos frameQos(Qos qos, const DdsOptions& options, int depth) {
     qos.resource_limits().max_samples_per_instance = depth;
     qos.resource_limits().allocated_samples = depth;
     qos.liveliness().kind = fdds::AUTOMATIC_LIVELINESS_QOS;
-    qos.liveliness().lease_duration = duration(options.lease_s);
     // Frames are large and their size is known per stream: buffers grow once and are reused.
     qos.endpoint().history_memory_policy = eprosima::fastrtps::rtps::DYNAMIC_REUSABLE_MEMORY_MODE;
     return qos;
@@ -177,8 +176,12 @@ Qos announcementQos(Qos qos) {
 }  // namespace
 
 fdds::DataWriterQos frameWriterQos(const DdsOptions& options, int depth) {
-    fdds::DataWriterQos qos = frameQos(fdds::DATAWRITER_QOS_DEFAULT, options, depth);
+    fdds::DataWriterQos qos = frameQos(fdds::DATAWRITER_QOS_DEFAULT, depth);
     qos.publish_mode().kind = fdds::ASYNCHRONOUS_PUBLISH_MODE;
+    // The writer's host says how soon its silence means it is gone. A reader asks for no
+    // lease of its own (DDS's default, infinite): a reader lease shorter than a writer's is
+    // incompatible QoS and the two would never match.
+    qos.liveliness().lease_duration = duration(options.lease_s);
     qos.liveliness().announcement_period = duration(options.lease_s / 3);
     // A lost fragment is asked for again after the next heartbeat: the default of 3 s would
     // hold a reliable reader's frame for seconds.
@@ -186,8 +189,8 @@ fdds::DataWriterQos frameWriterQos(const DdsOptions& options, int depth) {
     return qos;
 }
 
-fdds::DataReaderQos frameReaderQos(const DdsOptions& options, int depth) {
-    return frameQos(fdds::DATAREADER_QOS_DEFAULT, options, depth);
+fdds::DataReaderQos frameReaderQos(int depth) {
+    return frameQos(fdds::DATAREADER_QOS_DEFAULT, depth);
 }
 
 fdds::DataWriterQos announcementWriterQos() {
@@ -208,8 +211,8 @@ namespace mixray::dds {
 
 void setIntraprocessDelivery(bool enabled) {
     eprosima::fastrtps::LibrarySettingsAttributes settings;
-    settings.intraprocess_delivery = enabled ? eprosima::fastrtps::INTRAPROCESS_FULL
-                                             : eprosima::fastrtps::INTRAPROCESS_OFF;
+    settings.intraprocess_delivery =
+        enabled ? eprosima::fastrtps::INTRAPROCESS_FULL : eprosima::fastrtps::INTRAPROCESS_OFF;
     eprosima::fastrtps::xmlparser::XMLProfileManager::library_settings(settings);
 }
 

@@ -57,9 +57,10 @@ private:
 //   (counted by their sequence gaps), and the writer never waits for it;
 //   asynchronous publication: write() hands the frame to Fast DDS's sender thread and returns,
 //   which is also what lets Fast DDS fragment frames over UDP's 64 KiB datagrams;
-//   automatic liveliness with the options' lease: a vanished host is noticed within it.
+//   automatic liveliness with the writer's lease: a vanished host is noticed within its own
+//   lease_s (readers accept any lease).
 fdds::DataWriterQos frameWriterQos(const DdsOptions& options, int depth);
-fdds::DataReaderQos frameReaderQos(const DdsOptions& options, int depth);
+fdds::DataReaderQos frameReaderQos(int depth);
 
 // The announcement topic's: reliable, transient-local, one sample per host and stream.
 fdds::DataWriterQos announcementWriterQos();
