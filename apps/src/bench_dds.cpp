@@ -9,9 +9,9 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <thread>
 
+#include "console.h"
 #include "mixray/dds/bare_fastdds.h"
 #include "mixray/dds/dds_backend.h"
 #include "mixray/dds/dds_publisher.h"
@@ -19,12 +19,6 @@
 
 namespace mixray::cli {
 namespace {
-
-int64_t clockNs(clockid_t clock) {
-    timespec ts{};
-    clock_gettime(clock, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 struct BenchDdsOptions {
     uint64_t frames = 200;       // per throughput run
@@ -111,22 +105,22 @@ Result<Figures> runMixray(const BenchDdsOptions& o, const std::string& transport
     std::atomic<uint64_t> received{0};
     std::thread consumer([&] {
         while (auto frame = (*queue)->pop(std::chrono::seconds(5))) {
-            const int64_t now = clockNs(CLOCK_MONOTONIC);
+            const int64_t now = monotonicNowNs();
             last_pop = now;
             f.latency_ms.push_back(static_cast<double>(now - frame->meta().device_stamp_ns) / 1e6);
             received.fetch_add(1);
         }
     });
     MIXRAY_RETURN_IF_ERROR(sender.start());
-    const int64_t cpu0 = clockNs(CLOCK_PROCESS_CPUTIME_ID);
-    const int64_t t0 = clockNs(CLOCK_MONOTONIC);
+    const int64_t cpu0 = processCpuNs();
+    const int64_t t0 = monotonicNowNs();
     for (uint64_t i = 0; i < frames; ++i) {
         if (period_ns > 0) {
             const int64_t due = t0 + static_cast<int64_t>(i) * period_ns;
-            while (clockNs(CLOCK_MONOTONIC) < due)
+            while (monotonicNowNs() < due)
                 std::this_thread::sleep_for(std::chrono::microseconds(200));
         } else {
-            dds::waitForWindow(f.sent, received, clockNs(CLOCK_MONOTONIC));
+            dds::waitForWindow(f.sent, received, monotonicNowNs());
         }
         ++f.sent;
         WritableFrame frame = pooled->pool->acquire();
@@ -136,14 +130,14 @@ Result<Figures> runMixray(const BenchDdsOptions& o, const std::string& transport
         }
         frame.meta().stream = pooled->id;
         frame.meta().sequence = i;
-        frame.meta().host_stamp_ns = clockNs(CLOCK_MONOTONIC);
+        frame.meta().host_stamp_ns = monotonicNowNs();
         frame.meta().device_stamp_ns = frame.meta().host_stamp_ns;
         sender.publish(std::move(frame).publish());
     }
     sender.endStream(pooled->id);  // the receiver's stream ends after the last frame
     consumer.join();
     f.received = received.load();
-    f.cpu_s = static_cast<double>(clockNs(CLOCK_PROCESS_CPUTIME_ID) - cpu0) / 1e9;
+    f.cpu_s = static_cast<double>(processCpuNs() - cpu0) / 1e9;
     f.wall_s = static_cast<double>(last_pop.load() - t0) / 1e9;
     receiver.stop();
     sender.stop();
@@ -152,7 +146,7 @@ Result<Figures> runMixray(const BenchDdsOptions& o, const std::string& transport
 
 Result<Figures> runBare(const BenchDdsOptions& o, const std::string& transport,
                         const StreamInfo& info, uint64_t frames, int64_t period_ns) {
-    const int64_t cpu0 = clockNs(CLOCK_PROCESS_CPUTIME_ID);
+    const int64_t cpu0 = processCpuNs();
     auto run = dds::runBareFastDds(endpoint(o, transport, "bare-sender"),
                                    endpoint(o, transport, "bare-receiver"),
                                    info.format.bufferBytes(), frames, period_ns);
@@ -162,7 +156,7 @@ Result<Figures> runBare(const BenchDdsOptions& o, const std::string& transport,
     f.sent = run->sent;
     f.received = run->received;
     f.wall_s = run->wall_s;
-    f.cpu_s = static_cast<double>(clockNs(CLOCK_PROCESS_CPUTIME_ID) - cpu0) / 1e9;
+    f.cpu_s = static_cast<double>(processCpuNs() - cpu0) / 1e9;
     f.latency_ms = std::move(run->latency_ms);
     return f;
 }

@@ -49,12 +49,6 @@ struct BenchDriversOptions {
     std::string shared_data;
 };
 
-int64_t clockNs(clockid_t clock) {
-    timespec t{};
-    clock_gettime(clock, &t);
-    return static_cast<int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
-}
-
 // Frames delivered, wall time and the whole process's CPU time (every thread) of one run.
 struct Run {
     uint64_t frames = 0;
@@ -68,11 +62,10 @@ struct Run {
 
 class Meter {
 public:
-    Meter() : wall_(clockNs(CLOCK_MONOTONIC)), cpu_(clockNs(CLOCK_PROCESS_CPUTIME_ID)) {}
-    double wallS() const { return static_cast<double>(clockNs(CLOCK_MONOTONIC) - wall_) / 1e9; }
+    Meter() : wall_(monotonicNowNs()), cpu_(processCpuNs()) {}
+    double wallS() const { return static_cast<double>(monotonicNowNs() - wall_) / 1e9; }
     Run stop(uint64_t frames) const {
-        return {frames, wallS(),
-                static_cast<double>(clockNs(CLOCK_PROCESS_CPUTIME_ID) - cpu_) / 1e9};
+        return {frames, wallS(), static_cast<double>(processCpuNs() - cpu_) / 1e9};
     }
 
 private:

@@ -3,8 +3,6 @@
 // rays of one frame traced again by bare Embree on the same BVH: the renderer's efficiency.
 #include "bench_render.h"
 
-#include <time.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "console.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/renderer.h"
 #include "test_data_paths.h"
@@ -308,9 +307,7 @@ Result<SceneDescription> causticScene(const fs::path& shared, const std::string&
 }
 
 double processCpuSeconds() {
-    timespec t{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+    return static_cast<double>(processCpuNs()) / 1e9;
 }
 
 struct Config {

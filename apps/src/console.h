@@ -70,5 +70,7 @@ private:
 std::string signalHelp(const std::string& output);
 
 int64_t monotonicNowNs();
+// CPU time of the whole process (every thread) so far, for benchmarks' CPU per frame.
+int64_t processCpuNs();
 
 }  // namespace mixray::cli
