@@ -483,7 +483,8 @@ std::string ArPipelineStats::json() const {
         j["composites"] = {{"published", c.composites},
                            {"rendered", c.rendered},
                            {"passed_through", c.passed_through},
-                           {"render_ms_mean", c.render_ms_mean}};
+                           {"render_ms_mean", c.render_ms_mean},
+                           {"estimated_lights", c.estimated_lights}};
         if (c.passed_through > 0)
             messages.push_back(std::to_string(c.passed_through) +
                                " composites without a pose: the camera image as is");

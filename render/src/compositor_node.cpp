@@ -603,6 +603,7 @@ Status CompositorNode::composite(const Pending& set) {
         if (out.rendered) {
             render_ms_sum_ += out.stats.seconds * 1e3;
             stats_.render_ms_mean = render_ms_sum_ / static_cast<double>(stats_.rendered);
+            stats_.estimated_lights = lights_.size();
         }
     }
     // Offline every frame is rendered at full quality: the ladder is for live runs only.

@@ -48,7 +48,8 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
         return stats.compositor ? stats.compositor->composites : 0;
     };
     // Composites per second over at least `window` and at least `count` composites (a
-    // sanitizer build composites about one a second), and the most any client had queued.
+    // sanitizer build makes about 0.4 lit composites a second), and the most any client had
+    // queued.
     const auto measure = [&](Clock::duration window, uint64_t count, size_t* high, bool* stalled) {
         const uint64_t before = composites();
         const auto t0 = Clock::now();
@@ -67,8 +68,14 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     };
     size_t high = 0;
     bool saw_stalled = false;
-    std::this_thread::sleep_for(1500ms);  // past the start and the first probe estimates
-    const auto [rate_alone, window] = measure(3s, 8, &high, &saw_stalled);
+    // Both windows lit alike: composites before the first light estimate have no shadow rays
+    // and cost a twentieth under ASan (0.09 s against 2.4 s), so a first window over them
+    // compared the start with the rest, not one browser with two.
+    const auto t_start = Clock::now();
+    while (p.stats().compositor->estimated_lights == 0 && Clock::now() - t_start < 30s)
+        std::this_thread::sleep_for(100ms);
+    ASSERT_GT(p.stats().compositor->estimated_lights, 0u) << p.stats().json();
+    const auto [rate_alone, window] = measure(3s, 6, &high, &saw_stalled);
     EXPECT_FALSE(saw_stalled);
 
     test::WsClient stalled;
@@ -78,7 +85,7 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     const int received_before = received.count();
     // As many composites as before: a view that waited for the stalled browser would stop them
     // and this window would run out at 40 s.
-    const double rate_stalled = measure(window, 8, &high, &saw_stalled).first;
+    const double rate_stalled = measure(window, 6, &high, &saw_stalled).first;
     const uint64_t memory_after = test::memoryInUse();
     const int received_meanwhile = received.count() - received_before;
     const liveview::LiveViewStats view_stats = view->stats();
@@ -87,8 +94,8 @@ TEST(ArPipeline, AStalledBrowserNeitherSlowsTheCompositesNorGrowsMemory) {
     RecordProperty("composites_per_s_beside_a_stalled_one", std::to_string(rate_stalled));
     ASSERT_TRUE(p.status().isOk()) << p.status().toString();
     EXPECT_GT(rate_alone, 0) << p.stats().json();
-    // The rates come out about equal; half at worst. ctest runs this test alone: a test beside
-    // it on 2 cores took one core, and more in bursts, and cut a window's rate fourfold.
+    // The rates come out about equal; half at worst. ctest runs this test alone, so no other
+    // test's load falls in one window only.
     EXPECT_GE(rate_stalled, 0.5 * rate_alone) << rate_alone << " composites/s with one browser, "
                                               << rate_stalled << " with a stalled one beside it";
     EXPECT_TRUE(saw_stalled);

@@ -152,6 +152,9 @@ struct CompositorStats {
     SyncStats sync;              // frames the synchronizer could not match, and why
     LatencyPercentiles latency;  // over the last 1024 composites
     double render_ms_mean = 0;
+    // Lights from the estimates (and the estimated environment map) the last rendered composite
+    // was lit by: 0 until the first light record with lights arrives.
+    size_t estimated_lights = 0;
     int quality_step = 0;
     int quality_steps = 1;
     std::string quality_label;
