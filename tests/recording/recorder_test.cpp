@@ -170,6 +170,47 @@ TEST_F(RecorderTest, ASlowStreamHoldsBackOnlyFramesWithinOneOfItsPeriods) {
         EXPECT_LE(frames[i - 1].meta().host_stamp_ns, frames[i].meta().host_stamp_ns) << i;
 }
 
+TEST_F(RecorderTest, AStreamThatHasNotStartedHoldsTheOthersBackOnlyOnce) {
+    // A 30 fps camera records while the other camera of the rig has sent nothing yet (it is on
+    // another host and starts later). The camera's first frame waits out the reorder window;
+    // after that nobody waits for the silent stream until it brings a frame, so the camera is
+    // written at its own rate, not one frame per window.
+    const auto path = test::tempDir() / "late_stream.mkv";
+    Graph graph;
+    StreamInfo camera_info = test::makeStream("cam/color", PixelFormat::kRGB8, 8, 6);
+    camera_info.nominal_fps = 30;
+    StreamInfo late_info = test::makeStream("late/color", PixelFormat::kRGB8, 8, 6);
+    late_info.nominal_fps = 30;
+    const StreamId camera = addStream(graph, camera_info);
+    const StreamId late = addStream(graph, late_info);
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLossless;
+    options.queue_capacity = 64;
+    options.reorder_window = milliseconds(100);
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+    const auto written = [rec](size_t stream) { return rec->stats().streams[stream].written; };
+    const int64_t period = 33'333'333;
+    for (int i = 0; i < 30; ++i) {
+        publish(graph, camera, i, 1'000'000 + i * period);
+        std::this_thread::sleep_for(milliseconds(33));
+    }
+    for (int i = 0; i < 100 && written(0) < 30; ++i)
+        std::this_thread::sleep_for(milliseconds(10));
+    // One window per frame would have written about ten in the second.
+    EXPECT_EQ(written(0), 30u);
+    // The late stream starts: written in order with what comes after.
+    publish(graph, late, 0, 1'000'000 + 30 * period);
+    publish(graph, camera, 30, 1'000'000 + 31 * period);
+    graph.stop();
+    EXPECT_EQ(written(1), 1u);
+    EXPECT_EQ(written(0), 31u);
+    EXPECT_EQ(rec->stats().frames_dropped, 0u);
+}
+
 TEST_F(RecorderTest, RecordsAChosenSubsetWithItsOwnStreamIds) {
     const auto path = test::tempDir() / "subset.mkv";
     Graph graph;

@@ -169,6 +169,7 @@ bool Recorder::pullHeads(bool wait) {
             input.head = std::move(*frame);
             input.head_since = Clock::now();
             input.last_stamp_ns = input.head.meta().host_stamp_ns;
+            input.overdue = false;
             got = true;
         }
     }
@@ -230,7 +231,8 @@ void Recorder::run() {
             const int64_t best_stamp = inputs_[best].head.meta().host_stamp_ns;
             const bool all_present =
                 std::all_of(inputs_.begin(), inputs_.end(), [best_stamp](const Input& input) {
-                    return input.head || input.finished || !input.mayPrecede(best_stamp);
+                    return input.head || input.finished || input.overdue ||
+                           !input.mayPrecede(best_stamp);
                 });
             bool failed = false;
             {
@@ -241,6 +243,11 @@ void Recorder::run() {
             // stream has a head, or it waited out the reorder window, or we are draining.
             const bool waited = Clock::now() - inputs_[best].head_since >= options_.reorder_window;
             if (all_present || waited || stopping_ || failed) {
+                if (!all_present && waited) {
+                    for (Input& input : inputs_)
+                        input.overdue = input.overdue || (!input.head && !input.finished &&
+                                                          input.mayPrecede(best_stamp));
+                }
                 writeFrame(best, std::move(inputs_[best].head));
                 inputs_[best].head.reset();
                 continue;

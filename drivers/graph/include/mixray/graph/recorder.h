@@ -100,6 +100,10 @@ private:
         FrameRef head;  // popped, waiting for its turn
         std::chrono::steady_clock::time_point head_since;
         bool finished = false;
+        // It held another stream's frame for the whole reorder window: nobody waits for it again
+        // until it brings a frame (a camera that starts late would otherwise slow every other
+        // stream to one frame per window, and their pools would run dry).
+        bool overdue = false;
         // The stream's frames come at least this far apart (minFramePeriodNs()), and the last
         // one popped had this host stamp: until then plus the period,
         // the stream cannot bring a frame that should be written before another stream's.
