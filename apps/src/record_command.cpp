@@ -128,10 +128,12 @@ int runRecord(const RecordOptions& options) {
 
     BackendRegistry registry = makeBackendRegistry();
     Graph graph;
+    std::vector<const Device*> devices;  // owned by the graph
     for (const auto& config : rig->deviceConfigs()) {
         auto device = registry.open(config);
         if (!device)
             return fail("record", device.status());
+        devices.push_back(device->get());
         Status added = graph.addNode(std::move(*device));
         if (!added)
             return fail("record", added);
@@ -272,6 +274,10 @@ int runRecord(const RecordOptions& options) {
             std::printf("  %6llu lost by the device", static_cast<unsigned long long>(lost));
         std::printf("\n");
     }
+    // Devices on other hosts: how their clocks were tied to this one.
+    for (const Device* device : devices)
+        if (const std::string report = device->clockReport(); !report.empty())
+            std::printf("  %s: %s\n", device->name().c_str(), report.c_str());
     if (!stats.error.isOk()) {
         return fail("record", stats.error.withContext(options.output + " (readable up to frame " +
                                                       std::to_string(stats.frames_written) + ")"));

@@ -428,9 +428,12 @@ ArPipelineStats ArPipeline::stats() const {
         // The driver's word where it gives one (it knows a camera being reopened from a slow
         // one); else, and for a recording standing in for its rig, judged from its streams.
         DeviceState said = DeviceState::kUnknown;
-        for (const Device* d : devices_)
-            if (d->name() == name)
+        for (const Device* d : devices_) {
+            if (d->name() == name) {
                 said = d->state();
+                dev.clock = d->clockReport();
+            }
+        }
         dev.state = said != DeviceState::kUnknown ? std::string(toString(said))
                     : counts.second == total      ? "ended"
                     : counts.first > 0            ? "streaming"
@@ -454,8 +457,12 @@ std::string ArPipelineStats::json() const {
     using nlohmann::json;
     json j;
     json devs = json::array();
-    for (const auto& d : devices)
-        devs.push_back({{"name", d.name}, {"state", d.state}});
+    for (const auto& d : devices) {
+        json dev = {{"name", d.name}, {"state", d.state}};
+        if (!d.clock.empty())
+            dev["clock"] = d.clock;
+        devs.push_back(std::move(dev));
+    }
     j["devices"] = devs;
     json sts = json::array();
     for (const auto& st : streams)

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "cli_runner.h"
@@ -186,7 +187,14 @@ TEST_F(Hosts, ARecordingOnOneHostHoldsEveryFrameOfDevicesOnTwoOthers) {
             "--transport",    "udp",
             "--wait-readers", "1"};
     };
-    // Clocks 1000 s and 2000 s ahead of C's: only a mapping makes their frames meet.
+    // Clocks 1000 s and 2000 s ahead of C's: only a mapping makes their frames meet. C's
+    // clock is this process's.
+    const auto monotonic_ns = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(
+                   std::chrono::steady_clock::now().time_since_epoch())
+            .count();
+    };
+    const int64_t t_begin = monotonic_ns();
     CliProcess a = startIn(a_, 1000, publish("a", net_ + "1.2", net_ + "1.1"), dir / "a.log");
     CliProcess b = startIn(b_, 2000, publish("b", net_ + "2.2", net_ + "2.1"), dir / "b.log");
     CliProcess c =
@@ -195,16 +203,45 @@ TEST_F(Hosts, ARecordingOnOneHostHoldsEveryFrameOfDevicesOnTwoOthers) {
     const CliRun recorded = waitMixray(c);
     const CliRun published_a = waitMixray(a);
     const CliRun published_b = waitMixray(b);
+    const int64_t t_end = monotonic_ns();
     ASSERT_EQ(recorded.exit_code, 0) << recorded.output;
     ASSERT_EQ(published_a.exit_code, 0) << published_a.output;
     ASSERT_EQ(published_b.exit_code, 0) << published_b.output;
     EXPECT_NE(recorded.output.find("the rig's streams ended"), std::string::npos)
         << recorded.output;
 
+    // C fitted each host's clock from clock exchanges over DDS, and said so.
+    for (const auto& [name, host, ahead_s] :
+         {std::tuple{"left", "hostA", 1000.0}, std::tuple{"right", "hostB", 2000.0}}) {
+        const std::string said = std::string("  ") + name + ": " + host + " clock ";
+        const size_t at = recorded.output.find(said);
+        ASSERT_NE(at, std::string::npos) << recorded.output;
+        const std::string line = recorded.output.substr(at, recorded.output.find('\n', at) - at);
+        RecordProperty(std::string(name) + "_clock", line);
+        EXPECT_NEAR(std::stod(recorded.output.substr(at + said.size())), ahead_s, 0.002) << line;
+    }
+    // A's frames, stamped on arrival by A's clock, reach the recording on C's: inside the run,
+    // not 1000 s on. (The pattern device's own clock stays its own.)
+    {
+        auto reader = openMkv(dir / "c.mkv");
+        ASSERT_TRUE(reader.isOk()) << reader.status().toString();
+        size_t checked = 0;
+        for (auto frame = (*reader)->next(); frame.isOk(); frame = (*reader)->next()) {
+            const FrameMetadata& meta = frame->meta();
+            if ((*reader)->streams()[meta.stream].name != "left/color")
+                continue;
+            EXPECT_NE(meta.clock_domain, kHostClockDomain);
+            EXPECT_GT(meta.host_stamp_ns, t_begin);
+            EXPECT_LT(meta.host_stamp_ns, t_end);
+            ++checked;
+        }
+        EXPECT_EQ(checked, 60u);
+    }
+
     const auto expected = framesOf(dir / "reference.mkv");
     const auto got = framesOf(dir / "c.mkv");
     ASSERT_EQ(expected.size(), 150u);
-    EXPECT_EQ(got.size(), expected.size()) << "every frame arrives";
+    EXPECT_EQ(got.size(), expected.size()) << "every frame arrives\n" << recorded.output;
     const std::map<std::string, std::string> renamed{
         {"left/color", "rgbd/color"}, {"left/depth", "rgbd/depth"}, {"right/mono", "mono/mono"}};
     size_t identical = 0;
@@ -251,7 +288,7 @@ TEST_P(HostFaults, TheLostHostIsReportedAndRejoinsWhileLocalStreamsKeepTheirRate
                                            "--address",   net_ + "1.2",
                                            "--peers",     net_ + "1.1",
                                            "--transport", "udp"};
-    CliProcess a = startIn(a_, 0, publish, dir / "a.log");
+    CliProcess a = startIn(a_, 1000, publish, dir / "a.log");
     CliProcess c = startIn(
         c_, 0, {"run", (dir / "c.yaml").string(), "--duration", "12", "-o", (dir / "out").string()},
         dir / "c.log");
@@ -262,7 +299,8 @@ TEST_P(HostFaults, TheLostHostIsReportedAndRejoinsWhileLocalStreamsKeepTheirRate
         tearDownA();
         std::this_thread::sleep_for(std::chrono::seconds(3));
         bringBackA();
-        a = startIn(a_, 0, publish, dir / "a2.log");
+        // Back as if rebooted: its clock another 2000 s on.
+        a = startIn(a_, 3000, publish, dir / "a2.log");
     } else {
         ASSERT_EQ(shell("ip -n " + c_ + " link set vca" + id_ + " down"), 0);
         std::this_thread::sleep_for(std::chrono::seconds(3));
@@ -281,6 +319,14 @@ TEST_P(HostFaults, TheLostHostIsReportedAndRejoinsWhileLocalStreamsKeepTheirRate
     for (const auto& d : summary.at("devices")) {
         if (d.at("name") == "remote") {
             EXPECT_EQ(d.at("state"), "streaming") << "rejoined: " << summary.dump();
+            // The host's clock as it is now: the fit started again when it jumped.
+            const std::string clock = d.at("clock");
+            const std::string ahead = GetParam() == Fault::kHostTornDown ? "+3000.00" : "+1000.00";
+            RecordProperty("remote_clock", clock);
+            EXPECT_EQ(clock.rfind("hostA clock " + ahead, 0), 0u) << clock;
+            EXPECT_EQ(clock.find("clock jump") != std::string::npos,
+                      GetParam() == Fault::kHostTornDown)
+                << clock;
         }
     }
     // 12 s of a 15 fps local camera, whatever the network does.

@@ -4,12 +4,15 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
+#include <map>
 #include <thread>
 
 #include "mixray/dds/dds_backend.h"
 #include "mixray/dds/dds_publisher.h"
 #include "mixray/dds/frame_message.h"
+#include "mixray/dds/host_clock.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/graph.h"
 
@@ -158,11 +161,13 @@ struct PublishingHost {
 
 // Opens the remote device as `name` in `graph`, subscribed losslessly.
 std::shared_ptr<FrameQueue> openRemote(Graph& graph, DdsDevice** device,
-                                       const std::string& id = "hostA/cam") {
+                                       const std::string& id = "hostA/cam",
+                                       std::map<std::string, std::string> options = {}) {
     DdsBackend backend(loopback("hostB"));
     // Buffers for every frame a test sends before it reads them.
+    options["buffers"] = "32";
     DeviceConfig config{
-        .name = "remote", .driver = "dds", .id = id, .options = {{"buffers", "32"}}, .streams = {}};
+        .name = "remote", .driver = "dds", .id = id, .options = options, .streams = {}};
     auto opened = backend.open(config);
     EXPECT_TRUE(opened.isOk()) << opened.status().toString();
     if (!opened.isOk())
@@ -321,16 +326,18 @@ TEST(DdsGraph, ASubscriberThatStopsReadingSlowsNoOneAndCountsItsLosses) {
     healthy.stop();
 }
 
-TEST(DdsGraph, HostClockStampsBecomeTheRemoteHostsClockDomain) {
+TEST(DdsGraph, WithClockArrivalHostClockStampsBecomeTheRemoteHostsClockDomain) {
     StreamInfo info = colorStream();
     info.clock_domain = kHostClockDomain;
     PublishingHost a("hostA", info);
     Graph b;
     DdsDevice* device = nullptr;
-    auto queue = openRemote(b, &device);
+    auto queue = openRemote(b, &device, "hostA/cam", {{"clock", "arrival"}});
     ASSERT_TRUE(queue);
     const StreamInfo local = b.stream(*b.findStream("remote/color"));
     EXPECT_EQ(local.clock_domain, deviceClockDomain("dds", "hostA"));
+    EXPECT_FALSE(device->hostClock().has_value());
+    EXPECT_EQ(device->clockReport(), "stamped on arrival (clock: arrival)");
     waitMatched(*a.publisher, *device);
     const auto before = std::chrono::steady_clock::now().time_since_epoch();
     a.send(0);
@@ -342,6 +349,47 @@ TEST(DdsGraph, HostClockStampsBecomeTheRemoteHostsClockDomain) {
     EXPECT_GE(frame->meta().host_stamp_ns,
               std::chrono::duration_cast<std::chrono::nanoseconds>(before).count());
     EXPECT_LE(frame->meta().device_stamp_ns, frame->meta().host_stamp_ns);
+    b.stop();
+}
+
+// Both "hosts" share one clock here, so the fit must find no offset, and the stamps the sender
+// gave come out where they were.
+TEST(DdsGraph, HostClockStampsReachThisHostsClockThroughClockExchanges) {
+    StreamInfo info = colorStream();
+    info.clock_domain = kHostClockDomain;
+    PublishingHost a("hostA", info);
+    Graph b;
+    DdsDevice* device = nullptr;
+    auto queue = openRemote(b, &device);
+    ASSERT_TRUE(queue);
+    const StreamInfo local = b.stream(*b.findStream("remote/color"));
+    EXPECT_EQ(local.clock_domain, kHostClockDomain);
+    const std::optional<HostClockEstimate> clock = device->hostClock();
+    ASSERT_TRUE(clock.has_value()) << device->clockReport();
+    EXPECT_LT(std::abs(clock->offset_ns), 2'000'000) << clock->describe();
+    EXPECT_GE(clock->used, HostClockEstimator::kMinUsed);
+    EXPECT_EQ(device->clockReport().rfind("hostA clock +0.00", 0), 0u) << device->clockReport();
+    waitMatched(*a.publisher, *device);
+    const auto now = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(
+                   std::chrono::steady_clock::now().time_since_epoch())
+            .count();
+    };
+    const int64_t before = now();
+    a.send(0);
+    auto frame = queue->pop(10s);
+    const int64_t after = now();
+    ASSERT_TRUE(frame.has_value());
+    EXPECT_EQ(frame->meta().clock_domain, kHostClockDomain);
+    EXPECT_NEAR(static_cast<double>(frame->meta().device_stamp_ns),
+                static_cast<double>(metaOf(0, 0, kHostClockDomain).device_stamp_ns), 2e6);
+    // Stamped by the sender between `before` and `after`, give or take the fit's error.
+    EXPECT_GE(frame->meta().host_stamp_ns, before - 2'000'000);
+    EXPECT_LE(frame->meta().host_stamp_ns, after + 2'000'000);
+    // The exchanges go on while the device runs.
+    const size_t exchanges = clock->exchanges;
+    std::this_thread::sleep_for(700ms);
+    EXPECT_GT(device->hostClock()->exchanges, exchanges);
     b.stop();
 }
 

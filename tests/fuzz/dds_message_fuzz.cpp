@@ -1,9 +1,11 @@
 // libFuzzer target for the DDS messages another host sends (drivers/dds): the first byte picks
-// a mixray_msgs Frame (deserializeFrame, against a small rgb8 stream) or a StreamAnnouncement
-// (deserializeAnnouncement); the rest is the CDR sample as a DDS reader receives it. Any bytes
-// give a clean kCorruptData, never a throw or a crash (fastcdr throws more than Fast DDS's
-// generated code catches); an accepted frame fits the stream and serializes and reads back to
-// the same frame; an accepted announcement is a stream the graph can declare.
+// a mixray_msgs Frame (deserializeFrame, against a small rgb8 stream), a StreamAnnouncement
+// (deserializeAnnouncement) or a TimeExchange (deserializeTimeExchange); the rest is the CDR
+// sample as a DDS reader receives it. Any bytes give a clean kCorruptData, never a throw or a
+// crash (fastcdr throws more than Fast DDS's generated code catches); an accepted frame fits the
+// stream and serializes and reads back to the same frame; an accepted announcement is a stream
+// the graph can declare; an accepted exchange reads back the same, and its stamps, fed to a
+// HostClockEstimator and mapped through its fit, overflow nothing (UBSan watches).
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -12,6 +14,7 @@
 #include <string>
 
 #include "mixray/dds/frame_message.h"
+#include "mixray/dds/host_clock.h"
 
 namespace {
 
@@ -36,7 +39,32 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size == 0)
         return 0;
     const std::span<const uint8_t> bytes(data + 1, size - 1);
-    if (data[0] % 2 == 0) {
+    if (data[0] % 3 == 2) {
+        auto exchange = dds::deserializeTimeExchange(bytes);
+        if (!exchange.isOk()) {
+            if (exchange.status().code() != ErrorCode::kCorruptData)
+                broken("exchange rejection is not kCorruptData", exchange.status().toString());
+            return 0;
+        }
+        auto again = dds::deserializeTimeExchange(dds::serializeTimeExchange(*exchange));
+        if (!again.isOk() || again->requester != exchange->requester ||
+            again->sequence != exchange->sequence || again->t2_ns != exchange->t2_ns ||
+            again->t3_ns != exchange->t3_ns)
+            broken("accepted exchange does not read back the same", "");
+        // The requester's own t1 and t4 around the other host's t2 and t3, four times over.
+        dds::HostClockEstimator estimator;
+        for (int i = 0; i < 4; ++i) {
+            (void)estimator.add({exchange->t1_ns, exchange->t2_ns, exchange->t3_ns,
+                                 exchange->t1_ns / 2 + 1000 * (i + 1)});
+        }
+        if (const auto fit = estimator.estimate()) {
+            (void)fit->toLocal(exchange->t2_ns);
+            (void)fit->toRemote(exchange->t3_ns);
+            (void)fit->describe();
+        }
+        return 0;
+    }
+    if (data[0] % 3 == 0) {
         const StreamInfo stream = smallStream();
         FrameMetadata meta;
         Image image;

@@ -1,5 +1,7 @@
 #include "mixray/dds/dds_backend.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -16,6 +18,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "participant.h"
+#include "time_exchange.h"
 
 namespace mixray::dds {
 
@@ -105,6 +108,16 @@ private:
     std::set<std::string> rejected_;
 };
 
+// A name for this device's clock requests that no other requester in the domain has: the
+// answers are addressed to it.
+std::string requesterName(const DeviceConfig& config) {
+    static std::atomic<uint64_t> count{0};
+    char host[256] = {};
+    (void)gethostname(host, sizeof host - 1);
+    return std::string(host) + "/" + std::to_string(getpid()) + "/" + config.name + "/" +
+           std::to_string(count.fetch_add(1));
+}
+
 }  // namespace
 
 Status parseDdsDeviceOptions(const DeviceConfig& config, DdsDeviceOptions* options) {
@@ -115,8 +128,12 @@ Status parseDdsDeviceOptions(const DeviceConfig& config, DdsDeviceOptions* optio
     MIXRAY_RETURN_IF_ERROR(
         reader.integer("buffers", options->buffers, size_t{2}, size_t{256}, "2..256"));
     MIXRAY_RETURN_IF_ERROR(reader.integer("history", options->history, 1, 64, "1..64"));
+    MIXRAY_RETURN_IF_ERROR(reader.choice("clock", options->clock,
+                                         {{"exchange", DdsDeviceOptions::Clock::kExchange},
+                                          {"arrival", DdsDeviceOptions::Clock::kArrival}},
+                                         "exchange or arrival"));
     return reader.leftovers(std::string(kDdsOptionKeys) +
-                            ", discovery_timeout_ms, buffers, history");
+                            ", discovery_timeout_ms, buffers, history, clock");
 }
 
 struct DdsDevice::Impl {
@@ -144,6 +161,9 @@ struct DdsDevice::Impl {
     std::string device;  // its device name there
     std::shared_ptr<detail::Participant> participant;
     std::unique_ptr<AnnouncementListener> listener;
+    // With clock: exchange and an answer at open(): the host's clock, fitted all along.
+    std::unique_ptr<detail::TimeRequester> time;
+    std::string clock_note;  // why the arrival is the time base, when it is
     std::vector<std::unique_ptr<Stream>> streams;
     Graph* graph = nullptr;
     std::atomic<bool> stopping{false};
@@ -209,12 +229,20 @@ void DdsDevice::Impl::take(Stream& stream, detail::FrameMessage& message) {
             graph->countLost(stream.pooled.id);
             continue;
         }
-        if (meta.clock_domain == kHostClockDomain) {
-            meta.device_stamp_ns = meta.host_stamp_ns;
-            meta.clock_domain = stream.local.clock_domain;
+        if (time) {
+            // The host's stamps on this host's clock; its device clocks stay theirs.
+            const std::optional<HostClockEstimate> clock = time->estimate();
+            if (meta.clock_domain == kHostClockDomain)
+                meta.device_stamp_ns = clock->toLocal(meta.device_stamp_ns);
+            meta.host_stamp_ns = clock->toLocal(meta.host_stamp_ns);
+        } else {
+            if (meta.clock_domain == kHostClockDomain) {
+                meta.device_stamp_ns = meta.host_stamp_ns;
+                meta.clock_domain = stream.local.clock_domain;
+            }
+            meta.host_stamp_ns = arrival_ns;
         }
         meta.stream = stream.pooled.id;
-        meta.host_stamp_ns = arrival_ns;
         meta.graph_stamp_ns = 0;
         frame.meta() = meta;
         if (stream.local.format.format == PixelFormat::kBinary) {
@@ -305,6 +333,19 @@ DeviceState DdsDevice::state() const {
     if (impl_->ever_alive && !impl_->device_alive)
         return DeviceState::kReconnecting;
     return DeviceState::kStreaming;
+}
+
+std::string DdsDevice::clockReport() const {
+    if (!impl_->time)
+        return "stamped on arrival (" + impl_->clock_note + ")";
+    const std::optional<HostClockEstimate> clock = impl_->time->estimate();
+    return impl_->host + " clock " + clock->describe();
+}
+
+std::optional<HostClockEstimate> DdsDevice::hostClock() const {
+    if (!impl_->time)
+        return std::nullopt;
+    return impl_->time->estimate();
 }
 
 Status DdsDevice::connect(Graph& graph) {
@@ -495,6 +536,19 @@ Result<std::unique_ptr<Device>> DdsBackend::open(const DeviceConfig& config) {
     }
     impl->host = found.front().host;
     impl->device = want_device;
+    if (impl->options.clock == DdsDeviceOptions::Clock::kExchange) {
+        auto time =
+            detail::TimeRequester::create(impl->participant, requesterName(config), impl->host);
+        if (!time)
+            return time.status().withContext(who);
+        // A fit needs HostClockEstimator::kMinUsed answers; the first come 20 ms apart.
+        if ((*time)->waitEstimate(std::chrono::milliseconds(2000)))
+            impl->time = std::move(time).value();
+        else
+            impl->clock_note = impl->host + " answered no clock request within 2 s";
+    } else {
+        impl->clock_note = "clock: arrival";
+    }
     for (Announced& a : found) {
         const std::string short_name = a.info.name.substr(want_device.size() + 1);
         if (!config.streams.empty() && std::find(config.streams.begin(), config.streams.end(),
@@ -504,7 +558,7 @@ Result<std::unique_ptr<Device>> DdsBackend::open(const DeviceConfig& config) {
         stream->local = a.info;
         stream->local.name = config.name + "/" + short_name;
         stream->local.device = config.name;
-        if (stream->local.clock_domain == kHostClockDomain)
+        if (stream->local.clock_domain == kHostClockDomain && !impl->time)
             stream->local.clock_domain = deviceClockDomain("dds", impl->host);
         stream->local.tags["dds.host"] = impl->host;
         stream->local.tags["dds.topic"] = a.topic;

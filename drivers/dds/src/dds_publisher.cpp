@@ -11,6 +11,7 @@
 #include "frame_message.h"
 #include "participant.h"
 #include "ros_image.h"
+#include "time_exchange.h"
 
 namespace mixray::dds {
 
@@ -61,6 +62,8 @@ struct DdsPublisher::Impl {
     std::vector<std::unique_ptr<Stream>> streams;
     std::shared_ptr<detail::Participant> participant;
     fdds::DataWriter* announcer = nullptr;
+    // Answers other hosts' clock requests for as long as this host publishes.
+    std::unique_ptr<detail::TimeResponder> time_responder;
     std::atomic<bool> stopping{false};
     mutable std::mutex mutex;  // guards the writers' existence for stats()
 
@@ -126,6 +129,11 @@ Status DdsPublisher::Impl::createWriters() {
     if (!made)
         return made.status();
     participant = *made;
+    // Before the announcements: a receiver that hears them asks for this host's time at once.
+    auto responder = detail::TimeResponder::create(participant, host);
+    if (!responder)
+        return responder.status();
+    time_responder = std::move(responder).value();
 
     auto announcement_topic =
         participant->topic(std::string(kAnnouncementTopic), detail::announcementType());
@@ -213,6 +221,7 @@ Status DdsPublisher::connect(Graph& graph) {
     std::lock_guard lock(d.mutex);
     const Status made = d.createWriters();
     if (!made.isOk()) {
+        d.time_responder.reset();
         d.participant.reset();
         for (auto& stream : d.streams)
             stream->writer = stream->ros_writer = nullptr;
@@ -267,6 +276,7 @@ void DdsPublisher::stop() {
         stream->writer = stream->ros_writer = nullptr;
     }
     d.announcer = nullptr;
+    d.time_responder.reset();
     d.participant.reset();
 }
 

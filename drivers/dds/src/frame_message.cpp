@@ -26,6 +26,28 @@ eprosima::fastdds::dds::TypeSupport announcementType() {
         new GuardedType<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>());
 }
 
+eprosima::fastdds::dds::TypeSupport timeExchangeType() {
+    return eprosima::fastdds::dds::TypeSupport(
+        new GuardedType<mixray_msgs::msg::dds_::TimeExchange_PubSubType>());
+}
+
+TimeExchangeMessage toMessage(const TimeExchange& exchange) {
+    TimeExchangeMessage m;
+    m.requester(exchange.requester);
+    m.responder(exchange.responder);
+    m.sequence_number(exchange.sequence);
+    m.t1_ns(exchange.t1_ns);
+    m.t2_ns(exchange.t2_ns);
+    m.t3_ns(exchange.t3_ns);
+    m.protocol(exchange.protocol);
+    return m;
+}
+
+TimeExchange exchangeOf(const TimeExchangeMessage& m) {
+    return {m.requester(), m.responder(), m.sequence_number(), m.t1_ns(),
+            m.t2_ns(),     m.t3_ns(),     m.protocol()};
+}
+
 void toMessage(const FrameMetadata& meta, const ImageView& image, FrameMessage* message) {
     message->sequence_number(meta.sequence);
     message->device_stamp_ns(meta.device_stamp_ns);
@@ -205,6 +227,20 @@ Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes) {
                       "dds announcement: not a mixray_msgs StreamAnnouncement in CDR"};
     }
     return detail::streamOf(message);
+}
+
+std::vector<uint8_t> serializeTimeExchange(const TimeExchange& exchange) {
+    detail::TimeExchangeMessage message = detail::toMessage(exchange);
+    return serialize<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(message);
+}
+
+Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes) {
+    detail::TimeExchangeMessage message;
+    if (!deserialize<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(bytes, &message)) {
+        return Status{ErrorCode::kCorruptData,
+                      "dds time exchange: not a mixray_msgs TimeExchange in CDR"};
+    }
+    return detail::exchangeOf(message);
 }
 
 Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream,

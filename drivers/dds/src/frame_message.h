@@ -6,16 +6,19 @@
 #include <memory>
 #include <string>
 
+#include "mixray/dds/frame_message.h"
 #include "mixray/graph/frame.h"
 #include "mixray/graph/result.h"
 #include "mixray/graph/stream.h"
 #include "mixray_msgs/msg/FramePubSubTypes.h"
 #include "mixray_msgs/msg/StreamAnnouncementPubSubTypes.h"
+#include "mixray_msgs/msg/TimeExchangePubSubTypes.h"
 
 namespace mixray::dds::detail {
 
 using FrameMessage = mixray_msgs::msg::dds_::Frame_;
 using AnnouncementMessage = mixray_msgs::msg::dds_::StreamAnnouncement_;
+using TimeExchangeMessage = mixray_msgs::msg::dds_::TimeExchange_;
 
 // A generated type whose deserialize() survives any bytes: fastcdr throws more exceptions than
 // the generated code catches (a bad encapsulation, an impossible length), and a throw from a
@@ -36,6 +39,10 @@ public:
 // wire: "mixray_msgs::msg::dds_::Frame_").
 eprosima::fastdds::dds::TypeSupport frameType();
 eprosima::fastdds::dds::TypeSupport announcementType();
+eprosima::fastdds::dds::TypeSupport timeExchangeType();
+
+TimeExchangeMessage toMessage(const TimeExchange& exchange);
+TimeExchange exchangeOf(const TimeExchangeMessage& message);
 
 // Fills `message` from a frame. Reuses the message's data buffer.
 void toMessage(const FrameMetadata& meta, const ImageView& image, FrameMessage* message);

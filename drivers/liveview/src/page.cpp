@@ -198,7 +198,7 @@ function onStatus(s) {
   });
   const p = s.pipeline || {};
   fill("devices", (p.devices || []).map(d => {
-    const li = el("li", "device state-" + String(d.state), d.name + ": " + d.state);
+    const li = el("li", "device state-" + String(d.state), d.name + ": " + d.state + (d.clock ? " · " + d.clock : ""));
     li.dataset.name = d.name; li.dataset.state = d.state;
     return li;
   }));

@@ -86,6 +86,7 @@ struct ArPipelineStats {
         // "ended"); for devices that do not say, judged from their streams: "streaming",
         // "waiting" (nothing yet), "lost" (silent > 1 s), "ended" (every stream ended).
         std::string state;
+        std::string clock;  // Device::clockReport(): another host's clock, when it has one
     };
     std::vector<Stream> streams;
     std::vector<Device> devices;

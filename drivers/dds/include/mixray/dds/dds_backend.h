@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "mixray/dds/dds_options.h"
+#include "mixray/dds/host_clock.h"
 #include "mixray/graph/device.h"
 
 namespace mixray::dds {
@@ -15,16 +16,24 @@ namespace mixray::dds {
 // DdsOptions (kDdsOptionKeys) and
 //   discovery_timeout_ms  how long open() waits for the host to announce the device's
 //                         streams, 0..600000 (default 5000)
-//   buffers               frames each stream's pool holds, 2..256 (default 8)
+//   buffers               frames each stream's pool holds, 2..256 (default 16: half a
+//                         second at 30 fps, for consumers that order frames of several hosts
+//                         by capture time and so wait for the slowest host's network)
 //   history               frames DDS keeps per stream for this reader, 1..64 (default 4)
+//   clock                 how the host's stamps reach this host's time base: "exchange"
+//                         (default: NTP-style exchanges with the host over DDS, waiting up to
+//                         2 s for a fit at open(), else as "arrival") or "arrival" (its clock
+//                         is a device clock fitted to the frames' arrival)
 // DeviceConfig::id is "HOST/DEVICE" (the publishing host's name and its device) or "DEVICE"
 // (whichever host announces it; two hosts announcing it is an error). DeviceConfig::streams
 // lists the device's streams to receive ("color", "depth"; empty: every announced one).
 struct DdsDeviceOptions {
+    enum class Clock : uint8_t { kExchange, kArrival };
     DdsOptions dds;
     int64_t discovery_timeout_ms = 5000;
-    size_t buffers = 8;
+    size_t buffers = 16;
     int history = 4;
+    Clock clock = Clock::kExchange;
 };
 
 // Reads DeviceConfig::options into `options` (starting from its values); kInvalidArgument
@@ -44,12 +53,19 @@ struct DdsReceiveStats {
 };
 
 // A remote device: one DataReader per stream; a thread takes frames and publishes them into
-// the graph's pools. Metadata arrives exactly as the publishing host had it; frames keep their
-// sequence, device stamp, exposure and status, and are stamped on arrival with this host's
-// CLOCK_MONOTONIC (host_stamp_ns, as every local device stamps its frames). A stream stamped
-// by the publishing host's clock (clock domain 0 there) carries that stamp as its device stamp
-// in clock domain deviceClockDomain("dds", HOST), so ClockSync and the synchronizer map the
-// other host's clock onto this one like any device clock.
+// the graph's pools. Metadata arrives exactly as the publishing host had it, and frames keep
+// their sequence, device stamp, exposure and status; the stamps then reach this host's time
+// base one of two ways (DdsDeviceOptions::clock):
+//   exchange: the device asks the host for its time over DDS (mixray/time_request) all along
+//     and fits the host's CLOCK_MONOTONIC to this one (HostClockEstimator). Stamps of the
+//     host's clock become this host's: a stream the host stamped (clock domain 0 there) is in
+//     clock domain 0 here, and every frame's host stamp is the host's, mapped. clockReport()
+//     says the offset, drift and residual.
+//   arrival (or no answer within 2 s): frames are stamped on arrival with this host's
+//     CLOCK_MONOTONIC (host_stamp_ns), and a stream the host stamped carries that stamp as its
+//     device stamp in clock domain deviceClockDomain("dds", HOST), so ClockSync maps the other
+//     host's clock like any device clock, network latency included.
+// A stream from a device with its own clock keeps that clock's domain either way.
 // Its state is streaming while the host's writers are alive, reconnecting once they are gone
 // (the host left, crashed or became unreachable for DdsOptions::lease_s), and streaming again
 // when they return.
@@ -59,6 +75,11 @@ public:
     std::string name() const override;
     DeviceDescriptor descriptor() const override;
     DeviceState state() const override;
+    // "hostA clock +1000.000123 s, drift ..." (HostClockEstimate::describe()), or why the
+    // frames' arrival is the time base.
+    std::string clockReport() const override;
+    // The current fit of the host's clock; nullopt with clock: arrival or before any answer.
+    std::optional<HostClockEstimate> hostClock() const;
     Status connect(Graph& graph) override;
     Status start() override;
     void stop() override;

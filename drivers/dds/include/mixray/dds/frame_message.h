@@ -1,5 +1,5 @@
-// Graph frames in their DDS wire form (mixray_msgs/msg/Frame as CDR), for tests, fuzzing and
-// benchmarks: the publisher and the dds backend convert the same way.
+// Graph frames, announcements and clock exchanges in their DDS wire form (mixray_msgs in CDR),
+// for tests, fuzzing and benchmarks: the publisher and the dds backend convert the same way.
 #pragma once
 
 #include <cstdint>
@@ -30,5 +30,22 @@ Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream
 // kCorruptData saying what is wrong. Never throws.
 std::vector<uint8_t> serializeAnnouncement(const StreamInfo& stream, const std::string& host);
 Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes);
+
+// One clock exchange between two hosts (mixray_msgs/msg/TimeExchange): a request carries t1,
+// the answer the same fields with t2 and t3 (mixray/dds/host_clock.h).
+struct TimeExchange {
+    std::string requester;
+    std::string responder;
+    uint64_t sequence = 0;
+    int64_t t1_ns = 0;
+    int64_t t2_ns = 0;
+    int64_t t3_ns = 0;
+    uint32_t protocol = 0;
+};
+
+// In CDR as the hosts send it, and read back as they accept it: kCorruptData when the bytes
+// are not a TimeExchange. Never throws.
+std::vector<uint8_t> serializeTimeExchange(const TimeExchange& exchange);
+Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes);
 
 }  // namespace mixray::dds

@@ -52,6 +52,10 @@ public:
     // Its state now. Thread-safe in every implementation: status lines and the live view call
     // it from their own threads. The default says nothing (kUnknown).
     virtual DeviceState state() const { return DeviceState::kUnknown; }
+    // How its stamps reach this host's time base when the device knows more than its stamps
+    // show: another host's clock offset, drift and residual. Empty when it has nothing to say
+    // (the default). Thread-safe like state().
+    virtual std::string clockReport() const { return {}; }
 };
 
 // One device family. Implementations live in drivers/<backend>/ and are registered by apps.
