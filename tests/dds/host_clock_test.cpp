@@ -110,7 +110,7 @@ TEST(HostClockEstimator, StampsOutOfOrderOrOutOfRangeAreRefused) {
     // A fit maps any stamp, however far, without overflowing.
     for (int i = 0; i < 4; ++i)
         ASSERT_TRUE(estimator.add(
-            {i * kMs, (int64_t{1} << 61) + i * kMs, (int64_t{1} << 61) + i * kMs, i * kMs + 10}));
+            {i * kMs, (int64_t{1} << 60) + i * kMs, (int64_t{1} << 60) + i * kMs, i * kMs + 10}));
     const auto estimate = estimator.estimate();
     ASSERT_TRUE(estimate.has_value());
     EXPECT_EQ(estimate->toLocal(std::numeric_limits<int64_t>::min()),

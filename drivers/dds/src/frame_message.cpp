@@ -240,6 +240,11 @@ Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes) {
         return Status{ErrorCode::kCorruptData,
                       "dds time exchange: not a mixray_msgs TimeExchange in CDR"};
     }
+    // CDR strings may hold a NUL that no host name has (and that fastcdr would drop on the way
+    // back out).
+    if (message.requester().find('\0') != std::string::npos ||
+        message.responder().find('\0') != std::string::npos)
+        return Status{ErrorCode::kCorruptData, "dds time exchange: a host name holds a NUL byte"};
     return detail::exchangeOf(message);
 }
 

@@ -56,8 +56,9 @@ std::string HostClockEstimate::describe() const {
 }
 
 bool HostClockEstimator::add(const TimeExchangeStamps& stamps) {
-    // Within ±2^62, the differences and the offset and delay cannot overflow.
-    constexpr int64_t kLimit = int64_t{1} << 62;
+    // Within ±2^61 ns (73 years), the differences, their sums and the offset and delay cannot
+    // overflow.
+    constexpr int64_t kLimit = int64_t{1} << 61;
     for (const int64_t t : {stamps.t1_ns, stamps.t2_ns, stamps.t3_ns, stamps.t4_ns})
         if (t <= -kLimit || t >= kLimit)
             return false;

@@ -44,7 +44,7 @@ struct TimeExchange {
 };
 
 // In CDR as the hosts send it, and read back as they accept it: kCorruptData when the bytes
-// are not a TimeExchange. Never throws.
+// are not a TimeExchange, or a host name holds a NUL. Never throws.
 std::vector<uint8_t> serializeTimeExchange(const TimeExchange& exchange);
 Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes);
 

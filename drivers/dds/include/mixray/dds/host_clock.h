@@ -64,7 +64,7 @@ public:
     static constexpr double kDelaySlack = 1.5;  // of the least delay, and at least 50 µs more
 
     // Exchanges with a negative delay or turnaround (stamps out of order) or a stamp beyond
-    // ±2^62 ns are not kept; false then.
+    // ±2^61 ns are not kept; false then.
     bool add(const TimeExchangeStamps& stamps);
     uint64_t jumps() const { return jumps_; }
     // nullopt until kMinUsed exchanges are kept.
