@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <string>
 #include <thread>
 
 #include "mixray/dds/dds_backend.h"
@@ -368,7 +369,12 @@ TEST(DdsGraph, HostClockStampsReachThisHostsClockThroughClockExchanges) {
     ASSERT_TRUE(clock.has_value()) << device->clockReport();
     EXPECT_LT(std::abs(clock->offset_ns), 2'000'000) << clock->describe();
     EXPECT_GE(clock->used, HostClockEstimator::kMinUsed);
-    EXPECT_EQ(device->clockReport().rfind("hostA clock +0.00", 0), 0u) << device->clockReport();
+    // The offset is a few microseconds either side of zero (its sign is noise), so the report
+    // is checked for its parts, and the figure above for its size.
+    const std::string report = device->clockReport();
+    EXPECT_EQ(report.rfind("hostA clock ", 0), 0u) << report;
+    EXPECT_NE(report.find(" s, drift "), std::string::npos) << report;
+    EXPECT_NE(report.find("exchanges)"), std::string::npos) << report;
     waitMatched(*a.publisher, *device);
     const auto now = [] {
         return std::chrono::duration_cast<std::chrono::nanoseconds>(
