@@ -24,6 +24,7 @@
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/synchronizer.h"
 #include "mixray/replay/open_recording.h"

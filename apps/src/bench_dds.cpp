@@ -16,6 +16,7 @@
 #include "mixray/dds/dds_backend.h"
 #include "mixray/dds/dds_publisher.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 
 namespace mixray::cli {
 namespace {

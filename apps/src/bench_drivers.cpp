@@ -25,6 +25,7 @@
 #include "console.h"
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/replay/open_recording.h"

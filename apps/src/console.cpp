@@ -5,10 +5,11 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <ctime>
+
+#include "mixray/graph/host_time.h"
 
 namespace mixray::cli {
 namespace {
@@ -71,12 +72,6 @@ std::string signalHelp(const std::string& output) {
            output +
            " is closed with the frames done (it plays), and mixray exits with 130 (SIGINT) or "
            "143 (SIGTERM). A second signal exits at once, leaving it unfinished.";
-}
-
-int64_t monotonicNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
 }
 
 int64_t processCpuNs() {

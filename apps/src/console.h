@@ -69,7 +69,6 @@ private:
 // SIGINT/SIGTERM do; `output` names what is closed with the frames done ("the video").
 std::string signalHelp(const std::string& output);
 
-int64_t monotonicNowNs();
 // CPU time of the whole process (every thread) so far, for benchmarks' CPU per frame.
 int64_t processCpuNs();
 

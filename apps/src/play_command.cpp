@@ -6,6 +6,7 @@
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/replay/replay_backend.h"
 

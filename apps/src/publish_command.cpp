@@ -10,6 +10,7 @@
 #include "dds_options_cli.h"
 #include "mixray/dds/dds_publisher.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/rig.h"
 
 namespace mixray::cli {

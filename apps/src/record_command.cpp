@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "console.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/recorder.h"
 #include "mixray/graph/rig.h"
@@ -177,12 +178,7 @@ int runRecord(const RecordOptions& options) {
     recorder_options.tags["software"] = "mixray 0.1.0";
     // Host stamps are the monotonic clock; this maps them to UTC (the sun's position needs it).
     recorder_options.tags[std::string(kUtcMinusHostTag)] =
-        std::to_string(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::system_clock::now().time_since_epoch())
-                           .count() -
-                       std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::steady_clock::now().time_since_epoch())
-                           .count());
+        std::to_string(realtimeMinusMonotonicNs());
     auto recorder_node = std::make_unique<Recorder>(recorder_options);
     Recorder* recorder = recorder_node.get();
     Status added = graph.addNode(std::move(recorder_node));

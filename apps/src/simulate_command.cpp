@@ -5,6 +5,7 @@
 
 #include "cli.h"
 #include "console.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/render/simulator.h"
 #include "size_option.h"

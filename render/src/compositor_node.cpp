@@ -3,7 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <ctime>
+
+#include "mixray/graph/host_time.h"
 
 namespace mixray::render {
 namespace {
@@ -11,12 +12,6 @@ namespace {
 constexpr size_t kLatencyWindow = 1024;
 constexpr size_t kEnvironmentMapsKept = 4;
 constexpr auto kPollInterval = std::chrono::milliseconds(10);
-
-int64_t monotonicNowNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 Rgb rgb(const Eigen::Vector3d& v) {
     return Rgb(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));

@@ -3,10 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <vector>
 
+#include "mixray/graph/host_time.h"
 #include "mixray/pattern/random.h"
 
 namespace mixray {
@@ -291,6 +293,30 @@ TEST(ClockSync, MapsEachDomainAndPassesHostFramesThrough) {
     EXPECT_EQ(sync.commonStamp(unseen), 789);  // no model yet: the arrival is all we know
     sync.clear();
     EXPECT_TRUE(sync.domains().empty());
+}
+
+// The host clocks are the kernel's: steady_clock is CLOCK_MONOTONIC, and the wall-clock
+// difference is the same one read as two calls (within the calls' own gap).
+TEST(HostTime, ReadsTheKernelsMonotonicAndRealtimeClocks) {
+    const int64_t steady_before = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                      std::chrono::steady_clock::now().time_since_epoch())
+                                      .count();
+    const int64_t monotonic = monotonicNowNs();
+    const int64_t steady_after = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                     std::chrono::steady_clock::now().time_since_epoch())
+                                     .count();
+    EXPECT_LE(steady_before, monotonic);
+    EXPECT_LE(monotonic, steady_after);
+
+    const int64_t difference = realtimeMinusMonotonicNs();
+    const int64_t m0 = monotonicNowNs();
+    const int64_t wall = realtimeNowNs();
+    const int64_t m1 = monotonicNowNs();
+    // 10 ms covers a descheduled thread; an NTP slew moves the difference by far less.
+    EXPECT_NEAR(static_cast<double>(difference), static_cast<double>(wall - m0), 1e7);
+    EXPECT_NEAR(static_cast<double>(difference), static_cast<double>(wall - m1), 1e7);
+    // The wall clock is after 2020 on any machine that keeps time.
+    EXPECT_GT(wall, int64_t{1'577'836'800} * 1'000'000'000);
 }
 
 }  // namespace

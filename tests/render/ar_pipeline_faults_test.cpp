@@ -17,6 +17,7 @@
 #include "gv_simulator.h"
 #include "memory_in_use.h"
 #include "mixray/aravis/aravis_backend.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/rig.h"
 #include "mixray/render/ar_pipeline.h"
 #include "mixray/render/scene_file.h"
@@ -62,13 +63,6 @@ objects:
     s.camera = FixedCamera{};
     s.camera->model = calibration::CameraModel::pinhole(256, 128, 200, 200, 127.5, 63.5);
     return s;
-}
-
-// Host stamps are CLOCK_MONOTONIC, which steady_clock is on Linux.
-int64_t hostNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
 }
 
 // Polls `done` until it holds or `seconds` pass: an upper bound against hangs.
@@ -141,7 +135,7 @@ TEST(ArPipelineFaults, GigEVisionCameraKilledAndRestartedWhileCompositingAndReco
     EXPECT_EQ(deviceState(pipeline->stats(), "gv"), "streaming");
 
     size_t rss_after_first_return = 0;
-    const int64_t first_kill_ns = hostNowNs();
+    const int64_t first_kill_ns = monotonicNowNs();
     int64_t last_return_ns = 0;
     for (int cycle = 0; cycle < 2; ++cycle) {
         SCOPED_TRACE("kill and restart #" + std::to_string(cycle + 1));
@@ -161,7 +155,7 @@ TEST(ArPipelineFaults, GigEVisionCameraKilledAndRestartedWhileCompositingAndReco
             eventually([&] { return deviceState(pipeline->stats(), "gv") == "streaming"; }, 30))
             << pipeline->stats().json();
         EXPECT_EQ(jsonState(pipeline->stats(), "gv"), "streaming");
-        last_return_ns = hostNowNs();
+        last_return_ns = monotonicNowNs();
         ASSERT_TRUE(eventually([&] { return composites(*pipeline) >= while_lost + 10; }, 30))
             << "composites did not resume: " << pipeline->stats().json();
         if (cycle == 0)

@@ -10,12 +10,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <ctime>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "mixray/graph/clock.h"
+#include "mixray/graph/host_time.h"
 
 namespace mixray::aravis {
 namespace {
@@ -25,18 +25,6 @@ namespace {
 std::mutex& aravisListMutex() {
     static std::mutex mutex;
     return mutex;
-}
-
-int64_t monotonicNowNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
-int64_t realtimeNowNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_REALTIME, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
 // Takes the message out of a GError and frees it.

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "frame_message.h"
+#include "mixray/graph/host_time.h"
 #include "participant.h"
 
 namespace mixray::dds {
@@ -15,17 +16,11 @@ namespace {
 
 namespace fdds = eprosima::fastdds::dds;
 
-int64_t nowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
-
 }  // namespace
 
 void waitForWindow(uint64_t sent, const std::atomic<uint64_t>& received, int64_t now_ns) {
     const int64_t give_up = now_ns + 2'000'000'000;
-    while (sent >= received.load() + kBenchWindow && nowNs() < give_up)
+    while (sent >= received.load() + kBenchWindow && monotonicNowNs() < give_up)
         std::this_thread::sleep_for(std::chrono::microseconds(20));
 }
 
@@ -75,7 +70,7 @@ Result<BareRun> runBareFastDds(const DdsOptions& writer_options, const DdsOption
             while (reader->take_next_sample(&message, &info) == ReturnCode_t::RETCODE_OK) {
                 if (!info.valid_data)
                     continue;
-                last_take = nowNs();
+                last_take = monotonicNowNs();
                 run.latency_ms.push_back(
                     static_cast<double>(last_take - message.device_stamp_ns()) / 1e6);
                 received.fetch_add(1);
@@ -85,23 +80,23 @@ Result<BareRun> runBareFastDds(const DdsOptions& writer_options, const DdsOption
     detail::FrameMessage message;
     message.format("mono8");
     message.data().assign(payload_bytes, 0x5a);
-    first_write = nowNs();
+    first_write = monotonicNowNs();
     for (uint64_t i = 0; i < frames; ++i) {
         if (period_ns > 0) {
             const int64_t due = first_write + static_cast<int64_t>(i) * period_ns;
-            while (nowNs() < due)
+            while (monotonicNowNs() < due)
                 std::this_thread::sleep_for(std::chrono::microseconds(200));
         } else {
-            waitForWindow(run.sent, received, nowNs());
+            waitForWindow(run.sent, received, monotonicNowNs());
         }
         message.sequence_number(i);
-        message.device_stamp_ns(nowNs());
+        message.device_stamp_ns(monotonicNowNs());
         if (writer->write(&message))
             ++run.sent;
     }
     // Whatever is still on its way has half a second to arrive.
-    const int64_t give_up = nowNs() + 500'000'000;
-    while (nowNs() < give_up && received.load() < run.sent)
+    const int64_t give_up = monotonicNowNs() + 500'000'000;
+    while (monotonicNowNs() < give_up && received.load() < run.sent)
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
     done = true;
     taker.join();

@@ -17,6 +17,7 @@
 #include "frame_message.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
+#include "mixray/graph/host_time.h"
 #include "participant.h"
 #include "time_exchange.h"
 
@@ -27,11 +28,6 @@ namespace fdds = eprosima::fastdds::dds;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-int64_t steadyNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
-        .count();
-}
 
 // One announced stream as a listener sees it.
 struct Announced {
@@ -203,7 +199,7 @@ void DdsDevice::Impl::take(Stream& stream, detail::FrameMessage& message) {
     while (stream.reader->take_next_sample(&message, &info) == ReturnCode_t::RETCODE_OK) {
         if (!info.valid_data)
             continue;
-        const int64_t arrival_ns = steadyNowNs();
+        const int64_t arrival_ns = monotonicNowNs();
         stream.received.fetch_add(1, std::memory_order_relaxed);
         // A frame is proof of life before DDS's liveliness status says so: the device is
         // streaming by the time a consumer sees the frame.
@@ -266,7 +262,7 @@ void DdsDevice::Impl::receive(Stream& stream) {
         fdds::LivelinessChangedStatus liveliness;
         if (stream.reader->get_liveliness_changed_status(liveliness) == ReturnCode_t::RETCODE_OK) {
             const bool recent_frame =
-                stream.last_arrival_ns != 0 && steadyNowNs() - stream.last_arrival_ns <
+                stream.last_arrival_ns != 0 && monotonicNowNs() - stream.last_arrival_ns <
                                                    static_cast<int64_t>(options.dds.lease_s * 1e9);
             setAlive(stream, liveliness.alive_count > 0 ||
                                  (recent_frame && liveliness.not_alive_count == 0));

@@ -1,9 +1,9 @@
 #include "ros_image.h"
 
-#include <chrono>
 #include <cstring>
 
 #include "frame_message.h"
+#include "mixray/graph/host_time.h"
 
 namespace mixray::dds::detail {
 
@@ -61,12 +61,7 @@ std::string rosFrameId(std::string_view stream) {
 void toRosImage(const FrameRef& frame, std::string_view frame_id, RosImage* message) {
     const ImageView image = frame.image();
     // ROS time is the wall clock; the frame's stamp is host CLOCK_MONOTONIC (steady_clock).
-    const int64_t wall_minus_steady = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                          std::chrono::system_clock::now().time_since_epoch())
-                                          .count() -
-                                      std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                          std::chrono::steady_clock::now().time_since_epoch())
-                                          .count();
+    const int64_t wall_minus_steady = realtimeMinusMonotonicNs();
     // A replayed frame's host stamp is the recording session's clock; it entered this graph at
     // its graph stamp.
     const FrameMetadata& meta = frame.meta();

@@ -12,17 +12,12 @@
 #include <thread>
 
 #include "frame_message.h"
+#include "mixray/graph/host_time.h"
 
 namespace mixray::dds::detail {
 namespace {
 
 using ReturnCode_t = eprosima::fastrtps::types::ReturnCode_t;
-
-int64_t steadyNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 // Best effort, volatile, a few deep: an exchange that is late is worse than one that is lost.
 template <typename Qos>
@@ -76,7 +71,7 @@ struct Endpoints : public fdds::DataReaderListener {
     }
 
     void on_data_available(fdds::DataReader* r) override {
-        const int64_t arrival_ns = steadyNowNs();
+        const int64_t arrival_ns = monotonicNowNs();
         TimeExchangeMessage message;
         fdds::SampleInfo info;
         while (r->take_next_sample(&message, &info) == ReturnCode_t::RETCODE_OK) {
@@ -105,7 +100,7 @@ Result<std::unique_ptr<TimeResponder>> TimeResponder::create(
         TimeExchangeMessage answer = request;
         answer.t2_ns(arrival_ns);
         answer.protocol(kProtocolVersion);
-        answer.t3_ns(steadyNowNs());
+        answer.t3_ns(monotonicNowNs());
         if (raw->endpoints.writer->write(&answer))
             raw->answered.fetch_add(1, std::memory_order_relaxed);
     };
@@ -168,7 +163,7 @@ struct TimeRequester::Impl {
             lock.unlock();
             // Written without the lock: in one process Fast DDS may deliver the answer on this
             // very thread, into answer().
-            const int64_t t1 = steadyNowNs();
+            const int64_t t1 = monotonicNowNs();
             request.t1_ns(t1);
             {
                 std::lock_guard relock(mutex);

@@ -25,6 +25,7 @@
 #include <thread>
 
 #include "image_to_jpeg.h"
+#include "mixray/graph/host_time.h"
 #include "page.h"
 
 // civetweb as Debian builds it (1.15) starts its threads with a fixed 100 kB stack. In a process
@@ -49,11 +50,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using Bytes = std::shared_ptr<const std::string>;
-
-int64_t nowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
-        .count();
-}
 
 // True when `text` is one JSON object (syntax checked without exceptions).
 bool isJsonObject(std::string_view text) {
@@ -277,7 +273,7 @@ struct Client {
             }
             Bytes message = std::move(slots[slot]);
             const bool binary = slot >= first_image_slot;
-            write_started_ns = nowNs();
+            write_started_ns = monotonicNowNs();
             lock.unlock();
             const int rc = mg_websocket_write(
                 conn, binary ? MG_WEBSOCKET_OPCODE_BINARY : MG_WEBSOCKET_OPCODE_TEXT,
@@ -517,7 +513,7 @@ struct LiveView::Impl {
         std::unique_lock lock(thread_mutex);
         while (!thread_stop) {
             lock.unlock();
-            const int64_t now = nowNs();
+            const int64_t now = monotonicNowNs();
             for (size_t i = 0; i < tiles.size(); ++i)
                 serviceTile(i, encoder, now);
             if (now >= next_status_ns) {
@@ -766,7 +762,7 @@ Status LiveView::start() {
         std::lock_guard lock(d.thread_mutex);
         d.thread_stop = false;
     }
-    const int64_t now = nowNs();
+    const int64_t now = monotonicNowNs();
     for (Tile& t : d.tiles)
         t.fps_base_ns = now;
     d.thread = std::thread([&d] { d.run(); });
@@ -894,7 +890,7 @@ LiveViewStats LiveView::stats() const {
     s.clients_ever = d.clients_ever;
     s.clients_refused = d.clients_refused;
     s.clients_dropped = d.clients_dropped;
-    const int64_t now = nowNs();
+    const int64_t now = monotonicNowNs();
     for (const auto& c : d.clients) {
         std::lock_guard client_lock(c->mutex);
         s.clients.push_back(

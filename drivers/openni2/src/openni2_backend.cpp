@@ -20,6 +20,7 @@
 
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
+#include "mixray/graph/host_time.h"
 
 namespace mixray::openni2 {
 namespace {
@@ -33,12 +34,6 @@ constexpr const char* kKnownOptions =
 // How often the capture thread looks for a lost device, and how it waits meanwhile.
 constexpr auto kReopenPeriod = std::chrono::milliseconds(250);
 constexpr auto kLostSlice = std::chrono::milliseconds(25);
-
-int64_t hostNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 // Runs capture loops on threads that never exit. Debian's OpenNI2 2.2.0.33 keeps a wait event
 // for every thread that ever waited for frames and, when a new thread first waits, probes each
@@ -897,7 +892,7 @@ void OpenNI2Device::run() {
                       "openni2 device '" + name_ + "': reading a frame: " + openniError()});
             break;
         }
-        int64_t host_ns = hostNowNs();
+        int64_t host_ns = monotonicNowNs();
         const int frame_index = frame.getFrameIndex();
         int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
 
@@ -930,9 +925,9 @@ void OpenNI2Device::run() {
             }
             host_ns = host0_ns + std::llround(static_cast<double>(device_ns - device0_ns) / speed);
             if (options_.pace == OpenNI2Options::Pace::kOriginal) {
-                while (!stop_requested_ && hostNowNs() < host_ns) {
+                while (!stop_requested_ && monotonicNowNs() < host_ns) {
                     std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(
-                        std::chrono::nanoseconds(host_ns - hostNowNs()), kLostSlice));
+                        std::chrono::nanoseconds(host_ns - monotonicNowNs()), kLostSlice));
                 }
                 if (stop_requested_)
                     break;

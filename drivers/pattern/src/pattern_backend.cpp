@@ -9,6 +9,7 @@
 
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/pattern/random.h"
 
 namespace mixray::pattern {
@@ -65,12 +66,6 @@ std::string formatFps(double fps) {
     char text[32];
     std::snprintf(text, sizeof(text), "%g", fps);
     return text;
-}
-
-int64_t hostNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
 }
 
 }  // namespace
@@ -279,7 +274,7 @@ Status PatternDevice::start() {
         stop_requested_ = false;
     }
     finished_ = false;
-    t0_ns_ = (options_.realtime ? hostNowNs() : options_.epoch_ns) + options_.phase_ns;
+    t0_ns_ = (options_.realtime ? monotonicNowNs() : options_.epoch_ns) + options_.phase_ns;
     thread_ = std::thread([this] { run(); });
     return Status::ok();
 }
@@ -387,7 +382,7 @@ void PatternDevice::run() {
                 completed = false;
                 break;
             }
-            const int64_t host_ns = options_.realtime ? hostNowNs() : p.arrival_ns;
+            const int64_t host_ns = options_.realtime ? monotonicNowNs() : p.arrival_ns;
             const PatternStream stream = options_.streams[p.stream].stream;
             if (options_.fill == PatternOptions::Fill::kFull) {
                 renderPattern(stream, k, frame.image());

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "image_files.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/replay/depth_units.h"
 #include "mixray/replay/replay_backend.h"
 
@@ -524,9 +525,7 @@ void ReplayDevice::run() {
                 break;
             lock.unlock();
         }
-        timespec now{};
-        clock_gettime(CLOCK_MONOTONIC, &now);
-        out_meta.graph_stamp_ns = static_cast<int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+        out_meta.graph_stamp_ns = monotonicNowNs();
         // As a live device stamps it: on the host clock, at the instant the recording's timing
         // says it arrives (steady_clock is CLOCK_MONOTONIC). Not when this thread got round to
         // it: on a loaded machine the colour and depth of one instant leave a decode apart, and

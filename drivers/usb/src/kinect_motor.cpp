@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "mixray/graph/device_options.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/graph/imu.h"
 #include "usb_internal.h"
 
@@ -21,12 +22,6 @@ namespace {
 constexpr uint16_t kMicrosoft = 0x045e;
 constexpr uint16_t kMotor = 0x02b0;
 constexpr auto kReopenPeriod = std::chrono::milliseconds(200);
-
-int64_t hostNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 std::string libusbText(int rc) {
     return std::string(libusb_error_name(rc)) + " (" + std::to_string(rc) + ")";
@@ -384,7 +379,7 @@ void KinectMotorDevice::run() {
             graph_->endStream(stream_);
             return;
         }
-        const int64_t host_ns = hostNowNs();
+        const int64_t host_ns = monotonicNowNs();
         if (state) {
             ImuSample sample;
             sample.accel = state->accel_mps2;

@@ -16,11 +16,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <ctime>
 #include <filesystem>
 
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
+#include "mixray/graph/host_time.h"
 #include "mixray/v4l2/mjpeg.h"
 
 namespace mixray::v4l2 {
@@ -41,12 +41,6 @@ int xioctl(int fd, unsigned long request, void* arg) {
 
 std::string errnoText(int err) {
     return std::strerror(err);
-}
-
-int64_t monotonicNowNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
 std::string fourccText(uint32_t fourcc) {
