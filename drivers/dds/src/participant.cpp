@@ -205,6 +205,27 @@ fdds::DataReaderQos announcementReaderQos() {
     return announcementQos(fdds::DATAREADER_QOS_DEFAULT);
 }
 
+namespace {
+
+template <typename Qos>
+Qos timeExchangeQos(Qos qos) {
+    qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
+    qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+    qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+    qos.history().depth = 8;
+    return qos;
+}
+
+}  // namespace
+
+fdds::DataWriterQos timeExchangeWriterQos() {
+    return timeExchangeQos(fdds::DATAWRITER_QOS_DEFAULT);
+}
+
+fdds::DataReaderQos timeExchangeReaderQos() {
+    return timeExchangeQos(fdds::DATAREADER_QOS_DEFAULT);
+}
+
 }  // namespace mixray::dds::detail
 
 namespace mixray::dds {

@@ -66,4 +66,10 @@ fdds::DataReaderQos frameReaderQos(int depth);
 fdds::DataWriterQos announcementWriterQos();
 fdds::DataReaderQos announcementReaderQos();
 
+// The clock exchange topics' (mixray/time_request, mixray/time_answer): best effort, volatile,
+// keep last 8. An exchange that is late measures the delay, not the clock, so a lost one is
+// better than one resent.
+fdds::DataWriterQos timeExchangeWriterQos();
+fdds::DataReaderQos timeExchangeReaderQos();
+
 }  // namespace mixray::dds::detail

@@ -19,16 +19,6 @@ namespace {
 
 using ReturnCode_t = eprosima::fastrtps::types::ReturnCode_t;
 
-// Best effort, volatile, a few deep: an exchange that is late is worse than one that is lost.
-template <typename Qos>
-Qos exchangeQos(Qos qos) {
-    qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
-    qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-    qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-    qos.history().depth = 8;
-    return qos;
-}
-
 // A reader of `read_topic` calling `on_sample(message, arrival_ns)` for each sample, with its
 // arrival stamped before anything else is done; a writer of `write_topic`.
 struct Endpoints : public fdds::DataReaderListener {
@@ -46,12 +36,10 @@ struct Endpoints : public fdds::DataReaderListener {
         auto write = participant->topic(std::string(write_topic), timeExchangeType());
         if (!write)
             return write.status();
-        writer = participant->publisher()->create_datawriter(
-            *write, exchangeQos(fdds::DATAWRITER_QOS_DEFAULT));
+        writer = participant->publisher()->create_datawriter(*write, timeExchangeWriterQos());
         if (!writer)
             return {ErrorCode::kInternal, "dds: cannot write " + std::string(write_topic)};
-        reader = participant->subscriber()->create_datareader(
-            *read, exchangeQos(fdds::DATAREADER_QOS_DEFAULT), this);
+        reader = participant->subscriber()->create_datareader(*read, timeExchangeReaderQos(), this);
         if (!reader)
             return {ErrorCode::kInternal, "dds: cannot read " + std::string(read_topic)};
         return Status::ok();
