@@ -15,6 +15,7 @@
 #include "mixray/graph/graph.h"
 #include "mixray/graph/host_time.h"
 #include "mixray/graph/mkv.h"
+#include "mixray/graph/ptp.h"
 #include "mixray/graph/recorder.h"
 #include "mixray/graph/rig.h"
 #include "mixray/graph/synchronizer.h"
@@ -30,6 +31,7 @@ struct RecordOptions {
     size_t queue = 32;
     std::string compression = "ffv1";
     bool force = false;
+    std::string ptp4l = PtpQueryOptions{}.socket;
 };
 
 // The rig file itself and every calibration file it names travel inside the recording.
@@ -179,6 +181,13 @@ int runRecord(const RecordOptions& options) {
     // Host stamps are the monotonic clock; this maps them to UTC (the sun's position needs it).
     recorder_options.tags[std::string(kUtcMinusHostTag)] =
         std::to_string(realtimeMinusMonotonicNs());
+    // Whether this host's wall clock is PTP-locked, so that recordings made on several hosts
+    // can be told to share one time base (or not).
+    const Result<PtpState> ptp =
+        queryPtp4l({.socket = options.ptp4l, .pmc = "pmc", .timeout_ms = 2000});
+    const std::string host_clock =
+        ptp ? ptp->describe() : "not PTP-locked: " + ptp.status().message();
+    recorder_options.tags[std::string(kHostPtpTag)] = host_clock;
     auto recorder_node = std::make_unique<Recorder>(recorder_options);
     Recorder* recorder = recorder_node.get();
     Status added = graph.addNode(std::move(recorder_node));
@@ -270,6 +279,7 @@ int runRecord(const RecordOptions& options) {
             std::printf("  %6llu lost by the device", static_cast<unsigned long long>(lost));
         std::printf("\n");
     }
+    std::printf("  host clock: %s\n", host_clock.c_str());
     // Devices on other hosts: how their clocks were tied to this one.
     for (const Device* device : devices)
         if (const std::string report = device->clockReport(); !report.empty())
@@ -320,6 +330,11 @@ void registerRecordCommand(CLI::App& app, Commands& commands) {
         ->check(CLI::IsMember({"ffv1", "none"}))
         ->capture_default_str();
     sub->add_flag("--force", options->force, "Overwrite an existing output file");
+    sub->add_option("--ptp4l", options->ptp4l,
+                    "ptp4l's management socket (its uds_address), asked through linuxptp's pmc "
+                    "whether this host's clock is PTP-locked; the answer is printed and kept in "
+                    "the recording's host_ptp tag")
+        ->capture_default_str();
     commands.push_back({sub, [options] { return runRecord(*options); }});
 }
 

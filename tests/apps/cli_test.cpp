@@ -115,6 +115,12 @@ TEST(Cli, RecordThenPlayThenConvertRoundTrip) {
                                            std::chrono::steady_clock::now().time_since_epoch())
                                            .count();
     EXPECT_LT(std::llabs(utc_minus_host - now_utc_minus_host), 60'000'000'000LL);
+    // And whether this host's clock was PTP-locked, as the summary said.
+    ASSERT_TRUE(recorded["tags"].contains("host_ptp")) << recorded.dump();
+    const std::string host_ptp = recorded["tags"]["host_ptp"].get<std::string>();
+    EXPECT_TRUE(host_ptp.rfind("PTP-locked", 0) == 0 || host_ptp.rfind("not PTP-locked", 0) == 0)
+        << host_ptp;
+    EXPECT_NE(record.output.find("host clock: " + host_ptp), std::string::npos) << record.output;
 
     CliRun again =
         mixray("record " + q(test::fixturesDir() / "rigs" / "pattern_rgbd.yaml") + " -o " + q(out));

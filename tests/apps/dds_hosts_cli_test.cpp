@@ -20,14 +20,10 @@
 
 #include "cli_runner.h"
 #include "mixray/graph/mkv.h"
+#include "network_namespaces.h"
 
 namespace mixray::test {
 namespace {
-
-int shell(const std::string& command) {
-    const int status = std::system((command + " >/dev/null 2>&1").c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 // Three namespaces: a and b each joined to c by a veth pair. Deleted with the fixture.
 class Hosts : public ::testing::Test {
@@ -78,13 +74,9 @@ protected:
 
     void link(const std::string& ns, const std::string& address, const std::string& c_address,
               const std::string& name, const std::string& c_name) {
-        ASSERT_EQ(shell("ip link add " + name + " type veth peer name " + c_name), 0);
-        ASSERT_EQ(shell("ip link set " + name + " netns " + ns), 0);
-        ASSERT_EQ(shell("ip link set " + c_name + " netns " + c_), 0);
-        ASSERT_EQ(shell("ip -n " + ns + " addr add " + address + "/24 dev " + name), 0);
-        ASSERT_EQ(shell("ip -n " + c_ + " addr add " + c_address + "/24 dev " + c_name), 0);
-        ASSERT_EQ(shell("ip -n " + ns + " link set " + name + " up"), 0);
-        ASSERT_EQ(shell("ip -n " + c_ + " link set " + c_name + " up"), 0);
+        ASSERT_TRUE(linkNamespaces({.ns = ns, .name = name, .address = address},
+                                   {.ns = c_, .name = c_name, .address = c_address}))
+            << ns << " to " << c_;
     }
 
     // `mixray args` in namespace `ns`, its CLOCK_MONOTONIC `offset_s` ahead of the others'.
