@@ -35,6 +35,12 @@ void addDdsOptions(CLI::App& command, dds::DdsOptions& options) {
         .add_option("--partition", options.partition,
                     "DDS partition: only hosts of the same partition see each other")
         ->group(group);
+    command
+        .add_option("--ptp4l", options.ptp4l,
+                    "ptp4l's management socket: whether this host's wall clock is PTP-locked, "
+                    "said in its clock exchanges")
+        ->capture_default_str()
+        ->group(group);
 }
 
 }  // namespace mixray::cli

@@ -399,6 +399,31 @@ TEST(DdsGraph, HostClockStampsReachThisHostsClockThroughClockExchanges) {
     b.stop();
 }
 
+// clock: wall on one clock: the offset is the difference of the two ends' realtime − monotonic
+// readings, which one machine's clocks make zero to within the reads' own gap; the exchanges'
+// fit is kept beside it as a check.
+TEST(DdsGraph, WithClockWallTheOffsetComesFromTheWallClocks) {
+    StreamInfo info = colorStream();
+    info.clock_domain = kHostClockDomain;
+    PublishingHost a("hostA", info);
+    Graph b;
+    DdsDevice* device = nullptr;
+    auto queue = openRemote(b, &device, "hostA/cam", {{"clock", "wall"}});
+    ASSERT_TRUE(queue);
+    const std::optional<HostClockEstimate> clock = device->hostClock();
+    ASSERT_TRUE(clock.has_value()) << device->clockReport();
+    EXPECT_EQ(clock->wall_clocks, "clock: wall");
+    EXPECT_LT(std::abs(clock->offset_ns), 100'000) << clock->describe();
+    EXPECT_EQ(clock->drift_ppm, 0);
+    EXPECT_LT(std::abs(clock->exchange_offset_ns), 2'000'000) << clock->describe();
+    const std::string report = device->clockReport();
+    EXPECT_EQ(report.rfind("hostA clock ", 0), 0u) << report;
+    EXPECT_NE(report.find(" s from the wall clocks (clock: wall), exchanges' fit "),
+              std::string::npos)
+        << report;
+    b.stop();
+}
+
 TEST(DdsBackendTest, UnknownDevicesAreNamedWithWhatWasHeard) {
     PublishingHost a("hostA");
     DdsBackend backend(loopback("hostB"));

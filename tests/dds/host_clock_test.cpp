@@ -149,5 +149,47 @@ TEST(HostClockEstimator, KeepsTheLastWindowOfExchanges) {
     EXPECT_EQ(estimator.estimate()->exchanges, HostClockEstimator::kWindow);
 }
 
+TEST(WallClocks, AreUsedWhenTheUserSaysOrBothHostsFollowOneGrandmaster) {
+    const WallClockState free;
+    const WallClockState locked{.ptp_locked = true, .ptp_grandmaster = "9ef2f2.fffe.4fa318"};
+    const WallClockState other{.ptp_locked = true, .ptp_grandmaster = "ca3e6e.fffe.8ae66e"};
+    EXPECT_EQ(wallClockReason(true, free, free), "clock: wall");
+    EXPECT_EQ(wallClockReason(false, locked, locked),
+              "both PTP-locked to grandmaster 9ef2f2.fffe.4fa318");
+    EXPECT_FALSE(wallClockReason(false, locked, free)) << "the other host is not locked";
+    EXPECT_FALSE(wallClockReason(false, free, locked)) << "this host is not locked";
+    EXPECT_FALSE(wallClockReason(false, locked, other)) << "two grandmasters, two time bases";
+    EXPECT_FALSE(wallClockReason(false, {.ptp_locked = true, .ptp_grandmaster = ""},
+                                 {.ptp_locked = true, .ptp_grandmaster = ""}));
+}
+
+TEST(WallClocks, TheOffsetIsTheDifferenceOfTheHostsRealtimeMinusMonotonic) {
+    HostClockEstimate fit;
+    fit.offset_ns = 1'000'000'038'000;  // the exchanges: 1000 s and 38 µs
+    fit.reference_ns = 5'000'000'000;
+    fit.drift_ppm = 0.3;
+    fit.residual_ns = 11'000;
+    fit.min_delay_ns = 206'000;
+    fit.used = 7;
+    fit.exchanges = 20;
+    // The other host's monotonic clock is 1000 s ahead and its wall clock the same as this
+    // one's: its realtime − monotonic is 1000 s less.
+    const int64_t here = 1'795'000'000'000'000'000;
+    const HostClockEstimate wall =
+        fromWallClocks(fit, here, here - 1'000'000'000'000, "clock: wall");
+    EXPECT_EQ(wall.offset_ns, 1'000'000'000'000);
+    EXPECT_EQ(wall.exchange_offset_ns, fit.offset_ns);
+    EXPECT_EQ(wall.drift_ppm, 0);
+    EXPECT_EQ(wall.toLocal(1'000'000'000'000 + 42), 42);
+    EXPECT_EQ(wall.describe(),
+              "+1000.000000 s from the wall clocks (clock: wall), exchanges' fit +38 µs from it, "
+              "residual 11 µs, round trip ≥ 206 µs (7 of 20 exchanges)");
+    // Whatever the other host sends, the offset is clamped, never overflowed.
+    const HostClockEstimate far = fromWallClocks(fit, std::numeric_limits<int64_t>::max(),
+                                                 std::numeric_limits<int64_t>::min(), "x");
+    EXPECT_EQ(far.offset_ns, std::numeric_limits<int64_t>::max());
+    (void)far.describe();
+}
+
 }  // namespace
 }  // namespace mixray::dds

@@ -49,7 +49,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         auto again = dds::deserializeTimeExchange(dds::serializeTimeExchange(*exchange));
         if (!again.isOk() || again->requester != exchange->requester ||
             again->sequence != exchange->sequence || again->t2_ns != exchange->t2_ns ||
-            again->t3_ns != exchange->t3_ns)
+            again->t3_ns != exchange->t3_ns ||
+            again->realtime_minus_monotonic_ns != exchange->realtime_minus_monotonic_ns ||
+            again->ptp_locked != exchange->ptp_locked ||
+            again->ptp_grandmaster != exchange->ptp_grandmaster)
             broken("accepted exchange does not read back the same", "");
         // The requester's own t1 and t4 around the other host's t2 and t3, four times over.
         dds::HostClockEstimator estimator;

@@ -126,8 +126,9 @@ Status parseDdsDeviceOptions(const DeviceConfig& config, DdsDeviceOptions* optio
     MIXRAY_RETURN_IF_ERROR(reader.integer("history", options->history, 1, 64, "1..64"));
     MIXRAY_RETURN_IF_ERROR(reader.choice("clock", options->clock,
                                          {{"exchange", DdsDeviceOptions::Clock::kExchange},
+                                          {"wall", DdsDeviceOptions::Clock::kWall},
                                           {"arrival", DdsDeviceOptions::Clock::kArrival}},
-                                         "exchange or arrival"));
+                                         "exchange, wall or arrival"));
     return reader.leftovers(std::string(kDdsOptionKeys) +
                             ", discovery_timeout_ms, buffers, history, clock");
 }
@@ -532,9 +533,10 @@ Result<std::unique_ptr<Device>> DdsBackend::open(const DeviceConfig& config) {
     }
     impl->host = found.front().host;
     impl->device = want_device;
-    if (impl->options.clock == DdsDeviceOptions::Clock::kExchange) {
-        auto time =
-            detail::TimeRequester::create(impl->participant, requesterName(config), impl->host);
+    if (impl->options.clock != DdsDeviceOptions::Clock::kArrival) {
+        auto time = detail::TimeRequester::create(
+            impl->participant, requesterName(config), impl->host,
+            impl->options.clock == DdsDeviceOptions::Clock::kWall, impl->options.dds.ptp4l);
         if (!time)
             return time.status().withContext(who);
         // A fit needs HostClockEstimator::kMinUsed answers; the first come 20 ms apart.

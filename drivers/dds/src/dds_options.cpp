@@ -83,6 +83,8 @@ Status readDdsOptions(DeviceOptionReader& reader, DdsOptions* options) {
     MIXRAY_RETURN_IF_ERROR(reader.real("lease_s", options->lease_s, 0.2, 600, "0.2..600 seconds"));
     MIXRAY_RETURN_IF_ERROR(
         reader.integer("shared_memory_mib", options->shared_memory_mib, 1, 4096, "1..4096 MiB"));
+    if (const std::string* ptp4l = reader.find("ptp4l"))
+        options->ptp4l = *ptp4l;
     const Status valid = options->validate();
     if (!valid.isOk()) {
         return {ErrorCode::kInvalidArgument,

@@ -130,7 +130,7 @@ Status DdsPublisher::Impl::createWriters() {
         return made.status();
     participant = *made;
     // Before the announcements: a receiver that hears them asks for this host's time at once.
-    auto responder = detail::TimeResponder::create(participant, host);
+    auto responder = detail::TimeResponder::create(participant, host, options.dds.ptp4l);
     if (!responder)
         return responder.status();
     time_responder = std::move(responder).value();

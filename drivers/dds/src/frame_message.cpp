@@ -40,12 +40,23 @@ TimeExchangeMessage toMessage(const TimeExchange& exchange) {
     m.t2_ns(exchange.t2_ns);
     m.t3_ns(exchange.t3_ns);
     m.protocol(exchange.protocol);
+    m.realtime_minus_monotonic_ns(exchange.realtime_minus_monotonic_ns);
+    m.ptp_locked(exchange.ptp_locked);
+    m.ptp_grandmaster(exchange.ptp_grandmaster);
     return m;
 }
 
 TimeExchange exchangeOf(const TimeExchangeMessage& m) {
-    return {m.requester(), m.responder(), m.sequence_number(), m.t1_ns(),
-            m.t2_ns(),     m.t3_ns(),     m.protocol()};
+    return {.requester = m.requester(),
+            .responder = m.responder(),
+            .sequence = m.sequence_number(),
+            .t1_ns = m.t1_ns(),
+            .t2_ns = m.t2_ns(),
+            .t3_ns = m.t3_ns(),
+            .protocol = m.protocol(),
+            .realtime_minus_monotonic_ns = m.realtime_minus_monotonic_ns(),
+            .ptp_locked = m.ptp_locked(),
+            .ptp_grandmaster = m.ptp_grandmaster()};
 }
 
 void toMessage(const FrameMetadata& meta, const ImageView& image, FrameMessage* message) {
@@ -243,8 +254,9 @@ Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes) {
     // CDR strings may hold a NUL that no host name has (and that fastcdr would drop on the way
     // back out).
     if (message.requester().find('\0') != std::string::npos ||
-        message.responder().find('\0') != std::string::npos)
-        return Status{ErrorCode::kCorruptData, "dds time exchange: a host name holds a NUL byte"};
+        message.responder().find('\0') != std::string::npos ||
+        message.ptp_grandmaster().find('\0') != std::string::npos)
+        return Status{ErrorCode::kCorruptData, "dds time exchange: a name holds a NUL byte"};
     return detail::exchangeOf(message);
 }
 

@@ -42,13 +42,24 @@ int64_t HostClockEstimate::toLocal(int64_t remote_ns) const {
 }
 
 std::string HostClockEstimate::describe() const {
-    char text[200];
-    std::snprintf(text, sizeof text,
-                  "%+.6f s, drift %+.1f ppm, residual %lld µs, round trip ≥ %lld µs "
-                  "(%zu of %zu exchanges)",
-                  static_cast<double>(offset_ns) / 1e9, drift_ppm,
-                  static_cast<long long>(residual_ns / 1000),
-                  static_cast<long long>(min_delay_ns / 1000), used, exchanges);
+    char text[300];
+    if (wall_clocks.empty()) {
+        std::snprintf(text, sizeof text,
+                      "%+.6f s, drift %+.1f ppm, residual %lld µs, round trip ≥ %lld µs "
+                      "(%zu of %zu exchanges)",
+                      static_cast<double>(offset_ns) / 1e9, drift_ppm,
+                      static_cast<long long>(residual_ns / 1000),
+                      static_cast<long long>(min_delay_ns / 1000), used, exchanges);
+    } else {
+        std::snprintf(text, sizeof text,
+                      "%+.6f s from the wall clocks (%s), exchanges' fit %+lld µs from it, "
+                      "residual %lld µs, round trip ≥ %lld µs (%zu of %zu exchanges)",
+                      static_cast<double>(offset_ns) / 1e9, wall_clocks.c_str(),
+                      static_cast<long long>(
+                          clamped((static_cast<Wide>(exchange_offset_ns) - offset_ns) / 1000)),
+                      static_cast<long long>(residual_ns / 1000),
+                      static_cast<long long>(min_delay_ns / 1000), used, exchanges);
+    }
     std::string out = text;
     if (jumps > 0)
         out += ", " + std::to_string(jumps) + (jumps == 1 ? " clock jump" : " clock jumps");
@@ -143,6 +154,26 @@ std::optional<HostClockEstimate> HostClockEstimator::estimate() const {
     out.used = points.size();
     out.jumps = jumps_;
     return out;
+}
+
+std::optional<std::string> wallClockReason(bool forced, const WallClockState& here,
+                                           const WallClockState& there) {
+    if (forced)
+        return "clock: wall";
+    if (here.ptp_locked && there.ptp_locked && !here.ptp_grandmaster.empty() &&
+        here.ptp_grandmaster == there.ptp_grandmaster)
+        return "both PTP-locked to grandmaster " + here.ptp_grandmaster;
+    return std::nullopt;
+}
+
+HostClockEstimate fromWallClocks(HostClockEstimate fit, int64_t here_realtime_minus_monotonic_ns,
+                                 int64_t there_realtime_minus_monotonic_ns, std::string reason) {
+    fit.exchange_offset_ns = fit.offset_ns;
+    fit.offset_ns = clamped(static_cast<Wide>(here_realtime_minus_monotonic_ns) -
+                            there_realtime_minus_monotonic_ns);
+    fit.drift_ppm = 0;
+    fit.wall_clocks = std::move(reason);
+    return fit;
 }
 
 }  // namespace mixray::dds

@@ -12,6 +12,7 @@
 #include "mixray/dds/host_clock.h"
 #include "mixray/graph/result.h"
 #include "participant.h"
+#include "ptp_watch.h"
 
 namespace mixray::dds::detail {
 
@@ -23,8 +24,9 @@ inline constexpr std::string_view kTimeResponseTopic = "mixray/time_response";
 // Best effort both ways: a lost or late exchange is only one fewer to fit.
 class TimeResponder {
 public:
+    // `ptp4l`: this host's ptp4l socket, whose lock state the answers carry (PtpWatch).
     static Result<std::unique_ptr<TimeResponder>> create(std::shared_ptr<Participant> participant,
-                                                         std::string host);
+                                                         std::string host, std::string ptp4l);
     ~TimeResponder();
     uint64_t answered() const;
 
@@ -40,8 +42,12 @@ private:
 class TimeRequester {
 public:
     // `requester`: a name no other requester in the domain has (answers are addressed to it).
+    // The fit's offset comes from both hosts' wall clocks when wallClockReason() says so:
+    // `wall_clocks` (clock: wall), or both PTP-locked to one grandmaster (this host's lock read
+    // from `ptp4l`, the other's from its answers).
     static Result<std::unique_ptr<TimeRequester>> create(std::shared_ptr<Participant> participant,
-                                                         std::string requester, std::string host);
+                                                         std::string requester, std::string host,
+                                                         bool wall_clocks, std::string ptp4l);
     ~TimeRequester();
     // The current fit; nullopt until HostClockEstimator::kMinUsed answers came.
     std::optional<HostClockEstimate> estimate() const;

@@ -22,13 +22,17 @@ namespace mixray::dds {
 //   history               frames DDS keeps per stream for this reader, 1..64 (default 4)
 //   clock                 how the host's stamps reach this host's time base: "exchange"
 //                         (default: NTP-style exchanges with the host over DDS, waiting up to
-//                         2 s for a fit at open(), else as "arrival") or "arrival" (its clock
-//                         is a device clock fitted to the frames' arrival)
+//                         2 s for a fit at open(), else as "arrival"; the hosts' wall clocks
+//                         instead when both are PTP-locked to one grandmaster), "wall" (the
+//                         hosts' wall clocks are in step, by PTP, chrony or NTP: the offset is
+//                         the difference of their realtime − monotonic clocks, which the
+//                         exchanges carry, and the exchanges' fit only checks it) or "arrival"
+//                         (its clock is a device clock fitted to the frames' arrival)
 // DeviceConfig::id is "HOST/DEVICE" (the publishing host's name and its device) or "DEVICE"
 // (whichever host announces it; two hosts announcing it is an error). DeviceConfig::streams
 // lists the device's streams to receive ("color", "depth"; empty: every announced one).
 struct DdsDeviceOptions {
-    enum class Clock : uint8_t { kExchange, kArrival };
+    enum class Clock : uint8_t { kExchange, kWall, kArrival };
     DdsOptions dds;
     int64_t discovery_timeout_ms = 5000;
     size_t buffers = 16;
@@ -60,7 +64,9 @@ struct DdsReceiveStats {
 //     and fits the host's CLOCK_MONOTONIC to this one (HostClockEstimator). Stamps of the
 //     host's clock become this host's: a stream the host stamped (clock domain 0 there) is in
 //     clock domain 0 here, and every frame's host stamp is the host's, mapped. clockReport()
-//     says the offset, drift and residual.
+//     says the offset, drift and residual. When both hosts' wall clocks are PTP-locked to one
+//     grandmaster, or with clock: wall, the offset comes from the wall clocks instead
+//     (fromWallClocks()), the exchanges' fit kept as a check.
 //   arrival (or no answer within 2 s): frames are stamped on arrival with this host's
 //     CLOCK_MONOTONIC (host_stamp_ns), and a stream the host stamped carries that stamp as its
 //     device stamp in clock domain deviceClockDomain("dds", HOST), so ClockSync maps the other

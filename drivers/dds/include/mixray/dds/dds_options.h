@@ -45,6 +45,10 @@ struct DdsOptions {
     // The shared-memory segment of each participant, in MiB: a frame must fit, with room for a
     // few in flight (1..4096).
     int shared_memory_mib = 64;
+    // ptp4l's management socket: this host says in its clock exchanges whether its wall clock
+    // is PTP-locked (mixray/graph/ptp.h), and hosts locked to one grandmaster map each other's
+    // stamps through their wall clocks. Not asked when the socket does not exist.
+    std::string ptp4l = "/var/run/ptp4l";
 
     // kInvalidArgument naming the field for a value out of range or an address that is not a
     // dotted IPv4 quad.
@@ -54,13 +58,13 @@ struct DdsOptions {
 };
 
 // Reads the DDS options a device's rig-file options may set (domain, address, peers,
-// partition, transport, host, lease_s, shared_memory_mib) into `options`, leaving absent ones
-// as they are.
+// partition, transport, host, lease_s, shared_memory_mib, ptp4l) into `options`, leaving absent
+// ones as they are.
 Status readDdsOptions(DeviceOptionReader& reader, DdsOptions* options);
 
 // The DDS option keys readDdsOptions() knows, comma-separated, for DeviceOptionReader::leftovers.
 inline constexpr std::string_view kDdsOptionKeys =
-    "domain, address, peers, partition, transport, host, lease_s, shared_memory_mib";
+    "domain, address, peers, partition, transport, host, lease_s, shared_memory_mib, ptp4l";
 
 // Whether Fast DDS hands samples between a writer and a reader of the same process directly,
 // without serializing them or using the transport (its default). Tests and benchmarks that

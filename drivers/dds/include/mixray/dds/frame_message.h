@@ -41,10 +41,13 @@ struct TimeExchange {
     int64_t t2_ns = 0;
     int64_t t3_ns = 0;
     uint32_t protocol = 0;
+    int64_t realtime_minus_monotonic_ns = 0;
+    bool ptp_locked = false;
+    std::string ptp_grandmaster;
 };
 
 // In CDR as the hosts send it, and read back as they accept it: kCorruptData when the bytes
-// are not a TimeExchange, or a host name holds a NUL. Never throws.
+// are not a TimeExchange, or a name in it holds a NUL. Never throws.
 std::vector<uint8_t> serializeTimeExchange(const TimeExchange& exchange);
 Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes);
 

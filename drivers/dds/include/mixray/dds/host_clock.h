@@ -40,15 +40,43 @@ struct HostClockEstimate {
     size_t exchanges = 0;  // kept (the last HostClockEstimator::kWindow)
     size_t used = 0;       // of them, those of least delay that the fit used
     uint64_t jumps = 0;    // times the other clock jumped and the fit started again
+    // Set when the offset comes from both hosts' wall clocks instead of the exchanges' fit
+    // (wallClockReason()): why ("clock: wall", "both PTP-locked to grandmaster …"). The
+    // offset is then this host's CLOCK_REALTIME − CLOCK_MONOTONIC minus the other's (its last
+    // answer), drift 0, and exchange_offset_ns keeps the fit's offset as a check.
+    std::string wall_clocks;
+    int64_t exchange_offset_ns = 0;
 
     // The other clock's time at this host's time `local_ns`, and the inverse (clamped to the
     // int64 range: stamps from another host can be anything).
     int64_t toRemote(int64_t local_ns) const;
     int64_t toLocal(int64_t remote_ns) const;
     // "+1000.000123 s, drift +0.4 ppm, residual 12 µs, round trip ≥ 140 µs (6 of 24
-    // exchanges)", and ", 1 clock jump" when there were some.
+    // exchanges)", and ", 1 clock jump" when there were some; from the wall clocks,
+    // "+1000.000002 s from the wall clocks (clock: wall), exchanges' fit +38 µs from it,
+    // residual …".
     std::string describe() const;
 };
+
+// What a host says of its wall clock in its clock exchanges.
+struct WallClockState {
+    bool ptp_locked = false;
+    std::string ptp_grandmaster;
+};
+
+// Whether another host's stamps map through both hosts' wall clocks rather than the
+// exchanges' fit, and why: always when the user says the wall clocks are in step (`forced`,
+// clock: wall); otherwise when both are PTP-locked to one grandmaster (PTP holds them within a
+// microsecond or so, far closer than exchanges over a network measure). nullopt: the fit.
+std::optional<std::string> wallClockReason(bool forced, const WallClockState& here,
+                                           const WallClockState& there);
+
+// `fit` with its offset taken from the wall clocks for `reason`: this host's CLOCK_REALTIME −
+// CLOCK_MONOTONIC minus the other's (the other's monotonic clock is ahead by as much as its
+// wall clock is behind its monotonic one, relatively), drift 0, the fit's offset kept in
+// exchange_offset_ns. Clamped to the int64 range (the other's figure can be anything).
+HostClockEstimate fromWallClocks(HostClockEstimate fit, int64_t here_realtime_minus_monotonic_ns,
+                                 int64_t there_realtime_minus_monotonic_ns, std::string reason);
 
 // Keeps the last kWindow exchanges and fits the other clock to this one. The exchanges whose
 // delay is within kDelaySlack of the least (at least kMinUsed of them) are the ones queues did
