@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -103,6 +104,44 @@ TEST(DdsFrame, SerializedFramesReadBackExactlyAndMisfitsAreRefused) {
     StreamInfo small = stream;
     small.format = ImageDesc::packed(PixelFormat::kRGB8, 320, 240);
     EXPECT_EQ(deserializeFrame(bytes, small, &back, &back_image).code(), ErrorCode::kCorruptData);
+}
+
+// A clock answer as the hosts send it: every field back, the wall clock's included; names
+// holding a NUL (which fastcdr would drop on the way back out) refused.
+TEST(DdsTimeExchange, AnswersReadBackExactlyAndNamesWithANulAreRefused) {
+    const TimeExchange answer{.requester = "hostC/123/left/0",
+                              .responder = "hostA",
+                              .sequence = 7,
+                              .t1_ns = 5'000'000'000,
+                              .t2_ns = 1'005'000'040'000,
+                              .t3_ns = 1'005'000'050'000,
+                              .protocol = kProtocolVersion,
+                              .realtime_minus_monotonic_ns = 1'795'000'000'000'000'000,
+                              .ptp_locked = true,
+                              .ptp_grandmaster = "9ef2f2.fffe.4fa318"};
+    const Result<TimeExchange> back = deserializeTimeExchange(serializeTimeExchange(answer));
+    ASSERT_TRUE(back) << back.status().toString();
+    EXPECT_EQ(back->requester, answer.requester);
+    EXPECT_EQ(back->responder, answer.responder);
+    EXPECT_EQ(back->sequence, answer.sequence);
+    EXPECT_EQ(back->t1_ns, answer.t1_ns);
+    EXPECT_EQ(back->t2_ns, answer.t2_ns);
+    EXPECT_EQ(back->t3_ns, answer.t3_ns);
+    EXPECT_EQ(back->protocol, answer.protocol);
+    EXPECT_EQ(back->realtime_minus_monotonic_ns, answer.realtime_minus_monotonic_ns);
+    EXPECT_EQ(back->ptp_locked, answer.ptp_locked);
+    EXPECT_EQ(back->ptp_grandmaster, answer.ptp_grandmaster);
+
+    // Sent by another implementation: fastcdr itself writes a string only up to its NUL.
+    TimeExchange marked = answer;
+    marked.ptp_grandmaster = "9ef2f2#fffe.4fa318";
+    std::vector<uint8_t> bytes = serializeTimeExchange(marked);
+    const auto mark = std::find(bytes.begin(), bytes.end(), uint8_t{'#'});
+    ASSERT_NE(mark, bytes.end());
+    *mark = 0;
+    const Result<TimeExchange> refused = deserializeTimeExchange(bytes);
+    ASSERT_FALSE(refused);
+    EXPECT_EQ(refused.status().code(), ErrorCode::kCorruptData);
 }
 
 TEST(DdsOptionsTest, BadValuesAreNamed) {
