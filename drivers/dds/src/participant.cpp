@@ -162,15 +162,31 @@ Qos frameQos(Qos qos, int depth) {
     return qos;
 }
 
+// The small topics' QoS (announcements, clock exchanges): reliability, durability and a
+// keep-last history of `depth` samples per instance.
+template <typename Qos>
+Qos keepLastQos(Qos qos, fdds::ReliabilityQosPolicyKind reliability,
+                fdds::DurabilityQosPolicyKind durability, int32_t depth) {
+    qos.reliability().kind = reliability;
+    qos.durability().kind = durability;
+    qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+    qos.history().depth = depth;
+    return qos;
+}
+
 // What announcement writers and readers agree on: reliable, and kept for late joiners, one
 // sample per instance (host and stream).
 template <typename Qos>
 Qos announcementQos(Qos qos) {
-    qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
-    qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
-    qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-    qos.history().depth = 1;
-    return qos;
+    return keepLastQos(qos, fdds::RELIABLE_RELIABILITY_QOS, fdds::TRANSIENT_LOCAL_DURABILITY_QOS,
+                       1);
+}
+
+// Clock exchanges: best effort, volatile, 8 deep. A late exchange measures the delay, not the
+// clock, so a lost one is better than one resent.
+template <typename Qos>
+Qos timeExchangeQos(Qos qos) {
+    return keepLastQos(qos, fdds::BEST_EFFORT_RELIABILITY_QOS, fdds::VOLATILE_DURABILITY_QOS, 8);
 }
 
 }  // namespace
@@ -204,19 +220,6 @@ fdds::DataWriterQos announcementWriterQos() {
 fdds::DataReaderQos announcementReaderQos() {
     return announcementQos(fdds::DATAREADER_QOS_DEFAULT);
 }
-
-namespace {
-
-template <typename Qos>
-Qos timeExchangeQos(Qos qos) {
-    qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
-    qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-    qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-    qos.history().depth = 8;
-    return qos;
-}
-
-}  // namespace
 
 fdds::DataWriterQos timeExchangeWriterQos() {
     return timeExchangeQos(fdds::DATAWRITER_QOS_DEFAULT);
