@@ -2,10 +2,24 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
 
 #include "mixray/graph/ptp.h"
 
 namespace mixray::dds::detail {
+
+std::shared_ptr<PtpWatch> PtpWatch::shared(const std::string& socket) {
+    static std::mutex mutex;
+    static std::map<std::string, std::weak_ptr<PtpWatch>> watches;
+    std::lock_guard lock(mutex);
+    std::weak_ptr<PtpWatch>& slot = watches[socket];
+    std::shared_ptr<PtpWatch> watch = slot.lock();
+    if (!watch) {
+        watch = std::make_shared<PtpWatch>(socket);
+        slot = watch;
+    }
+    return watch;
+}
 
 PtpWatch::PtpWatch(std::string socket) : socket_(std::move(socket)) {
     thread_ = std::thread([this] { run(); });

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <condition_variable>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -15,6 +16,11 @@ class PtpWatch {
 public:
     // How often ptp4l is asked. A lock is lost or gained over seconds.
     static constexpr int kPeriodMs = 5000;
+
+    // The process's watch of ptp4l at `socket`, made on first use and shared by every clock
+    // responder and requester while any holds it: one thread and one pmc per socket, however
+    // many remote devices a rig has.
+    static std::shared_ptr<PtpWatch> shared(const std::string& socket);
 
     // Asks ptp4l at `socket` at once, then every kPeriodMs; while the socket does not exist
     // (no ptp4l), pmc is not run and the clock is not locked.

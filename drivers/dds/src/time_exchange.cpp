@@ -72,16 +72,16 @@ struct Endpoints : public fdds::DataReaderListener {
 }  // namespace
 
 struct TimeResponder::Impl {
-    explicit Impl(std::string ptp4l) : ptp(std::move(ptp4l)) {}
+    explicit Impl(const std::string& ptp4l) : ptp(PtpWatch::shared(ptp4l)) {}
     std::string host;
-    PtpWatch ptp;
+    std::shared_ptr<PtpWatch> ptp;
     Endpoints endpoints;
     std::atomic<uint64_t> answered{0};
 };
 
 Result<std::unique_ptr<TimeResponder>> TimeResponder::create(
     std::shared_ptr<Participant> participant, std::string host, std::string ptp4l) {
-    auto impl = std::make_unique<Impl>(std::move(ptp4l));
+    auto impl = std::make_unique<Impl>(ptp4l);
     impl->host = std::move(host);
     Impl* raw = impl.get();
     impl->endpoints.on_sample = [raw](const TimeExchangeMessage& request, int64_t arrival_ns) {
@@ -90,7 +90,7 @@ Result<std::unique_ptr<TimeResponder>> TimeResponder::create(
         TimeExchangeMessage answer = request;
         answer.t2_ns(arrival_ns);
         answer.protocol(kProtocolVersion);
-        const WallClockState wall = raw->ptp.latest();
+        const WallClockState wall = raw->ptp->latest();
         answer.ptp_locked(wall.ptp_locked);
         answer.ptp_grandmaster(wall.ptp_grandmaster);
         answer.realtime_minus_monotonic_ns(realtimeMinusMonotonicNs());
@@ -115,11 +115,11 @@ uint64_t TimeResponder::answered() const {
 }
 
 struct TimeRequester::Impl {
-    explicit Impl(std::string ptp4l) : ptp(std::move(ptp4l)) {}
+    explicit Impl(const std::string& ptp4l) : ptp(PtpWatch::shared(ptp4l)) {}
     std::string requester;
     std::string host;
-    bool wall_clocks = false;  // clock: wall
-    PtpWatch ptp;              // this host's lock
+    bool wall_clocks = false;       // clock: wall
+    std::shared_ptr<PtpWatch> ptp;  // this host's lock
     Endpoints endpoints;
     std::thread thread;
 
@@ -146,7 +146,7 @@ struct TimeRequester::Impl {
         // After a jump the last fit stands until the new one has its exchanges.
         if (std::optional<HostClockEstimate> fit = estimator.estimate()) {
             const std::optional<std::string> reason = wallClockReason(
-                wall_clocks, ptp.latest(),
+                wall_clocks, ptp->latest(),
                 {.ptp_locked = m.ptp_locked(), .ptp_grandmaster = m.ptp_grandmaster()});
             estimate = reason ? fromWallClocks(*fit, realtimeMinusMonotonicNs(),
                                                m.realtime_minus_monotonic_ns(), *reason)
@@ -189,7 +189,7 @@ struct TimeRequester::Impl {
 Result<std::unique_ptr<TimeRequester>> TimeRequester::create(
     std::shared_ptr<Participant> participant, std::string requester, std::string host,
     bool wall_clocks, std::string ptp4l) {
-    auto impl = std::make_unique<Impl>(std::move(ptp4l));
+    auto impl = std::make_unique<Impl>(ptp4l);
     impl->requester = std::move(requester);
     impl->host = std::move(host);
     impl->wall_clocks = wall_clocks;
