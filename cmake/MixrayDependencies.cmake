@@ -52,6 +52,9 @@ find_package(fastrtps 2.9 QUIET)
 mixray_require(fastrtps_FOUND "eProsima Fast DDS 2.9" "libfastrtps-dev libfastcdr-dev")
 find_program(FASTDDSGEN fastddsgen)
 mixray_require(FASTDDSGEN "fastddsgen" fastddsgen)
+# SHA-256 for ROS 2's type hashes (RIHS01).
+find_package(OpenSSL 3 QUIET COMPONENTS Crypto)
+mixray_require(OpenSSL_FOUND "OpenSSL 3 (libcrypto)" libssl-dev)
 
 # Algorithms.
 find_package(Eigen3 3.4 QUIET NO_MODULE)

@@ -2,12 +2,15 @@
 // other hosts (the dds backend) and for ROS 2 (--ros2).
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <thread>
 
 #include "backends.h"
 #include "cli.h"
 #include "console.h"
 #include "dds_options_cli.h"
+#include "mixray/calibration/calibration_file.h"
+#include "mixray/calibration/ros_camera_info.h"
 #include "mixray/dds/dds_publisher.h"
 #include "mixray/graph/graph.h"
 #include "mixray/graph/host_time.h"
@@ -18,11 +21,65 @@ namespace {
 
 struct PublishOptions {
     std::string rig_path;
+    std::string calibration;  // --calibration: every camera's, in place of the rig's files
     dds::DdsPublisherOptions publisher;
     double duration_s = 0;
     int wait_readers = 0;
     double wait_timeout_s = 60;
 };
+
+// The calibration ROS 2 sees (CameraInfo beside each image, the extrinsics on tf_static), from
+// `calibration` when named, else from the files the rig names for each stream: a camera named
+// as the stream, or the only camera of a file the rig gives that stream alone.
+Status addRosCalibration(const RigDescription& rig, const Graph& graph,
+                         const std::string& calibration, dds::DdsPublisherOptions* publisher) {
+    std::map<std::string, calibration::CalibrationFile> files;
+    const auto load = [&](const std::string& path) -> Result<const calibration::CalibrationFile*> {
+        auto found = files.find(path);
+        if (found == files.end()) {
+            auto read = calibration::importCalibration(path);
+            if (!read)
+                return read.status();
+            for (const calibration::RosTransform& t : calibration::toRosTransforms(*read)) {
+                bool known = false;
+                for (const auto& existing : publisher->ros2_transforms)
+                    known = known || existing.child == t.child;
+                if (!known)
+                    publisher->ros2_transforms.push_back(t);
+            }
+            found = files.emplace(path, std::move(read).value()).first;
+        }
+        return &found->second;
+    };
+    for (StreamId id = 0; id < graph.streamCount(); ++id) {
+        const StreamInfo& info = graph.stream(id);
+        if (!dds::rosImageEncoding(info.format.format))
+            continue;
+        std::string path = calibration;
+        bool stream_alone = false;
+        if (path.empty()) {
+            const std::string stream = info.name.substr(info.name.find('/') + 1);
+            const RigCalibrationFile* entry = rig.findCalibration(info.device, stream);
+            if (!entry)
+                continue;
+            path = entry->resolved.string();
+            stream_alone = !entry->stream.empty();
+        }
+        auto file = load(path);
+        if (!file)
+            return file.status();
+        const calibration::CalibratedCamera* camera = (*file)->find(info.name);
+        if (!camera && stream_alone && (*file)->cameras.size() == 1)
+            camera = &(*file)->cameras.front();
+        if (!camera)
+            continue;
+        auto camera_info = calibration::toRosCameraInfo(*camera);
+        if (!camera_info)
+            return camera_info.status();
+        publisher->ros2_camera_info[info.name] = std::move(camera_info).value();
+    }
+    return Status::ok();
+}
 
 int runPublish(const PublishOptions& options) {
     InterruptFlag interrupt;
@@ -38,7 +95,17 @@ int runPublish(const PublishOptions& options) {
         if (Status added = graph.addNode(std::move(*device)); !added)
             return fail("publish", added);
     }
-    auto publisher = dds::DdsPublisher::create(options.publisher);
+    dds::DdsPublisherOptions publisher_options = options.publisher;
+    if (!publisher_options.ros2_rig.empty()) {
+        if (Status added = addRosCalibration(*rig, graph, options.calibration, &publisher_options);
+            !added)
+            return fail("publish", added);
+    } else if (!options.calibration.empty()) {
+        return fail("publish",
+                    {ErrorCode::kInvalidArgument,
+                     "--calibration goes to ROS 2's camera_info and tf_static: add --ros2"});
+    }
+    auto publisher = dds::DdsPublisher::create(publisher_options);
     if (!publisher)
         return fail("publish", publisher.status());
     dds::DdsPublisher* dds = publisher->get();
@@ -76,6 +143,20 @@ int runPublish(const PublishOptions& options) {
                 options.publisher.ros2_rig.empty()
                     ? ""
                     : (", ROS 2 images under rt/" + options.publisher.ros2_rig + "/").c_str());
+    for (const auto& [stream, info] : publisher_options.ros2_camera_info) {
+        std::printf("  ROS 2 camera_info of %s: %ux%u, %s\n", stream.c_str(), info.width,
+                    info.height, info.distortion_model.c_str());
+    }
+    if (!publisher_options.ros2_transforms.empty()) {
+        std::printf("  ROS 2 tf_static: %zu transform%s (",
+                    publisher_options.ros2_transforms.size(),
+                    publisher_options.ros2_transforms.size() == 1 ? "" : "s");
+        for (size_t i = 0; i < publisher_options.ros2_transforms.size(); ++i) {
+            const auto& t = publisher_options.ros2_transforms[i];
+            std::printf("%s%s in %s", i ? ", " : "", t.child.c_str(), t.parent.c_str());
+        }
+        std::printf(")\n");
+    }
     StatusLine status;
     const int64_t t0 = monotonicNowNs();
     std::vector<uint64_t> last_written(dds->stats().size(), 0);
@@ -142,7 +223,12 @@ void registerPublishCommand(CLI::App& app, Commands& commands) {
         ->delimiter(',');
     sub->add_option("--ros2", options->publisher.ros2_rig,
                     "Also publish image streams as ROS 2 topics rt/NAME/<stream>/image_raw "
-                    "(sensor_msgs/msg/Image)");
+                    "(sensor_msgs/msg/Image), with camera_info beside each calibrated one and the "
+                    "rig's extrinsics on tf_static");
+    sub->add_option("--calibration", options->calibration,
+                    "With --ros2: the calibration file for camera_info and tf_static (any format "
+                    "mixray imports; default: the files the rig names)")
+        ->check(CLI::ExistingFile);
     sub->add_option("--duration", options->duration_s, "Stop after this many seconds")
         ->check(CLI::PositiveNumber);
     sub->add_option("--wait-readers", options->wait_readers,

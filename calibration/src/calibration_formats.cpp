@@ -12,6 +12,7 @@
 
 #include "calibration_file_internal.h"
 #include "mixray/calibration/calibration_file.h"
+#include "mixray/calibration/ros_camera_info.h"
 #include "mixray/graph/yaml_reader.h"
 #include "mrcal_format.h"
 
@@ -628,26 +629,20 @@ std::string rosMatrixYaml(std::string_view key, int rows, int cols,
 }
 
 Status writeRos(const std::filesystem::path& path, const CalibratedCamera& c) {
-    const CameraModel& m = c.model;
-    std::string model;
-    std::vector<double> d = m.distortion;
-    if (m.lens == LensModel::kFisheye) {
-        model = "equidistant";
-    } else if (d.size() == 8) {
-        model = "rational_polynomial";
-    } else {
-        // plumb_bob is always k1 k2 t1 t2 k3: the missing terms are zero.
-        model = "plumb_bob";
-        d.resize(5, 0.0);
-    }
+    auto info = toRosCameraInfo(c);
+    if (!info)
+        return info.status();
+    const auto matrix = [](std::string_view key, int rows, int cols, const auto& data) {
+        return rosMatrixYaml(key, rows, cols, std::vector<double>(data.begin(), data.end()));
+    };
     std::ostringstream o;
-    o << "image_width: " << m.width << "\nimage_height: " << m.height << "\n";
+    o << "image_width: " << info->width << "\nimage_height: " << info->height << "\n";
     o << "camera_name: " << detail::yamlQuoted(c.name) << "\n";
-    o << rosMatrixYaml("camera_matrix", 3, 3, {m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1});
-    o << "distortion_model: " << model << "\n";
-    o << rosMatrixYaml("distortion_coefficients", 1, static_cast<int>(d.size()), d);
-    o << rosMatrixYaml("rectification_matrix", 3, 3, {1, 0, 0, 0, 1, 0, 0, 0, 1});
-    o << rosMatrixYaml("projection_matrix", 3, 4, {m.fx, 0, m.cx, 0, 0, m.fy, m.cy, 0, 0, 0, 1, 0});
+    o << matrix("camera_matrix", 3, 3, info->k);
+    o << "distortion_model: " << info->distortion_model << "\n";
+    o << matrix("distortion_coefficients", 1, static_cast<int>(info->d.size()), info->d);
+    o << matrix("rectification_matrix", 3, 3, info->r);
+    o << matrix("projection_matrix", 3, 4, info->p);
     return detail::writeTextFile(path, o.str());
 }
 

@@ -1,7 +1,8 @@
 // A rig across three hosts, made of network namespaces joined by veth pairs: hosts A and B run
 // `mixray publish` with their clocks offset on purpose (time namespaces), host C runs
 // `mixray record` of a rig whose devices are theirs. Every frame arrives, bit-exact, in one
-// recording; frames of the two hosts are matched into sets on C's time base.
+// recording; frames of the two hosts are matched into sets on C's time base. And what
+// `mixray publish --ros2` tells ROS 2 of a calibrated rig.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -24,6 +25,63 @@
 
 namespace mixray::test {
 namespace {
+
+// `publish --ros2` finds each image stream's calibration in the files the rig names and says
+// what goes to camera_info and tf_static (tests/dds/ros2_interop_test.cpp checks what a second
+// DDS receives); a calibration of another size, or --calibration without --ros2, is refused.
+TEST(PublishToRos2, SaysWhichCameraInfoAndTransformsItPublishes) {
+    const auto dir = tempDir();
+    const auto calibration = [](int width, int height) {
+        const std::string size =
+            "width: " + std::to_string(width) + ", height: " + std::to_string(height);
+        return "version: 1\ncameras:\n"
+               "  - name: rgbd/color\n"
+               "    model: {lens: pinhole, " +
+               size +
+               ", fx: 262.4, fy: 262.7, cx: 159.3, cy: 120.9,\n"
+               "            distortion: [0.045, -0.11, 6.0e-04, -4.0e-04]}\n"
+               "    parent: world\n"
+               "    T_parent_camera: {translation: [0.1, 0, 0.5], quaternion: [1, 0, 0, 0]}\n"
+               "  - name: env/color\n"
+               "    model: {lens: fisheye, width: 480, height: 480, fx: 140, fy: 140, cx: 239.2,"
+               " cy: 240.3, distortion: [0.02, -0.005, 0.001, -2.0e-04]}\n"
+               "    parent: rgbd/color\n"
+               "    T_parent_camera: {translation: [-0.3, 0.28, 0.12], quaternion: [1, 0, 0, 0]}\n";
+    };
+    writeText(dir / "calibration.yaml", calibration(320, 240));
+    writeText(dir / "wrong_size.yaml", calibration(640, 480));
+    writeText(dir / "rig.yaml",
+              "rig: studio\ndevices:\n"
+              "  - name: rgbd\n    driver: pattern\n    id: rgbd\n    streams: [color, depth]\n"
+              "    calibration: calibration.yaml\n"
+              "    options: {color.width: 320, color.height: 240, depth.width: 320,"
+              " depth.height: 240, fps: 30, frames: 10}\n");
+    const std::string publish = "publish " + q(dir / "rig.yaml") + " --domain " +
+                                std::to_string(1 + getpid() % 200) + " --duration 3";
+
+    const CliRun ros2 = mixray(publish + " --ros2 studio");
+    ASSERT_EQ(ros2.exit_code, 0) << ros2.output;
+    EXPECT_NE(ros2.output.find("ROS 2 camera_info of rgbd/color: 320x240, plumb_bob"),
+              std::string::npos)
+        << ros2.output;
+    EXPECT_EQ(ros2.output.find("camera_info of rgbd/depth"), std::string::npos)
+        << "the depth stream has no camera of its name in the file\n"
+        << ros2.output;
+    EXPECT_NE(ros2.output.find("ROS 2 tf_static: 2 transforms (rgbd/color in world, env/color in "
+                               "rgbd/color)"),
+              std::string::npos)
+        << ros2.output;
+
+    const CliRun wrong =
+        mixray(publish + " --ros2 studio --calibration " + q(dir / "wrong_size.yaml"));
+    EXPECT_NE(wrong.exit_code, 0);
+    EXPECT_NE(wrong.output.find("640x480 images and the stream's are 320x240"), std::string::npos)
+        << wrong.output;
+
+    const CliRun no_ros2 = mixray(publish + " --calibration " + q(dir / "calibration.yaml"));
+    EXPECT_NE(no_ros2.exit_code, 0);
+    EXPECT_NE(no_ros2.output.find("add --ros2"), std::string::npos) << no_ros2.output;
+}
 
 // Three namespaces: a and b each joined to c by a veth pair. Deleted with the fixture.
 class Hosts : public ::testing::Test {

@@ -4,12 +4,15 @@
 // and writing what mixray reads.
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
 #include "mixray/calibration/calibration_file.h"
+#include "mixray/calibration/ros_camera_info.h"
 #include "test_data.h"
 
 namespace mixray::calibration {
@@ -496,6 +499,63 @@ TEST(RosFormat, RoundTripsEveryModel) {
                                                                          : "plumb_bob";
         EXPECT_NE(text.find(std::string("distortion_model: ") + expected_model), std::string::npos);
     }
+}
+
+// The same description feeds the ROS 2 topics (drivers/dds): K, R, P and D as CameraInfo has
+// them, and a pose as tf's translation and quaternion.
+CalibratedCamera namedCamera(const std::string& name, const CameraModel& model) {
+    CalibratedCamera c;
+    c.name = name;
+    c.model = model;
+    return c;
+}
+
+TEST(RosCameraInfo, MatricesAndDistortionAsCameraInfoHasThem) {
+    const CameraModel m = withLens(LensModel::kPinhole, {0.1, -0.2, 1e-3, -2e-3});
+    auto info = toRosCameraInfo(namedCamera("kinect/color", m));
+    ASSERT_TRUE(info.isOk()) << info.status().toString();
+    EXPECT_EQ(info->width, 640u);
+    EXPECT_EQ(info->height, 480u);
+    EXPECT_EQ(info->distortion_model, "plumb_bob");
+    EXPECT_EQ(info->d, (std::vector<double>{0.1, -0.2, 1e-3, -2e-3, 0.0}));
+    EXPECT_EQ(info->k, (std::array<double, 9>{m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1}));
+    EXPECT_EQ(info->r, (std::array<double, 9>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
+    EXPECT_EQ(info->p, (std::array<double, 12>{m.fx, 0, m.cx, 0, 0, m.fy, m.cy, 0, 0, 0, 1, 0}));
+
+    auto fisheye = toRosCameraInfo(
+        namedCamera("env", withLens(LensModel::kFisheye, {0.02, -0.005, 0.001, -2e-4})));
+    ASSERT_TRUE(fisheye.isOk());
+    EXPECT_EQ(fisheye->distortion_model, "equidistant");
+    EXPECT_EQ(fisheye->d.size(), 4u);
+
+    CameraModel stereographic = m;
+    stereographic.lens = LensModel::kStereographic;
+    stereographic.distortion.clear();
+    auto refused = toRosCameraInfo(namedCamera("sky", stereographic));
+    ASSERT_FALSE(refused.isOk());
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find("sky"), std::string::npos);
+}
+
+TEST(RosCameraInfo, CalibratedPosesAsTfTransforms) {
+    CalibrationFile file = oneCamera("kinect/color", allModels()[0].model);
+    CalibratedCamera env = namedCamera("env/color", allModels()[4].model);
+    env.parent = "kinect/color";
+    env.T_parent_camera = Eigen::Translation3d(0.1, -0.02, 0.3) *
+                          Eigen::AngleAxisd(0.5, Eigen::Vector3d(0, 1, 0).normalized());
+    file.cameras.push_back(env);
+    const std::vector<RosTransform> transforms = toRosTransforms(file);
+    ASSERT_EQ(transforms.size(), 1u) << "a camera without a parent has no transform";
+    const RosTransform& t = transforms[0];
+    EXPECT_EQ(t.parent, "kinect/color");
+    EXPECT_EQ(t.child, "env/color");
+    EXPECT_DOUBLE_EQ(t.translation[0], 0.1);
+    EXPECT_DOUBLE_EQ(t.translation[1], -0.02);
+    EXPECT_DOUBLE_EQ(t.translation[2], 0.3);
+    EXPECT_NEAR(t.rotation_xyzw[0], 0.0, 1e-15);
+    EXPECT_NEAR(t.rotation_xyzw[1], std::sin(0.25), 1e-15);
+    EXPECT_NEAR(t.rotation_xyzw[2], 0.0, 1e-15);
+    EXPECT_NEAR(t.rotation_xyzw[3], std::cos(0.25), 1e-15);
 }
 
 TEST(RosFormat, ErrorsNameLineAndField) {

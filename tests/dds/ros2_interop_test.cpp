@@ -3,15 +3,21 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "dds/dds.h"
 #include "mixray/dds/dds_publisher.h"
+#include "mixray/dds/ros_type_hash.h"
 #include "mixray/graph/graph.h"
+#include "sensor_msgs/msg/CameraInfo.h"
 #include "sensor_msgs/msg/Image.h"
+#include "tf2_msgs/msg/TFMessage.h"
 
 namespace mixray::dds {
 namespace {
@@ -30,6 +36,54 @@ std::string cycloneLoopbackConfig() {
            "<ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>30"
            "</MaxAutoParticipantIndex><Peers><Peer address=\"127.0.0.1\"/></Peers>"
            "</Discovery></Domain></CycloneDDS>";
+}
+
+// A Cyclone DDS participant in the test's domain, on loopback; deleted with it.
+class Cyclone {
+public:
+    Cyclone()
+        : domain_(dds_create_domain(static_cast<dds_domainid_t>(testDomain()),
+                                    cycloneLoopbackConfig().c_str())),
+          participant_(dds_create_participant(static_cast<dds_domainid_t>(testDomain()), nullptr,
+                                              nullptr)) {}
+    ~Cyclone() {
+        if (domain_ > 0)
+            dds_delete(domain_);
+    }
+    Cyclone(const Cyclone&) = delete;
+    Cyclone& operator=(const Cyclone&) = delete;
+
+    bool ok() const { return domain_ > 0 && participant_ > 0; }
+    // A reader of `topic` with rviz2's default QoS (reliable, keep last 10) and `durability`;
+    // a negative return code when it cannot be made.
+    dds_entity_t reader(const dds_topic_descriptor_t* type, const char* topic,
+                        dds_durability_kind_t durability = DDS_DURABILITY_VOLATILE) const {
+        const dds_entity_t made = dds_create_topic(participant_, type, topic, nullptr, nullptr);
+        if (made < 0)
+            return made;
+        dds_qos_t* qos = dds_create_qos();
+        dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+        dds_qset_durability(qos, durability);
+        dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 10);
+        const dds_entity_t reader = dds_create_reader(participant_, made, qos, nullptr);
+        dds_delete_qos(qos);
+        return reader;
+    }
+
+private:
+    dds_entity_t domain_;
+    dds_entity_t participant_;
+};
+
+// Adds a publisher of `options` to `graph` and starts the graph; nullptr when either fails.
+DdsPublisher* startPublishing(Graph& graph, const DdsPublisherOptions& options) {
+    auto publisher = DdsPublisher::create(options);
+    if (!publisher)
+        return nullptr;
+    DdsPublisher* pub = publisher->get();
+    if (!graph.addNode(std::move(*publisher)).isOk() || !graph.start().isOk())
+        return nullptr;
+    return pub;
 }
 
 uint8_t pixel(size_t k, uint64_t i) {
@@ -61,27 +115,14 @@ TEST_P(Ros2Interop, CycloneReceivesTheImagesByteForByte) {
     options.dds.host = "hostA";
     options.dds.transport = DdsTransport::kUdp;
     options.ros2_rig = "testrig";
-    auto publisher = DdsPublisher::create(options);
-    ASSERT_TRUE(publisher.isOk());
-    DdsPublisher* pub = publisher->get();
-    ASSERT_TRUE(graph.addNode(std::move(*publisher)).isOk());
-    ASSERT_TRUE(graph.start().isOk());
+    DdsPublisher* pub = startPublishing(graph, options);
+    ASSERT_NE(pub, nullptr);
 
-    const dds_domainid_t domain = static_cast<dds_domainid_t>(testDomain());
-    const dds_entity_t cyclone_domain = dds_create_domain(domain, cycloneLoopbackConfig().c_str());
-    ASSERT_GT(cyclone_domain, 0) << dds_strretcode(cyclone_domain);
-    const dds_entity_t participant = dds_create_participant(domain, nullptr, nullptr);
-    ASSERT_GT(participant, 0);
-    const dds_entity_t topic = dds_create_topic(participant, &sensor_msgs_msg_dds__Image__desc,
-                                                "rt/testrig/cam/image/image_raw", nullptr, nullptr);
-    ASSERT_GT(topic, 0) << dds_strretcode(topic);
-    // What rviz2 asks for by default: reliable, volatile, keep last.
-    dds_qos_t* qos = dds_create_qos();
-    dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 10);
-    const dds_entity_t reader = dds_create_reader(participant, topic, qos, nullptr);
-    dds_delete_qos(qos);
-    ASSERT_GT(reader, 0);
+    const Cyclone cyclone;
+    ASSERT_TRUE(cyclone.ok());
+    const dds_entity_t reader =
+        cyclone.reader(&sensor_msgs_msg_dds__Image__desc, "rt/testrig/cam/image/image_raw");
+    ASSERT_GT(reader, 0) << dds_strretcode(reader);
 
     // Discovery is not symmetric in time: wait until each side has matched the other, or the
     // first frames go to a reader that does not know the writer yet (volatile: never resent).
@@ -149,7 +190,6 @@ TEST_P(Ros2Interop, CycloneReceivesTheImagesByteForByte) {
         ++got;
     }
     EXPECT_EQ(got, kFrames);
-    dds_delete(cyclone_domain);
     graph.stop();
 }
 
@@ -161,6 +201,244 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<Case>& param) {
         return std::string(param.param.encoding[0] == '1' ? "depth16" : param.param.encoding);
     });
+
+// The USER_DATA of the writer a Cyclone reader matched, as text ("" when it has none).
+std::string matchedWriterUserData(dds_entity_t reader) {
+    dds_instance_handle_t writers[4];
+    const dds_return_t n = dds_get_matched_publications(reader, writers, 4);
+    if (n < 1)
+        return "";
+    dds_builtintopic_endpoint_t* endpoint = dds_get_matched_publication_data(reader, writers[0]);
+    if (!endpoint)
+        return "";
+    void* value = nullptr;
+    size_t size = 0;
+    std::string text;
+    if (dds_qget_userdata(endpoint->qos, &value, &size) && value)
+        text.assign(static_cast<const char*>(value), size);
+    dds_free(value);
+    dds_builtintopic_free_endpoint(endpoint);
+    return text;
+}
+
+// A calibrated rig as ROS 2 tools see it: every image comes with its camera_info (the same
+// header), the extrinsics are on tf_static for a reader that joins after they were written,
+// and every writer carries the type hash newer ROS 2 releases check.
+TEST(Ros2Calibration, CycloneReadsCameraInfoTfStaticAndTheTypeHashes) {
+    Graph graph;
+    StreamInfo info;
+    info.name = "kinect/color";
+    info.device = "kinect";
+    info.kind = StreamKind::kColor;
+    info.format = ImageDesc::packed(PixelFormat::kRGB8, 640, 480);
+    info.nominal_fps = 30;
+    auto stream = addPooledStream(graph, info, 8);
+    ASSERT_TRUE(stream.isOk());
+
+    calibration::RosCameraInfo camera;
+    camera.width = 640;
+    camera.height = 480;
+    camera.distortion_model = "plumb_bob";
+    camera.d = {0.1, -0.2, 1e-3, -2e-3, 0.05};
+    camera.k = {525.5, 0, 319.25, 0, 526.5, 241.75, 0, 0, 1};
+    camera.r = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    camera.p = {525.5, 0, 319.25, 0, 0, 526.5, 241.75, 0, 0, 0, 1, 0};
+    DdsPublisherOptions options;
+    options.dds.domain = testDomain();
+    options.dds.host = "hostA";
+    options.dds.transport = DdsTransport::kUdp;
+    options.ros2_rig = "studio";
+    options.ros2_camera_info["kinect/color"] = camera;
+    options.ros2_transforms = {{.parent = "world",
+                                .child = "kinect/color",
+                                .translation = {0.5, -0.25, 1.5},
+                                .rotation_xyzw = {0, 0, 0.6, 0.8}},
+                               {.parent = "kinect/color",
+                                .child = "env/color",
+                                .translation = {0.1, 0, 0},
+                                .rotation_xyzw = {0, 0, 0, 1}}};
+    DdsPublisher* pub = startPublishing(graph, options);
+    ASSERT_NE(pub, nullptr);
+
+    const Cyclone cyclone;
+    ASSERT_TRUE(cyclone.ok());
+    const dds_entity_t images =
+        cyclone.reader(&sensor_msgs_msg_dds__Image__desc, "rt/studio/kinect/color/image_raw");
+    const dds_entity_t infos = cyclone.reader(&sensor_msgs_msg_dds__CameraInfo__desc,
+                                              "rt/studio/kinect/color/camera_info");
+    // tf_static was written when the publisher connected, before this reader existed.
+    const dds_entity_t tf_static = cyclone.reader(&tf2_msgs_msg_dds__TFMessage__desc,
+                                                  "rt/tf_static", DDS_DURABILITY_TRANSIENT_LOCAL);
+    ASSERT_GT(images, 0);
+    ASSERT_GT(infos, 0);
+    ASSERT_GT(tf_static, 0);
+
+    const auto until = std::chrono::steady_clock::now() + 15s;
+    dds_subscription_matched_status_t image_matched{}, info_matched{};
+    while (std::chrono::steady_clock::now() < until) {
+        (void)dds_get_subscription_matched_status(images, &image_matched);
+        (void)dds_get_subscription_matched_status(infos, &info_matched);
+        if (image_matched.current_count > 0 && info_matched.current_count > 0 &&
+            pub->stats().at(0).ros_matched_readers > 0)
+            break;
+        std::this_thread::sleep_for(10ms);
+    }
+    ASSERT_GT(image_matched.current_count, 0u);
+    ASSERT_GT(info_matched.current_count, 0u);
+    std::this_thread::sleep_for(200ms);  // mixray's camera_info writer has matched too
+
+    EXPECT_EQ(matchedWriterUserData(images),
+              "typehash=" + rosTypeHash("sensor_msgs/msg/Image").value() + ";");
+    EXPECT_EQ(matchedWriterUserData(infos),
+              "typehash=RIHS01_b3dfd68ff46c9d56c80fd3bd4ed22c7a4ddce8c8348f2f59c299e73118e7e275;");
+
+    void* samples[1] = {nullptr};
+    dds_sample_info_t sample_info[1];
+    // The late tf_static reader gets the transforms DDS kept for it.
+    bool got_tf = false;
+    const auto tf_deadline = std::chrono::steady_clock::now() + 10s;
+    while (!got_tf && std::chrono::steady_clock::now() < tf_deadline) {
+        const int n = dds_take(tf_static, samples, sample_info, 1, 1);
+        if (n <= 0) {
+            std::this_thread::sleep_for(20ms);
+            continue;
+        }
+        if (sample_info[0].valid_data) {
+            const auto* tf = static_cast<const tf2_msgs_msg_dds__TFMessage_*>(samples[0]);
+            ASSERT_EQ(tf->transforms._length, 2u);
+            const auto& first = tf->transforms._buffer[0];
+            EXPECT_STREQ(first.header.frame_id, "world");
+            EXPECT_STREQ(first.child_frame_id, "kinect_color");
+            EXPECT_EQ(first.transform.translation.x, 0.5);
+            EXPECT_EQ(first.transform.translation.y, -0.25);
+            EXPECT_EQ(first.transform.translation.z, 1.5);
+            EXPECT_EQ(first.transform.rotation.z, 0.6);
+            EXPECT_EQ(first.transform.rotation.w, 0.8);
+            EXPECT_STREQ(tf->transforms._buffer[1].header.frame_id, "kinect_color");
+            EXPECT_STREQ(tf->transforms._buffer[1].child_frame_id, "env_color");
+            got_tf = true;
+        }
+        dds_return_loan(tf_static, samples, n);
+        samples[0] = nullptr;
+    }
+    EXPECT_TRUE(got_tf) << "tf_static never reached a late reader";
+    EXPECT_EQ(matchedWriterUserData(tf_static),
+              "typehash=RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087;");
+
+    // Each image's camera_info carries the calibration and the image's own header.
+    int paired = 0;
+    uint64_t sent = 0;
+    std::vector<std::pair<int32_t, uint32_t>> image_stamps;
+    std::vector<std::pair<int32_t, uint32_t>> info_stamps;
+    const auto takeImages = [&] {
+        for (;;) {
+            const int n = dds_take(images, samples, sample_info, 1, 1);
+            if (n <= 0)
+                return;
+            if (sample_info[0].valid_data) {
+                const auto* image = static_cast<const sensor_msgs_msg_dds__Image_*>(samples[0]);
+                image_stamps.emplace_back(image->header.stamp.sec, image->header.stamp.nanosec);
+            }
+            dds_return_loan(images, samples, n);
+            samples[0] = nullptr;
+        }
+    };
+    const auto deadline = std::chrono::steady_clock::now() + 15s;
+    while ((paired < 3 || image_stamps.size() < 3) && std::chrono::steady_clock::now() < deadline) {
+        if (sent < 20) {
+            WritableFrame frame = stream->pool->acquire();
+            ASSERT_TRUE(frame);
+            frame.meta().stream = stream->id;
+            frame.meta().sequence = sent++;
+            frame.meta().host_stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                             std::chrono::steady_clock::now().time_since_epoch())
+                                             .count();
+            graph.publish(std::move(frame).publish());
+        }
+        std::this_thread::sleep_for(40ms);
+        takeImages();
+        const int n = dds_take(infos, samples, sample_info, 1, 1);
+        if (n <= 0)
+            continue;
+        if (sample_info[0].valid_data) {
+            const auto* got = static_cast<const sensor_msgs_msg_dds__CameraInfo_*>(samples[0]);
+            EXPECT_EQ(got->width, 640u);
+            EXPECT_EQ(got->height, 480u);
+            EXPECT_STREQ(got->distortion_model, "plumb_bob");
+            ASSERT_EQ(got->d._length, 5u);
+            for (size_t i = 0; i < 5; ++i)
+                EXPECT_EQ(got->d._buffer[i], camera.d[i]);
+            for (size_t i = 0; i < 9; ++i) {
+                EXPECT_EQ(got->k[i], camera.k[i]) << "k[" << i << "]";
+                EXPECT_EQ(got->r[i], camera.r[i]) << "r[" << i << "]";
+            }
+            for (size_t i = 0; i < 12; ++i)
+                EXPECT_EQ(got->p[i], camera.p[i]) << "p[" << i << "]";
+            EXPECT_STREQ(got->header.frame_id, "kinect_color");
+            info_stamps.emplace_back(got->header.stamp.sec, got->header.stamp.nanosec);
+            ++paired;
+        }
+        dds_return_loan(infos, samples, n);
+        samples[0] = nullptr;
+    }
+    EXPECT_GE(paired, 3);
+    std::this_thread::sleep_for(200ms);
+    takeImages();
+    for (int n; (n = dds_take(infos, samples, sample_info, 1, 1)) > 0; samples[0] = nullptr) {
+        if (sample_info[0].valid_data) {
+            const auto* got = static_cast<const sensor_msgs_msg_dds__CameraInfo_*>(samples[0]);
+            info_stamps.emplace_back(got->header.stamp.sec, got->header.stamp.nanosec);
+        }
+        dds_return_loan(infos, samples, n);
+    }
+    // Large images may be lost to a reader whose socket overflows (reliable, but the writer
+    // keeps only the last two); the small camera_info messages all arrive. Every image that
+    // came has its camera_info, stamped alike.
+    ASSERT_GE(image_stamps.size(), 3u);
+    for (const auto& stamp : image_stamps) {
+        EXPECT_NE(std::find(info_stamps.begin(), info_stamps.end(), stamp), info_stamps.end())
+            << "an image without its camera_info: " << stamp.first << " s " << stamp.second
+            << " ns";
+    }
+
+    EXPECT_GE(pub->stats().at(0).ros_camera_info_written, 3u);
+    graph.stop();
+}
+
+// A calibration must describe a published image stream of its size.
+TEST(Ros2Calibration, ACalibrationOfAnotherSizeOrStreamIsRefused) {
+    Graph graph;
+    StreamInfo info;
+    info.name = "cam/image";
+    info.device = "cam";
+    info.kind = StreamKind::kMono;
+    info.format = ImageDesc::packed(PixelFormat::kMono8, 1280, 960);
+    info.nominal_fps = 30;
+    ASSERT_TRUE(addPooledStream(graph, info, 2).isOk());
+    calibration::RosCameraInfo camera;
+    camera.width = 640;
+    camera.height = 480;
+
+    DdsPublisherOptions no_rig;
+    no_rig.ros2_camera_info["cam/image"] = camera;
+    EXPECT_EQ(DdsPublisher::create(no_rig).status().code(), ErrorCode::kInvalidArgument);
+
+    DdsPublisherOptions options;
+    options.dds.domain = testDomain();
+    options.ros2_rig = "studio";
+    options.ros2_camera_info["cam/image"] = camera;
+    auto sized = DdsPublisher::create(options);
+    ASSERT_TRUE(sized.isOk());
+    const Status wrong_size = (*sized)->connect(graph);
+    EXPECT_EQ(wrong_size.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(wrong_size.message().find("1280x960"), std::string::npos) << wrong_size.message();
+
+    options.ros2_camera_info.clear();
+    options.ros2_camera_info["cam/other"] = camera;
+    auto named = DdsPublisher::create(options);
+    ASSERT_TRUE(named.isOk());
+    EXPECT_EQ((*named)->connect(graph).code(), ErrorCode::kNotFound);
+}
 
 }  // namespace
 }  // namespace mixray::dds

@@ -9,13 +9,19 @@
 #include <thread>
 
 #include "frame_message.h"
+#include "mixray/graph/host_time.h"
 #include "participant.h"
+#include "ros_camera.h"
 #include "ros_image.h"
 #include "time_exchange.h"
 
 namespace mixray::dds {
 
 namespace fdds = eprosima::fastdds::dds;
+
+std::optional<std::string_view> rosImageEncoding(PixelFormat format) {
+    return detail::rosEncoding(format);
+}
 
 Status DdsPublisherOptions::validate() const {
     MIXRAY_RETURN_IF_ERROR(dds.validate());
@@ -37,6 +43,11 @@ Status DdsPublisherOptions::validate() const {
                         ros2_rig + "'"};
         }
     }
+    if (ros2_rig.empty() && (!ros2_camera_info.empty() || !ros2_transforms.empty())) {
+        return {ErrorCode::kInvalidArgument,
+                "dds publisher: camera calibrations and transforms go to ROS 2 topics: name the "
+                "ROS 2 rig (ros2_rig, --ros2)"};
+    }
     return Status::ok();
 }
 
@@ -47,13 +58,16 @@ struct DdsPublisher::Impl {
         std::string topic;
         fdds::DataWriter* writer = nullptr;
         fdds::DataWriter* ros_writer = nullptr;
+        fdds::DataWriter* ros_camera_info_writer = nullptr;
         std::optional<std::string_view> ros_encoding;
+        std::optional<calibration::RosCameraInfo> camera_info;
         fdds::InstanceHandle_t announcement;
         bool disposed = false;  // guarded by Impl::mutex
         std::thread thread;
         std::atomic<uint64_t> written{0};
         std::atomic<uint64_t> write_errors{0};
         std::atomic<uint64_t> ros_written{0};
+        std::atomic<uint64_t> ros_camera_info_written{0};
     };
 
     DdsPublisherOptions options;
@@ -62,6 +76,7 @@ struct DdsPublisher::Impl {
     std::vector<std::unique_ptr<Stream>> streams;
     std::shared_ptr<detail::Participant> participant;
     fdds::DataWriter* announcer = nullptr;
+    fdds::DataWriter* tf_static_writer = nullptr;
     // Answers other hosts' clock requests for as long as this host publishes.
     std::unique_ptr<detail::TimeResponder> time_responder;
     std::atomic<bool> stopping{false};
@@ -80,11 +95,17 @@ struct DdsPublisher::Impl {
         return out;
     }
     Status createWriters();
+    Status createRosWriters(Stream& stream);
+    // Checks each calibration against the stream it names and hands it to the stream.
+    Status assignCameraInfo();
 };
 
 void DdsPublisher::Impl::run(Stream& stream) {
     detail::FrameMessage message;
     detail::RosImage ros_message;
+    detail::RosCameraInfoMessage camera_info_message;
+    if (stream.camera_info)
+        detail::toRosCameraInfo(*stream.camera_info, &camera_info_message);
     const std::string frame_id = detail::rosFrameId(stream.info.name);
     while (!stopping.load(std::memory_order_relaxed)) {
         std::optional<FrameRef> frame = stream.queue->pop(std::chrono::milliseconds(100));
@@ -106,6 +127,13 @@ void DdsPublisher::Impl::run(Stream& stream) {
             detail::toRosImage(*frame, frame_id, &ros_message);
             if (stream.ros_writer->write(&ros_message))
                 stream.ros_written.fetch_add(1, std::memory_order_relaxed);
+            else
+                stream.write_errors.fetch_add(1, std::memory_order_relaxed);
+        }
+        if (stream.ros_camera_info_writer) {
+            camera_info_message.header(ros_message.header());
+            if (stream.ros_camera_info_writer->write(&camera_info_message))
+                stream.ros_camera_info_written.fetch_add(1, std::memory_order_relaxed);
             else
                 stream.write_errors.fetch_add(1, std::memory_order_relaxed);
         }
@@ -153,24 +181,80 @@ Status DdsPublisher::Impl::createWriters() {
         if (!stream->writer)
             return {ErrorCode::kInternal,
                     "dds publisher: cannot create a writer for " + stream->topic};
-        if (!options.ros2_rig.empty() && stream->ros_encoding) {
-            auto ros_topic = participant->topic(
-                detail::rosImageTopic(options.ros2_rig, stream->info.name), detail::rosImageType());
-            if (!ros_topic)
-                return ros_topic.status();
-            // rviz2 and ros2 topic echo default to reliable readers; a reliable writer serves
-            // best-effort (sensor data) readers as well.
-            stream->ros_writer = participant->publisher()->create_datawriter(
-                *ros_topic, detail::frameWriterQos(options.dds, options.history_depth));
-            if (!stream->ros_writer)
-                return {ErrorCode::kInternal,
-                        "dds publisher: cannot create the ROS 2 writer of " + stream->info.name};
-        }
+        if (!options.ros2_rig.empty() && stream->ros_encoding)
+            MIXRAY_RETURN_IF_ERROR(createRosWriters(*stream));
         detail::AnnouncementMessage announcement =
             detail::toAnnouncement(stream->info, host, deviceStreams(stream->info.device));
         stream->announcement = announcer->register_instance(&announcement);
         if (!announcer->write(&announcement, stream->announcement))
             return {ErrorCode::kInternal, "dds publisher: cannot announce " + stream->info.name};
+    }
+    if (!options.ros2_transforms.empty()) {
+        auto topic = participant->topic(detail::kRosTfStaticTopic, detail::rosTfType());
+        if (!topic)
+            return topic.status();
+        tf_static_writer = participant->publisher()->create_datawriter(
+            *topic,
+            detail::withRosTypeHash(detail::rosTfStaticWriterQos(), "tf2_msgs/msg/TFMessage"));
+        if (!tf_static_writer)
+            return {ErrorCode::kInternal, "dds publisher: cannot create the tf_static writer"};
+        detail::RosTfMessage transforms = detail::toRosTf(options.ros2_transforms, realtimeNowNs());
+        if (!tf_static_writer->write(&transforms))
+            return {ErrorCode::kInternal, "dds publisher: cannot write tf_static"};
+    }
+    return Status::ok();
+}
+
+Status DdsPublisher::Impl::createRosWriters(Stream& stream) {
+    auto topic = participant->topic(detail::rosImageTopic(options.ros2_rig, stream.info.name),
+                                    detail::rosImageType());
+    if (!topic)
+        return topic.status();
+    // rviz2 and ros2 topic echo default to reliable readers; a reliable writer serves
+    // best-effort (sensor data) readers as well.
+    const fdds::DataWriterQos qos = detail::frameWriterQos(options.dds, options.history_depth);
+    stream.ros_writer = participant->publisher()->create_datawriter(
+        *topic, detail::withRosTypeHash(qos, "sensor_msgs/msg/Image"));
+    if (!stream.ros_writer)
+        return {ErrorCode::kInternal,
+                "dds publisher: cannot create the ROS 2 writer of " + stream.info.name};
+    if (!stream.camera_info)
+        return Status::ok();
+    auto info_topic =
+        participant->topic(detail::rosCameraInfoTopic(options.ros2_rig, stream.info.name),
+                           detail::rosCameraInfoType());
+    if (!info_topic)
+        return info_topic.status();
+    stream.ros_camera_info_writer = participant->publisher()->create_datawriter(
+        *info_topic, detail::withRosTypeHash(qos, "sensor_msgs/msg/CameraInfo"));
+    if (!stream.ros_camera_info_writer)
+        return {ErrorCode::kInternal,
+                "dds publisher: cannot create the ROS 2 camera_info writer of " + stream.info.name};
+    return Status::ok();
+}
+
+Status DdsPublisher::Impl::assignCameraInfo() {
+    for (const auto& [name, info] : options.ros2_camera_info) {
+        Stream* stream = nullptr;
+        for (auto& s : streams) {
+            if (s->info.name == name)
+                stream = s.get();
+        }
+        if (!stream || !stream->ros_encoding) {
+            return {ErrorCode::kNotFound,
+                    "dds publisher: a calibration for '" + name +
+                        "', which is not a published image stream with a ROS 2 encoding"};
+        }
+        const ImageDesc& image = stream->info.format;
+        if (info.width != static_cast<uint32_t>(image.width) ||
+            info.height != static_cast<uint32_t>(image.height)) {
+            return {ErrorCode::kInvalidArgument,
+                    "dds publisher: the calibration of " + name + " is for " +
+                        std::to_string(info.width) + "x" + std::to_string(info.height) +
+                        " images and the stream's are " + std::to_string(image.width) + "x" +
+                        std::to_string(image.height)};
+        }
+        stream->camera_info = info;
     }
     return Status::ok();
 }
@@ -218,13 +302,15 @@ Status DdsPublisher::connect(Graph& graph) {
         stream->queue = *queue;
         d.streams.push_back(std::move(stream));
     }
+    MIXRAY_RETURN_IF_ERROR(d.assignCameraInfo());
     std::lock_guard lock(d.mutex);
     const Status made = d.createWriters();
     if (!made.isOk()) {
         d.time_responder.reset();
         d.participant.reset();
         for (auto& stream : d.streams)
-            stream->writer = stream->ros_writer = nullptr;
+            stream->writer = stream->ros_writer = stream->ros_camera_info_writer = nullptr;
+        d.announcer = d.tf_static_writer = nullptr;
         return made;
     }
     return Status::ok();
@@ -273,9 +359,9 @@ void DdsPublisher::stop() {
             detail::toAnnouncement(stream->info, d.host, d.deviceStreams(stream->info.device));
         if (!stream->disposed)
             (void)d.announcer->unregister_instance(&announcement, stream->announcement);
-        stream->writer = stream->ros_writer = nullptr;
+        stream->writer = stream->ros_writer = stream->ros_camera_info_writer = nullptr;
     }
-    d.announcer = nullptr;
+    d.announcer = d.tf_static_writer = nullptr;
     d.time_responder.reset();
     d.participant.reset();
 }
@@ -294,6 +380,7 @@ std::vector<DdsStreamStats> DdsPublisher::stats() const {
         s.written = stream->written.load(std::memory_order_relaxed);
         s.write_errors = stream->write_errors.load(std::memory_order_relaxed);
         s.ros_written = stream->ros_written.load(std::memory_order_relaxed);
+        s.ros_camera_info_written = stream->ros_camera_info_written.load(std::memory_order_relaxed);
         fdds::PublicationMatchedStatus matched;
         if (stream->writer &&
             stream->writer->get_publication_matched_status(matched) == ReturnCode_t::RETCODE_OK)

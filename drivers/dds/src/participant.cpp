@@ -11,6 +11,9 @@
 #include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <string>
+#include <vector>
+
+#include "mixray/dds/ros_type_hash.h"
 
 namespace mixray::dds::detail {
 namespace {
@@ -227,6 +230,22 @@ fdds::DataWriterQos timeExchangeWriterQos() {
 
 fdds::DataReaderQos timeExchangeReaderQos() {
     return timeExchangeQos(fdds::DATAREADER_QOS_DEFAULT);
+}
+
+fdds::DataWriterQos rosTfStaticWriterQos() {
+    return keepLastQos(fdds::DataWriterQos(fdds::DATAWRITER_QOS_DEFAULT),
+                       fdds::RELIABLE_RELIABILITY_QOS, fdds::TRANSIENT_LOCAL_DURABILITY_QOS, 1);
+}
+
+fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type) {
+    // Only types drivers/dds describes are published, so the hash is always there; a type
+    // without one would go out without it, which ROS 2 accepts with a warning.
+    if (auto hash = rosTypeHash(ros_type)) {
+        const std::string user_data = rosTypeHashUserData(*hash);
+        qos.user_data().data_vec(
+            std::vector<eprosima::fastrtps::rtps::octet>(user_data.begin(), user_data.end()));
+    }
+    return qos;
 }
 
 }  // namespace mixray::dds::detail

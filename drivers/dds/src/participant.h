@@ -72,4 +72,12 @@ fdds::DataReaderQos announcementReaderQos();
 fdds::DataWriterQos timeExchangeWriterQos();
 fdds::DataReaderQos timeExchangeReaderQos();
 
+// tf_static's, as tf2_ros's static broadcaster and listeners set it: reliable, transient-local,
+// keep last 1 (one message holds every transform).
+fdds::DataWriterQos rosTfStaticWriterQos();
+
+// `qos` with the ROS 2 type hash of `ros_type` ("sensor_msgs/msg/Image") in its USER_DATA, as
+// rmw_fastrtps and rmw_cyclonedds put it on every endpoint (ros_type_hash.h).
+fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type);
+
 }  // namespace mixray::dds::detail
