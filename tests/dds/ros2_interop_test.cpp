@@ -86,6 +86,18 @@ DdsPublisher* startPublishing(Graph& graph, const DdsPublisherOptions& options) 
     return pub;
 }
 
+// A 30 fps image stream `device`/`stream` of `format` at width x height.
+StreamInfo imageStream(const std::string& device, const std::string& stream, StreamKind kind,
+                       PixelFormat format, int width, int height) {
+    StreamInfo info;
+    info.name = device + "/" + stream;
+    info.device = device;
+    info.kind = kind;
+    info.format = ImageDesc::packed(format, width, height);
+    info.nominal_fps = 30;
+    return info;
+}
+
 uint8_t pixel(size_t k, uint64_t i) {
     return static_cast<uint8_t>((k * 31 + i * 11 + (k >> 7)) & 0xff);
 }
@@ -102,12 +114,7 @@ class Ros2Interop : public ::testing::TestWithParam<Case> {};
 TEST_P(Ros2Interop, CycloneReceivesTheImagesByteForByte) {
     const Case c = GetParam();
     Graph graph;
-    StreamInfo info;
-    info.name = "cam/image";
-    info.device = "cam";
-    info.kind = c.kind;
-    info.format = ImageDesc::packed(c.format, 640, 480);
-    info.nominal_fps = 30;
+    const StreamInfo info = imageStream("cam", "image", c.kind, c.format, 640, 480);
     auto stream = addPooledStream(graph, info, 8);
     ASSERT_TRUE(stream.isOk());
     DdsPublisherOptions options;
@@ -226,13 +233,8 @@ std::string matchedWriterUserData(dds_entity_t reader) {
 // and every writer carries the type hash newer ROS 2 releases check.
 TEST(Ros2Calibration, CycloneReadsCameraInfoTfStaticAndTheTypeHashes) {
     Graph graph;
-    StreamInfo info;
-    info.name = "kinect/color";
-    info.device = "kinect";
-    info.kind = StreamKind::kColor;
-    info.format = ImageDesc::packed(PixelFormat::kRGB8, 640, 480);
-    info.nominal_fps = 30;
-    auto stream = addPooledStream(graph, info, 8);
+    auto stream = addPooledStream(
+        graph, imageStream("kinect", "color", StreamKind::kColor, PixelFormat::kRGB8, 640, 480), 8);
     ASSERT_TRUE(stream.isOk());
 
     calibration::RosCameraInfo camera;
@@ -408,13 +410,11 @@ TEST(Ros2Calibration, CycloneReadsCameraInfoTfStaticAndTheTypeHashes) {
 // A calibration must describe a published image stream of its size.
 TEST(Ros2Calibration, ACalibrationOfAnotherSizeOrStreamIsRefused) {
     Graph graph;
-    StreamInfo info;
-    info.name = "cam/image";
-    info.device = "cam";
-    info.kind = StreamKind::kMono;
-    info.format = ImageDesc::packed(PixelFormat::kMono8, 1280, 960);
-    info.nominal_fps = 30;
-    ASSERT_TRUE(addPooledStream(graph, info, 2).isOk());
+    ASSERT_TRUE(addPooledStream(
+                    graph,
+                    imageStream("cam", "image", StreamKind::kMono, PixelFormat::kMono8, 1280, 960),
+                    2)
+                    .isOk());
     calibration::RosCameraInfo camera;
     camera.width = 640;
     camera.height = 480;
