@@ -55,6 +55,9 @@ mixray_require(FASTDDSGEN "fastddsgen" fastddsgen)
 # SHA-256 for ROS 2's type hashes (RIHS01).
 find_package(OpenSSL 3 QUIET COMPONENTS Crypto)
 mixray_require(OpenSSL_FOUND "OpenSSL 3 (libcrypto)" libssl-dev)
+# CRC-32 for MCAP files.
+find_package(ZLIB QUIET)
+mixray_require(ZLIB_FOUND "zlib" zlib1g-dev)
 
 # Algorithms.
 find_package(Eigen3 3.4 QUIET NO_MODULE)

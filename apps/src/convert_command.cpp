@@ -5,6 +5,7 @@
 
 #include "cli.h"
 #include "console.h"
+#include "mixray/dds/mcap_export.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/replay/convert.h"
 #include "mixray/replay/open_recording.h"
@@ -18,7 +19,8 @@ namespace {
 struct ConvertOptions {
     std::string input;
     std::string output;
-    std::string to;  // mkv | tum | pcl-tiff | ply | pcd; empty: from the output name
+    std::string to;        // mkv | mcap | tum | pcl-tiff | ply | pcd; empty: from the output name
+    std::string ros2_rig;  // --ros2: MCAP topics' prefix
     bool force = false;
     // Point clouds (--to ply|pcd).
     std::string intrinsics;           // "fx,fy,cx,cy"; empty: from the recording
@@ -47,7 +49,10 @@ Result<std::unique_ptr<RecordingWriter>> createCloudWriter(const ConvertOptions&
 std::string targetFormat(const ConvertOptions& options) {
     if (!options.to.empty())
         return options.to;
-    return std::filesystem::path(options.output).extension() == ".mkv" ? "mkv" : "tum";
+    const auto extension = std::filesystem::path(options.output).extension();
+    if (extension == ".mcap")
+        return "mcap";
+    return extension == ".mkv" ? "mkv" : "tum";
 }
 
 // What the target format would drop or change of the recording (mkv holds everything).
@@ -57,6 +62,15 @@ Result<replay::WriteLosses> lossesOf(const ConvertOptions& options, const Record
         return replay::tumLosses(header);
     if (to == "pcl-tiff")
         return replay::pclTiffLosses(header);
+    if (to == "mcap") {
+        replay::WriteLosses losses;
+        for (const auto& [stream, why] : dds::mcapUnwritableStreams(header)) {
+            losses.dropped_streams.push_back(stream);
+            losses.dropped.push_back(why);
+        }
+        losses.changed = dds::mcapChangedData(header);
+        return losses;
+    }
     if (to == "ply" || to == "pcd") {
         replay::PointCloudWriterOptions cloud;
         cloud.color = !options.no_color;
@@ -70,6 +84,8 @@ Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& opti
     const std::string to = targetFormat(options);
     if (to == "mkv")
         return createMkvWriter(options.output, header);
+    if (to == "mcap")
+        return dds::createMcapWriter(options.output, header, {.rig = options.ros2_rig});
     if (to == "tum")
         return replay::createTumWriter(options.output, header);
     if (to == "pcl-tiff")
@@ -77,7 +93,7 @@ Result<std::unique_ptr<RecordingWriter>> createWriter(const ConvertOptions& opti
     if (to == "ply" || to == "pcd")
         return createCloudWriter(options, header);
     return {ErrorCode::kInvalidArgument,
-            "--to " + to + ": expected mkv, tum, pcl-tiff, ply or pcd"};
+            "--to " + to + ": expected mkv, mcap, tum, pcl-tiff, ply or pcd"};
 }
 
 int runConvert(const ConvertOptions& options) {
@@ -159,7 +175,9 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
     auto* sub = app.add_subcommand(
         "convert",
         "Convert a recording: mkv <-> TUM RGB-D folder, PCL TIFF folder or Azure Kinect .mkv -> "
-        "mkv. Frames, timestamps, attachments and tags are kept exactly where the target "
+        "mkv; mkv -> MCAP of ROS 2 sensor_msgs/Image messages, which ros2 bag and Foxglove "
+        "open (--to mcap, docs/dds.md). Frames, timestamps, attachments and tags are kept exactly "
+        "where the target "
         "format can hold them; what it cannot hold is refused (or, with --drop-unsupported, "
         "left out and listed), and what was written is printed per stream. Also reads NYU Depth "
         "V2 raw and SUN RGB-D folders and OpenNI .oni files, and writes organized point clouds "
@@ -168,12 +186,15 @@ void registerConvertCommand(CLI::App& app, Commands& commands) {
     auto options = std::make_shared<ConvertOptions>();
     sub->add_option("INPUT", options->input, "Recording to read")->required();
     sub->add_option("OUTPUT", options->output,
-                    "What to write: a .mkv file, or a folder for TUM / PCL TIFF")
+                    "What to write: a .mkv or .mcap file, or a folder for TUM / PCL TIFF")
         ->required();
     sub->add_option("--to", options->to,
-                    "Output format (default: mkv for *.mkv, else tum); ply and pcd write one "
-                    "organized point cloud per depth frame into the OUTPUT folder")
-        ->check(CLI::IsMember({"mkv", "tum", "pcl-tiff", "ply", "pcd"}));
+                    "Output format (default: mkv for *.mkv, mcap for *.mcap, else tum); ply and "
+                    "pcd write one organized point cloud per depth frame into the OUTPUT folder")
+        ->check(CLI::IsMember({"mkv", "mcap", "tum", "pcl-tiff", "ply", "pcd"}));
+    sub->add_option("--ros2", options->ros2_rig,
+                    "With --to mcap: topics are /NAME/<stream>/image_raw (default: the rig's name "
+                    "in the recording, else mixray)");
     sub->add_option("--intrinsics", options->intrinsics,
                     "With --to ply|pcd: the depth camera's pinhole intrinsics fx,fy,cx,cy in "
                     "pixels (default: what the recording carries; an error when it has none)");

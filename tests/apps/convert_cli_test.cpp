@@ -1,10 +1,11 @@
-// mixray convert --to ply|pcd and mixray info/convert of .oni recordings, end to end.
+// mixray convert --to ply|pcd|mcap and mixray info/convert of .oni recordings, end to end.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 
 #include "cli_runner.h"
+#include "foxglove_mcap.h"
 #include "mixray/replay/point_cloud.h"
 #include "replay_test_util.h"
 #include "test_data.h"
@@ -14,6 +15,32 @@ namespace {
 
 bool contains(const std::string& text, const std::string& part) {
     return text.find(part) != std::string::npos;
+}
+
+// Every frame of the bundled RGB-D session to MCAP, under the rig's name, as Foxglove's readers
+// count them; a stream MCAP cannot hold is refused until --drop-unsupported.
+TEST(ConvertCli, ToMcapWritesEveryImageUnderTheRigsName) {
+    const auto dir = tempDir();
+    const CliRun converted = mixray("convert " + q(fixturesDir() / "sessions/pattern_rgbd.mkv") +
+                                    " " + q(dir / "session.mcap"));
+    ASSERT_EQ(converted.exit_code, 0) << converted.output;
+    EXPECT_TRUE(contains(converted.output, "150 of 150 frames written")) << converted.output;
+    const nlohmann::json got = readMcapWithFoxglove(dir / "session.mcap");
+    ASSERT_TRUE(got.is_object());
+    EXPECT_EQ(got["statistics"]["messageCount"], 150);
+    std::vector<std::string> topics;
+    for (const auto& channel : got["channels"])
+        topics.push_back(channel["topic"]);
+    EXPECT_EQ(topics, (std::vector<std::string>{"/pattern_rgbd/rgbd/color/image_raw",
+                                                "/pattern_rgbd/rgbd/depth/image_raw",
+                                                "/pattern_rgbd/mono/mono/image_raw"}));
+
+    const CliRun pose = mixray("convert " + q(fixturesDir() / "sessions/sim_tabletop.mkv") + " " +
+                               q(dir / "tabletop.mcap"));
+    EXPECT_NE(pose.exit_code, 0);
+    EXPECT_TRUE(contains(pose.output, "truth/pose: sensor_msgs/Image has no encoding for binary"))
+        << pose.output;
+    EXPECT_FALSE(std::filesystem::exists(dir / "tabletop.mcap"));
 }
 
 TEST(ConvertCli, PclFolderToPcdMatchesPclsReferenceCloud) {

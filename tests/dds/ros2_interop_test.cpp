@@ -13,7 +13,7 @@
 
 #include "dds/dds.h"
 #include "mixray/dds/dds_publisher.h"
-#include "mixray/dds/ros_type_hash.h"
+#include "mixray/dds/ros_types.h"
 #include "mixray/graph/graph.h"
 #include "sensor_msgs/msg/CameraInfo.h"
 #include "sensor_msgs/msg/Image.h"

@@ -33,15 +33,11 @@ Status DdsPublisherOptions::validate() const {
         return {ErrorCode::kInvalidArgument, "dds publisher: history_depth: expected 1..64, got " +
                                                  std::to_string(history_depth)};
     }
-    for (char c : ros2_rig) {
-        const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
-                        (c >= '0' && c <= '9') || c == '_' || c == '/';
-        if (!ok) {
-            return {ErrorCode::kInvalidArgument,
-                    "dds publisher: ros2 rig name: ROS 2 names take letters, digits, '_' and "
-                    "'/', got '" +
-                        ros2_rig + "'"};
-        }
+    if (!ros2_rig.empty() && !detail::isRosName(ros2_rig)) {
+        return {ErrorCode::kInvalidArgument,
+                "dds publisher: ros2 rig name: ROS 2 names take letters, digits, '_' and '/', "
+                "got '" +
+                    ros2_rig + "'"};
     }
     if (ros2_rig.empty() && (!ros2_camera_info.empty() || !ros2_transforms.empty())) {
         return {ErrorCode::kInvalidArgument,
@@ -124,7 +120,8 @@ void DdsPublisher::Impl::run(Stream& stream) {
         else
             stream.write_errors.fetch_add(1, std::memory_order_relaxed);
         if (stream.ros_writer) {
-            detail::toRosImage(*frame, frame_id, &ros_message);
+            detail::toRosImage(*frame, frame_id, detail::liveRosStampNs(frame->meta()),
+                               &ros_message);
             if (stream.ros_writer->write(&ros_message))
                 stream.ros_written.fetch_add(1, std::memory_order_relaxed);
             else

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "mixray/dds/ros_type_hash.h"
+#include "mixray/dds/ros_types.h"
 
 namespace mixray::dds::detail {
 namespace {

@@ -77,7 +77,7 @@ fdds::DataReaderQos timeExchangeReaderQos();
 fdds::DataWriterQos rosTfStaticWriterQos();
 
 // `qos` with the ROS 2 type hash of `ros_type` ("sensor_msgs/msg/Image") in its USER_DATA, as
-// rmw_fastrtps and rmw_cyclonedds put it on every endpoint (ros_type_hash.h).
+// rmw_fastrtps and rmw_cyclonedds put it on every endpoint (ros_types.h).
 fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type);
 
 }  // namespace mixray::dds::detail

@@ -37,8 +37,7 @@ RosTfMessage toRosTf(const std::vector<calibration::RosTransform>& transforms, i
     RosTfMessage message;
     for (const calibration::RosTransform& t : transforms) {
         geometry_msgs::msg::dds_::TransformStamped_ stamped;
-        stamped.header().stamp().sec(static_cast<int32_t>(wall_ns / 1'000'000'000));
-        stamped.header().stamp().nanosec(static_cast<uint32_t>(wall_ns % 1'000'000'000));
+        stamped.header().stamp(rosTime(wall_ns));
         stamped.header().frame_id(rosFrameId(t.parent));
         stamped.child_frame_id(rosFrameId(t.child));
         stamped.transform().translation().x(t.translation[0]);

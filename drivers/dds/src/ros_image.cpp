@@ -1,5 +1,6 @@
 #include "ros_image.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "frame_message.h"
@@ -40,6 +41,13 @@ std::optional<std::string_view> rosEncoding(PixelFormat format) {
     }
 }
 
+bool isRosName(std::string_view name) {
+    return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+               c == '_' || c == '/';
+    });
+}
+
 std::string rosImageTopic(std::string_view rig, std::string_view stream) {
     std::string topic = "rt/";
     topic += rig;
@@ -58,17 +66,29 @@ std::string rosFrameId(std::string_view stream) {
     return id;
 }
 
-void toRosImage(const FrameRef& frame, std::string_view frame_id, RosImage* message) {
-    const ImageView image = frame.image();
+builtin_interfaces::msg::dds_::Time_ rosTime(int64_t stamp_ns) {
+    int64_t sec = stamp_ns / 1'000'000'000;
+    int64_t nanosec = stamp_ns % 1'000'000'000;
+    if (nanosec < 0) {
+        --sec;
+        nanosec += 1'000'000'000;
+    }
+    builtin_interfaces::msg::dds_::Time_ time;
+    time.sec(static_cast<int32_t>(sec));
+    time.nanosec(static_cast<uint32_t>(nanosec));
+    return time;
+}
+
+int64_t liveRosStampNs(const FrameMetadata& meta) {
     // ROS time is the wall clock; the frame's stamp is host CLOCK_MONOTONIC (steady_clock).
-    const int64_t wall_minus_steady = realtimeMinusMonotonicNs();
-    // A replayed frame's host stamp is the recording session's clock; it entered this graph at
-    // its graph stamp.
-    const FrameMetadata& meta = frame.meta();
     const int64_t steady = meta.graph_stamp_ns != 0 ? meta.graph_stamp_ns : meta.host_stamp_ns;
-    const int64_t stamp = steady + wall_minus_steady;
-    message->header().stamp().sec(static_cast<int32_t>(stamp / 1'000'000'000));
-    message->header().stamp().nanosec(static_cast<uint32_t>(stamp % 1'000'000'000));
+    return steady + realtimeMinusMonotonicNs();
+}
+
+void toRosImage(const FrameRef& frame, std::string_view frame_id, int64_t stamp,
+                RosImage* message) {
+    const ImageView image = frame.image();
+    message->header().stamp(rosTime(stamp));
     message->header().frame_id(std::string(frame_id));
     message->height(static_cast<uint32_t>(image.desc.height));
     message->width(static_cast<uint32_t>(image.desc.width));

@@ -1,8 +1,8 @@
-// ROS 2 type hashes (mixray/dds/ros_type_hash.h) against the ones ROS 2's own generator
+// ROS 2 type descriptions (mixray/dds/ros_types.h): hashes against the ones ROS 2's own generator
 // (rosidl_generator_type_description) gives for the same messages, as its generated C code
 // records them (ROS 2 Kilted's sensor_msgs, geometry_msgs, tf2_msgs, std_msgs and
 // builtin_interfaces).
-#include "mixray/dds/ros_type_hash.h"
+#include "mixray/dds/ros_types.h"
 
 #include <gtest/gtest.h>
 
@@ -49,6 +49,28 @@ TEST(RosTypeHash, AnUnknownTypeIsNotFoundAndTheUserDataIsRos2s) {
     EXPECT_EQ(unknown.status().code(), ErrorCode::kNotFound);
     EXPECT_NE(unknown.status().message().find("PointCloud2"), std::string::npos);
     EXPECT_EQ(rosTypeHashUserData("RIHS01_ab"), "typehash=RIHS01_ab;");
+}
+
+// The schema MCAP files carry (rosbag2's "ros2msg"): the type's fields in .msg syntax, then each
+// type it references. Foxglove's parser reads it back in tests/dds/mcap_export_test.cpp.
+TEST(RosMessageDefinition, IsTheMsgTextWithEveryReferencedType) {
+    const std::string separator(80, '=');
+    EXPECT_EQ(rosMessageDefinition("sensor_msgs/msg/Image").value(),
+              "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n"
+              "uint8 is_bigendian\nuint32 step\nuint8[] data\n" +
+                  separator + "\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n" +
+                  separator +
+                  "\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n");
+    const std::string camera_info = rosMessageDefinition("sensor_msgs/msg/CameraInfo").value();
+    EXPECT_NE(camera_info.find("\nfloat64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\n"),
+              std::string::npos)
+        << camera_info;
+    EXPECT_NE(camera_info.find("sensor_msgs/RegionOfInterest roi\n"), std::string::npos);
+    EXPECT_NE(camera_info.find("MSG: sensor_msgs/RegionOfInterest\n"), std::string::npos);
+    EXPECT_NE(camera_info.find("bool do_rectify\n"), std::string::npos);
+    EXPECT_EQ(rosMessageDefinition("tf2_msgs/msg/TFMessage").value().substr(0, 43),
+              "geometry_msgs/TransformStamped[] transforms");
+    EXPECT_EQ(rosMessageDefinition("nav_msgs/msg/Odometry").status().code(), ErrorCode::kNotFound);
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "mixray/dds/ros_type_hash.h"
+#include "mixray/dds/ros_types.h"
 
 #include <openssl/evp.h>
 
@@ -112,15 +112,14 @@ std::string individualJson(const Type& type) {
     return out + "]}";
 }
 
-}  // namespace
-
-Result<std::string> rosTypeHash(std::string_view type_name) {
+// The types `type_name` references, directly or not, sorted by name: kNotFound for an unknown
+// type_name.
+Result<std::set<std::string_view>> referencedTypes(std::string_view type_name) {
     const Type* top = findType(type_name);
     if (!top) {
         return Status(ErrorCode::kNotFound,
                       "no ROS 2 type description for '" + std::string(type_name) + "'");
     }
-    // Every type it references, directly or not, sorted by name.
     std::set<std::string_view> referenced;
     std::vector<const Type*> pending = {top};
     while (!pending.empty()) {
@@ -138,10 +137,73 @@ Result<std::string> rosTypeHash(std::string_view type_name) {
             pending.push_back(nested);
         }
     }
+    return referenced;
+}
+
+// "sensor_msgs/msg/Image" as .msg files name it: "sensor_msgs/Image".
+std::string msgName(std::string_view type_name) {
+    std::string name(type_name);
+    if (const size_t at = name.find("/msg/"); at != std::string::npos)
+        name.erase(at, 4);
+    return name;
+}
+
+// One field in .msg syntax: "uint8[] data", "float64[9] k", "std_msgs/Header header".
+std::string msgField(const Field& f) {
+    int element = f.type_id;
+    std::string suffix;
+    if (element > kUnboundedSequence) {
+        element -= kUnboundedSequence;
+        suffix = "[]";
+    } else if (element > kArray) {
+        element -= kArray;
+        suffix = "[" + std::to_string(f.capacity) + "]";
+    }
+    std::string type;
+    switch (element) {
+        case kNestedType:
+            type = msgName(f.nested_type);
+            break;
+        case kUint8:
+            type = "uint8";
+            break;
+        case kInt32:
+            type = "int32";
+            break;
+        case kUint32:
+            type = "uint32";
+            break;
+        case kDouble:
+            type = "float64";
+            break;
+        case kBoolean:
+            type = "bool";
+            break;
+        default:
+            type = "string";
+            break;
+    }
+    return type + suffix + " " + std::string(f.name);
+}
+
+std::string msgFields(const Type& type) {
+    std::string out;
+    for (const Field& f : type.fields)
+        out += msgField(f) + "\n";
+    return out;
+}
+
+}  // namespace
+
+Result<std::string> rosTypeHash(std::string_view type_name) {
+    auto referenced = referencedTypes(type_name);
+    if (!referenced)
+        return referenced.status();
+    const Type* top = findType(type_name);
     std::string json =
         "{\"type_description\": " + individualJson(*top) + ", \"referenced_type_descriptions\": [";
     bool first = true;
-    for (std::string_view name : referenced) {
+    for (std::string_view name : *referenced) {
         json += (first ? "" : ", ") + individualJson(*findType(name));
         first = false;
     }
@@ -164,6 +226,17 @@ Result<std::string> rosTypeHash(std::string_view type_name) {
 
 std::string rosTypeHashUserData(std::string_view hash) {
     return "typehash=" + std::string(hash) + ";";
+}
+
+Result<std::string> rosMessageDefinition(std::string_view type_name) {
+    auto referenced = referencedTypes(type_name);
+    if (!referenced)
+        return referenced.status();
+    std::string text = msgFields(*findType(type_name));
+    for (std::string_view name : *referenced)
+        text +=
+            std::string(80, '=') + "\nMSG: " + msgName(name) + "\n" + msgFields(*findType(name));
+    return text;
 }
 
 }  // namespace mixray::dds
