@@ -6,6 +6,7 @@
 
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/dds/dds_backend.h"
+#include "mixray/dds/ros2_source.h"
 #include "mixray/openni2/oni_recording.h"
 #include "mixray/openni2/openni2_backend.h"
 #include "mixray/pattern/pattern_backend.h"
@@ -47,6 +48,7 @@ BackendRegistry makeBackendRegistry(const dds::DdsOptions& dds) {
     (void)registry.add(std::make_unique<openni2::OpenNI2Backend>());
     (void)registry.add(std::make_unique<usb::UsbBackend>());
     (void)registry.add(std::make_unique<dds::DdsBackend>(dds));
+    (void)registry.add(std::make_unique<dds::Ros2Backend>(dds));
     return registry;
 }
 

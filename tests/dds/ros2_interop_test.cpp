@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstring>
 #include <string>
@@ -13,6 +14,7 @@
 
 #include "dds/dds.h"
 #include "mixray/dds/dds_publisher.h"
+#include "mixray/dds/ros2_source.h"
 #include "mixray/dds/ros_types.h"
 #include "mixray/graph/graph.h"
 #include "sensor_msgs/msg/CameraInfo.h"
@@ -68,6 +70,20 @@ public:
         const dds_entity_t reader = dds_create_reader(participant_, made, qos, nullptr);
         dds_delete_qos(qos);
         return reader;
+    }
+
+    // A writer of `topic` as a ROS 2 camera driver makes one: reliable (which best-effort
+    // readers match too), keep last 4.
+    dds_entity_t writer(const dds_topic_descriptor_t* type, const char* topic) const {
+        const dds_entity_t made = dds_create_topic(participant_, type, topic, nullptr, nullptr);
+        if (made < 0)
+            return made;
+        dds_qos_t* qos = dds_create_qos();
+        dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+        dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 4);
+        const dds_entity_t writer = dds_create_writer(participant_, made, qos, nullptr);
+        dds_delete_qos(qos);
+        return writer;
     }
 
 private:
@@ -438,6 +454,151 @@ TEST(Ros2Calibration, ACalibrationOfAnotherSizeOrStreamIsRefused) {
     auto named = DdsPublisher::create(options);
     ASSERT_TRUE(named.isOk());
     EXPECT_EQ((*named)->connect(graph).code(), ErrorCode::kNotFound);
+}
+
+// The other way: a ROS 2 node's image topic (here Cyclone's writer, as rmw_cyclonedds would
+// write it) as a mixray device. Every image arrives byte for byte, in order, numbered, with the
+// publisher's header.stamp as its device stamp.
+TEST(Ros2Source, AnImageTopicOfAnotherDdsIsAMixrayDeviceByteForByte) {
+    const Cyclone cyclone;
+    ASSERT_TRUE(cyclone.ok());
+    const dds_entity_t writer =
+        cyclone.writer(&sensor_msgs_msg_dds__Image__desc, "rt/robot/camera/image_raw");
+    ASSERT_GT(writer, 0) << dds_strretcode(writer);
+    // A 62x30 mono16 image whose rows are padded to 128 bytes, as some drivers pad them.
+    constexpr uint32_t kWidth = 62, kHeight = 30, kStep = 128;
+    std::atomic<bool> stop{false};
+    std::atomic<int> written{0};
+    std::thread publisher([&] {
+        std::vector<uint8_t> data(kStep * kHeight);
+        char encoding[] = "mono16";
+        char frame_id[] = "robot_camera";
+        for (int i = 0; !stop; ++i) {
+            for (size_t k = 0; k < data.size(); ++k)
+                data[k] = pixel(k, static_cast<uint64_t>(i));
+            sensor_msgs_msg_dds__Image_ image{};
+            image.header.stamp.sec = 1'700'000'000 + i;
+            image.header.stamp.nanosec = 250'000'000;
+            image.header.frame_id = frame_id;
+            image.height = kHeight;
+            image.width = kWidth;
+            image.encoding = encoding;
+            image.step = kStep;
+            image.data._buffer = data.data();
+            image.data._length = image.data._maximum = static_cast<uint32_t>(data.size());
+            image.data._release = false;
+            if (dds_write(writer, &image) == DDS_RETCODE_OK)
+                ++written;
+            std::this_thread::sleep_for(30ms);
+        }
+    });
+
+    DeviceConfig config;
+    config.name = "robot";
+    config.driver = "ros2";
+    config.id = "/robot/camera/image_raw";
+    config.options = {{"domain", std::to_string(testDomain())},
+                      {"transport", "udp"},
+                      {"discovery_timeout_ms", "15000"}};
+    Ros2Backend backend;
+    auto opened = backend.open(config);
+    ASSERT_TRUE(opened.isOk()) << opened.status().toString();
+    auto* device = static_cast<Ros2ImageDevice*>(opened->get());
+    Graph graph;
+    ASSERT_TRUE(graph.addNode(std::move(*opened)).isOk());
+    const auto id = graph.findStream("robot/image");
+    ASSERT_TRUE(id);
+    const StreamInfo& info = graph.stream(*id);
+    EXPECT_EQ(info.kind, StreamKind::kMono);
+    EXPECT_EQ(info.format.format, PixelFormat::kMono16);
+    EXPECT_EQ(info.format.width, 62);
+    EXPECT_EQ(info.format.height, 30);
+    EXPECT_EQ(info.format.stride_bytes, 128);
+    EXPECT_EQ(info.tags.at("ros2.frame_id"), "robot_camera");
+    auto queue =
+        graph.subscribe(*id, {.capacity = 16, .policy = QueuePolicy::kLossless, .name = "test"});
+    ASSERT_TRUE(queue.isOk());
+    ASSERT_TRUE(graph.start().isOk());
+
+    std::vector<FrameRef> frames;
+    const auto deadline = std::chrono::steady_clock::now() + 15s;
+    while (frames.size() < 5 && std::chrono::steady_clock::now() < deadline) {
+        if (auto frame = (*queue)->pop(100ms))
+            frames.push_back(*frame);
+    }
+    stop = true;
+    publisher.join();
+    ASSERT_EQ(frames.size(), 5u);
+    for (size_t n = 0; n < frames.size(); ++n) {
+        const FrameRef& frame = frames[n];
+        EXPECT_EQ(frame.meta().sequence, n);
+        // Which image it was, from its stamp: the bytes must be that image's.
+        const int64_t stamp = frame.meta().device_stamp_ns;
+        const auto i = static_cast<uint64_t>(stamp / 1'000'000'000 - 1'700'000'000);
+        EXPECT_EQ(stamp % 1'000'000'000, 250'000'000);
+        EXPECT_EQ(frame.meta().clock_domain, info.clock_domain);
+        EXPECT_NE(frame.meta().clock_domain, kHostClockDomain);
+        size_t differing = 0;
+        for (size_t k = 0; k < kStep * kHeight; ++k)
+            differing += frame.image().data[k] != pixel(k, i);
+        EXPECT_EQ(differing, 0u) << "image " << i;
+        if (n > 0) {
+            EXPECT_GT(stamp, frames[n - 1].meta().device_stamp_ns) << "out of order";
+        }
+    }
+    EXPECT_EQ(device->stats().rejected, 0u);
+    EXPECT_GE(device->stats().matched_writers, 1);
+    EXPECT_EQ(device->state(), DeviceState::kStreaming);
+    frames.clear();
+    graph.stop();
+}
+
+TEST(Ros2Source, NoPublisherAnOddEncodingAndABadTopicAreSaid) {
+    Ros2Backend backend;
+    DeviceConfig config;
+    config.name = "robot";
+    config.driver = "ros2";
+    config.options = {{"domain", std::to_string(testDomain())},
+                      {"transport", "udp"},
+                      {"discovery_timeout_ms", "300"}};
+    config.id = "/nobody/image_raw";
+    auto silent = backend.open(config);
+    EXPECT_EQ(silent.status().code(), ErrorCode::kNotFound);
+    EXPECT_NE(silent.status().message().find("no image on /nobody/image_raw within 300 ms"),
+              std::string::npos)
+        << silent.status().message();
+
+    config.id = "/camera/image-raw";
+    EXPECT_EQ(backend.open(config).status().code(), ErrorCode::kInvalidArgument);
+
+    const Cyclone cyclone;
+    ASSERT_TRUE(cyclone.ok());
+    const dds_entity_t writer = cyclone.writer(&sensor_msgs_msg_dds__Image__desc, "rt/float/image");
+    ASSERT_GT(writer, 0);
+    std::atomic<bool> stop{false};
+    std::thread publisher([&] {
+        std::vector<uint8_t> data(4 * 8 * 8);
+        char encoding[] = "32FC1";
+        char frame_id[] = "f";
+        while (!stop) {
+            sensor_msgs_msg_dds__Image_ image{};
+            image.header.frame_id = frame_id;
+            image.height = image.width = 8;
+            image.encoding = encoding;
+            image.step = 32;
+            image.data._buffer = data.data();
+            image.data._length = image.data._maximum = static_cast<uint32_t>(data.size());
+            (void)dds_write(writer, &image);
+            std::this_thread::sleep_for(30ms);
+        }
+    });
+    config.id = "/float/image";
+    config.options["discovery_timeout_ms"] = "15000";
+    auto odd = backend.open(config);
+    stop = true;
+    publisher.join();
+    EXPECT_EQ(odd.status().code(), ErrorCode::kUnsupported);
+    EXPECT_NE(odd.status().message().find("32FC1"), std::string::npos) << odd.status().message();
 }
 
 }  // namespace

@@ -237,15 +237,35 @@ fdds::DataWriterQos rosTfStaticWriterQos() {
                        fdds::RELIABLE_RELIABILITY_QOS, fdds::TRANSIENT_LOCAL_DURABILITY_QOS, 1);
 }
 
-fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type) {
-    // Only types drivers/dds describes are published, so the hash is always there; a type
-    // without one would go out without it, which ROS 2 accepts with a warning.
+fdds::DataReaderQos rosReaderQos(bool reliable, int depth) {
+    return keepLastQos(
+        fdds::DataReaderQos(fdds::DATAREADER_QOS_DEFAULT),
+        reliable ? fdds::RELIABLE_RELIABILITY_QOS : fdds::BEST_EFFORT_RELIABILITY_QOS,
+        fdds::VOLATILE_DURABILITY_QOS, depth);
+}
+
+namespace {
+
+// Only types drivers/dds describes are used, so the hash is always there; a type without one
+// would go without it, which ROS 2 accepts with a warning.
+template <typename Qos>
+Qos withTypeHash(Qos qos, std::string_view ros_type) {
     if (auto hash = rosTypeHash(ros_type)) {
         const std::string user_data = rosTypeHashUserData(*hash);
         qos.user_data().data_vec(
             std::vector<eprosima::fastrtps::rtps::octet>(user_data.begin(), user_data.end()));
     }
     return qos;
+}
+
+}  // namespace
+
+fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type) {
+    return withTypeHash(std::move(qos), ros_type);
+}
+
+fdds::DataReaderQos withRosTypeHash(fdds::DataReaderQos qos, std::string_view ros_type) {
+    return withTypeHash(std::move(qos), ros_type);
 }
 
 }  // namespace mixray::dds::detail

@@ -76,8 +76,13 @@ fdds::DataReaderQos timeExchangeReaderQos();
 // keep last 1 (one message holds every transform).
 fdds::DataWriterQos rosTfStaticWriterQos();
 
+// A ROS 2 topic's reader: best effort (matches every writer) or reliable, volatile, keep last
+// `depth`.
+fdds::DataReaderQos rosReaderQos(bool reliable, int depth);
+
 // `qos` with the ROS 2 type hash of `ros_type` ("sensor_msgs/msg/Image") in its USER_DATA, as
 // rmw_fastrtps and rmw_cyclonedds put it on every endpoint (ros_types.h).
 fdds::DataWriterQos withRosTypeHash(fdds::DataWriterQos qos, std::string_view ros_type);
+fdds::DataReaderQos withRosTypeHash(fdds::DataReaderQos qos, std::string_view ros_type);
 
 }  // namespace mixray::dds::detail
