@@ -27,6 +27,9 @@
 namespace mixray::test {
 namespace {
 
+using hosts::linkNamespaces;
+using hosts::shell;
+
 // `publish --ros2` finds each image stream's calibration in the files the rig names and says
 // what goes to camera_info and tf_static (tests/dds/ros2_interop_test.cpp checks what a second
 // DDS receives); a calibration of another size, or --calibration without --ros2, is refused.

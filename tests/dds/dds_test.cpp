@@ -482,5 +482,22 @@ TEST(DdsBackendTest, UnknownDevicesAreNamedWithWhatWasHeard) {
     EXPECT_EQ(listed->at(0).modes.at(0), "color 640x480@30 rgb8");
 }
 
+// Fast DDS would number a process's participants on and on, past the ids its peers' discovery
+// reaches; mixray gives each the lowest free one, so a process that has made and closed a
+// hundred still finds and is found.
+TEST(DdsBackendTest, AProcessThatMadeAHundredParticipantsIsStillFound) {
+    DdsBackend backend(loopback("hostB"));
+    DeviceConfig config{
+        .name = "remote", .driver = "dds", .id = "nobody/cam", .options = {}, .streams = {}};
+    config.options["discovery_timeout_ms"] = "0";
+    for (int i = 0; i < 100; ++i)
+        ASSERT_EQ(backend.open(config).status().code(), ErrorCode::kNotFound) << i;
+    PublishingHost a("hostA");
+    auto listed = backend.enumerate();
+    ASSERT_TRUE(listed.isOk());
+    ASSERT_EQ(listed->size(), 1u) << "the 101st participant hears the publisher";
+    EXPECT_EQ(listed->at(0).id, "hostA/cam");
+}
+
 }  // namespace
 }  // namespace mixray::dds

@@ -28,7 +28,7 @@ namespace mixray {
 namespace {
 
 namespace fs = std::filesystem;
-using test::shell;
+using hosts::shell;
 
 std::string fixture(const std::string& name) {
     std::ifstream in(test::fixturesDir() / "ptp" / name);
@@ -180,8 +180,8 @@ TEST(PtpLive, AFollowerAndItsGrandmasterReadThroughPmc) {
         }
     } cleanup{a, b};
     const std::string net = "10." + std::to_string(100 + getpid() % 100) + ".77.";
-    ASSERT_TRUE(test::linkNamespaces({.ns = a, .name = "pa" + id, .address = net + "1"},
-                                     {.ns = b, .name = "pb" + id, .address = net + "2"}));
+    ASSERT_TRUE(hosts::linkNamespaces({.ns = a, .name = "pa" + id, .address = net + "1"},
+                                      {.ns = b, .name = "pb" + id, .address = net + "2"}));
 
     const fs::path dir = fs::path(::testing::TempDir()) / ("mixray_ptp_" + id);
     fs::create_directories(dir);

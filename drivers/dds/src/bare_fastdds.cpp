@@ -5,6 +5,8 @@
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <functional>
+#include <memory>
 #include <thread>
 
 #include "frame_message.h"
@@ -25,25 +27,41 @@ void waitForWindow(uint64_t sent, const std::atomic<uint64_t>& received, int64_t
 }
 
 Result<BareRun> runBareFastDds(const DdsOptions& writer_options, const DdsOptions& reader_options,
-                               size_t payload_bytes, uint64_t frames, int64_t period_ns) {
-    auto a = detail::Participant::create(writer_options, "mixray bench dds: bare writer");
-    if (!a)
-        return a.status();
-    auto b = detail::Participant::create(reader_options, "mixray bench dds: bare reader");
-    if (!b)
-        return b.status();
+                               size_t payload_bytes, uint64_t frames, int64_t period_ns,
+                               const HostScope& writer_host, const HostScope& reader_host) {
+    const auto in = [](const HostScope& host, const std::function<Status()>& make) {
+        return host ? host(make) : make();
+    };
     const std::string name = "mixray/bench/bare";
-    auto topic_a = (*a)->topic(name, detail::frameType());
-    auto topic_b = (*b)->topic(name, detail::frameType());
-    if (!topic_a || !topic_b)
-        return Status{ErrorCode::kInternal, "bench dds: cannot create the bare topic"};
     constexpr int kDepth = 2;  // as DdsPublisherOptions::history_depth
-    fdds::DataWriter* writer = (*a)->publisher()->create_datawriter(
-        *topic_a, detail::frameWriterQos(writer_options, kDepth));
-    fdds::DataReader* reader =
-        (*b)->subscriber()->create_datareader(*topic_b, detail::frameReaderQos(4));
-    if (!writer || !reader)
-        return Status{ErrorCode::kInternal, "bench dds: cannot create the bare endpoints"};
+    std::shared_ptr<detail::Participant> a, b;
+    fdds::DataWriter* writer = nullptr;
+    fdds::DataReader* reader = nullptr;
+    MIXRAY_RETURN_IF_ERROR(in(writer_host, [&]() -> Status {
+        auto made = detail::Participant::create(writer_options, "mixray bench dds: bare writer");
+        if (!made)
+            return made.status();
+        a = *made;
+        auto topic = a->topic(name, detail::frameType());
+        if (!topic)
+            return topic.status();
+        writer = a->publisher()->create_datawriter(*topic,
+                                                   detail::frameWriterQos(writer_options, kDepth));
+        return writer ? Status::ok()
+                      : Status{ErrorCode::kInternal, "bench dds: cannot create the bare writer"};
+    }));
+    MIXRAY_RETURN_IF_ERROR(in(reader_host, [&]() -> Status {
+        auto made = detail::Participant::create(reader_options, "mixray bench dds: bare reader");
+        if (!made)
+            return made.status();
+        b = *made;
+        auto topic = b->topic(name, detail::frameType());
+        if (!topic)
+            return topic.status();
+        reader = b->subscriber()->create_datareader(*topic, detail::frameReaderQos(4));
+        return reader ? Status::ok()
+                      : Status{ErrorCode::kInternal, "bench dds: cannot create the bare reader"};
+    }));
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     for (;;) {
         fdds::PublicationMatchedStatus w;

@@ -10,6 +10,8 @@
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
 #include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -64,11 +66,9 @@ fdds::DomainParticipantQos participantQos(const DdsOptions& options, std::string
         // the kernel from dropping a burst (it caps the size at net.core.rmem_max).
         descriptor->sendBufferSize = 8u << 20;
         descriptor->receiveBufferSize = 8u << 20;
-        // Unicast discovery sends to the ports of a peer's first participant ids. Fast DDS numbers
-        // a process's participants 0, 1, 2, ... and never reuses a number, and the ports of id
-        // 119 reach the next domain's: 64 covers the participants a command makes in its life
-        // (one per dds device and publisher, a few more in the tests and `bench dds`).
-        descriptor->maxInitialPeersRange = 64;
+        // Unicast discovery sends to the ports of a peer's first kParticipantIds participant
+        // ids; Participant::create numbers participants so that they stay below it.
+        descriptor->maxInitialPeersRange = kParticipantIds;
         qos.transport().user_transports.push_back(descriptor);
     }
     if (shared_memory) {
@@ -95,6 +95,37 @@ fdds::DomainParticipantQos participantQos(const DdsOptions& options, std::string
     return qos;
 }
 
+// Fast DDS numbers a process's participants 0, 1, 2, ... and never reuses a number, while peers
+// find a participant only by the ports of its number (maxInitialPeersRange). A process that
+// makes many participants in its life (`bench dds` makes eight per row; a long-running host
+// opening devices) would number past the range and go unheard. So each participant gets the
+// lowest number no live participant of this process holds; one whose ports another process
+// holds is passed over.
+class ParticipantIds {
+public:
+    static ParticipantIds& get() {
+        static ParticipantIds ids;
+        return ids;
+    }
+    // The free numbers from the lowest, each marked used as it is offered; -1 when none is left.
+    int take(int after) {
+        std::lock_guard lock(mutex_);
+        for (int id = after + 1; id < kParticipantIds; ++id) {
+            if (used_.insert(id).second)
+                return id;
+        }
+        return -1;
+    }
+    void give(int id) {
+        std::lock_guard lock(mutex_);
+        used_.erase(id);
+    }
+
+private:
+    std::mutex mutex_;
+    std::set<int> used_;
+};
+
 }  // namespace
 
 Result<std::shared_ptr<Participant>> Participant::create(const DdsOptions& options,
@@ -102,8 +133,19 @@ Result<std::shared_ptr<Participant>> Participant::create(const DdsOptions& optio
     MIXRAY_RETURN_IF_ERROR(options.validate());
     std::shared_ptr<Participant> self(new Participant(options));
     auto* factory = fdds::DomainParticipantFactory::get_instance();
-    self->participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options.domain),
-                                                     participantQos(options, role));
+    fdds::DomainParticipantQos qos = participantQos(options, role);
+    for (int id = ParticipantIds::get().take(-1); id >= 0 && !self->participant_;) {
+        qos.wire_protocol().participant_id = id;
+        self->participant_ =
+            factory->create_participant(static_cast<fdds::DomainId_t>(options.domain), qos);
+        if (self->participant_) {
+            self->id_ = id;
+        } else {
+            const int next = ParticipantIds::get().take(id);
+            ParticipantIds::get().give(id);
+            id = next;
+        }
+    }
     if (!self->participant_) {
         return Status{ErrorCode::kUnavailable, "dds: cannot create a participant in domain " +
                                                    std::to_string(options.domain) + " on " +
@@ -129,6 +171,7 @@ Participant::~Participant() {
         return;
     participant_->delete_contained_entities();
     fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+    ParticipantIds::get().give(id_);
 }
 
 Result<fdds::Topic*> Participant::topic(const std::string& name, const fdds::TypeSupport& type) {

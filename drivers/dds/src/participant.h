@@ -22,6 +22,10 @@ namespace mixray::dds::detail {
 
 namespace fdds = eprosima::fastdds::dds;
 
+// Participant ids a process uses, 0..kParticipantIds-1, and the ids of a peer that discovery
+// reaches. The ports of id 119 would reach the next domain's.
+inline constexpr int kParticipantIds = 64;
+
 // Owns a DomainParticipant and everything made from it; the destructor deletes them all.
 // Thread-safe: Fast DDS entities are, and topic() locks.
 class Participant {
@@ -46,6 +50,7 @@ private:
 
     DdsOptions options_;
     fdds::DomainParticipant* participant_ = nullptr;
+    int id_ = -1;  // its participant id (ParticipantIds)
     fdds::Publisher* publisher_ = nullptr;
     fdds::Subscriber* subscriber_ = nullptr;
     std::mutex mutex_;

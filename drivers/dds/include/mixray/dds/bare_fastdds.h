@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "mixray/dds/dds_options.h"
@@ -31,11 +32,17 @@ inline constexpr int kBenchWindow = 2;
 // on the way must not stall the run). Polls every 20 µs.
 void waitForWindow(uint64_t sent, const std::atomic<uint64_t>& received, int64_t now_ns);
 
+// Runs `make` where one end's sockets and threads must be (its host: a network namespace, say);
+// the default runs it here.
+using HostScope = std::function<Status(const std::function<Status()>& make)>;
+
 // Writes `frames` samples of `payload_bytes` each (mixray_msgs Frame, so the bytes on the wire
 // match mixray's) from writer participant `writer` to reader participant `reader`, every
 // `period_ns` (0: as fast as they are received, kBenchWindow in flight), and takes them on a
-// thread of its own.
+// thread of its own. Each participant and its endpoint are made inside its HostScope.
 Result<BareRun> runBareFastDds(const DdsOptions& writer, const DdsOptions& reader,
-                               size_t payload_bytes, uint64_t frames, int64_t period_ns);
+                               size_t payload_bytes, uint64_t frames, int64_t period_ns,
+                               const HostScope& writer_host = {},
+                               const HostScope& reader_host = {});
 
 }  // namespace mixray::dds
