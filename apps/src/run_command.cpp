@@ -12,7 +12,9 @@
 #include "backends.h"
 #include "cli.h"
 #include "console.h"
+#include "dds_options_cli.h"
 #include "mixray/calibration/calibration_file.h"
+#include "mixray/dds/dds_publisher.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/rig.h"
 #include "mixray/liveview/live_view.h"
@@ -46,6 +48,10 @@ struct RunOptions {
     int max_depth = 2;
     int threads = 0;
     int camera_environment = kDefaultCameraEnvironmentWidth;
+    // --publish: the composite and the poses over DDS, for other hosts and (--ros2) ROS 2.
+    bool publish = false;
+    dds::DdsOptions dds;
+    std::string ros2_rig;
 };
 
 bool isRigFile(const fs::path& path) {
@@ -231,6 +237,36 @@ int runRun(const RunOptions& options) {
         if (Status s = p.graph().addNode(std::move(view)); !s)
             return fail("run", s);
     }
+    // What the pipeline makes goes over DDS like any stream: the composite to other mixray hosts
+    // (a dds device reads it), and with --ros2 as a ROS 2 image and the poses as tf.
+    if (options.publish || !options.ros2_rig.empty()) {
+        dds::DdsPublisherOptions publishing;
+        publishing.dds = options.dds;
+        publishing.ros2_rig = options.ros2_rig;
+        for (const std::string& made : {composite, std::string("tracking/pose")}) {
+            if (!made.empty() && p.graph().findStream(made))
+                publishing.streams.push_back(made);
+        }
+        if (publishing.streams.empty()) {
+            return fail("run", {ErrorCode::kInvalidArgument,
+                                "--publish: the pipeline makes no composite or poses to publish "
+                                "(give --scene, or --setup)"});
+        }
+        auto publisher = dds::DdsPublisher::create(publishing);
+        if (!publisher)
+            return fail("run", publisher.status());
+        std::string names;
+        for (const std::string& name : publishing.streams)
+            names += (names.empty() ? "" : ", ") + name;
+        std::printf(
+            "publishing %s over DDS as host '%s' in domain %d%s\n", names.c_str(),
+            (*publisher)->host().c_str(), options.dds.domain,
+            options.ros2_rig.empty()
+                ? ""
+                : (" (ROS 2: images under /" + options.ros2_rig + "/, poses on tf)").c_str());
+        if (Status s = p.graph().addNode(std::move(*publisher)); !s)
+            return fail("run", s);
+    }
     if (Status s = p.start(); !s)
         return fail("run", s);
     if (live_view)
@@ -315,6 +351,13 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
                     "Serve the live view (tiles, tracking overlay, figures) on [ADDR:]PORT; "
                     "loopback unless ADDR is given (docs/live-view.md)");
     sub->add_flag("--loop", o->loop, "Play the recording again at its end (long live runs)");
+    sub->add_flag("--publish", o->publish,
+                  "Publish the composite and the poses over DDS: other hosts read them as a dds "
+                  "device HOST/composite (docs/dds.md); binds loopback unless --address says");
+    sub->add_option("--ros2", o->ros2_rig,
+                    "Also publish them to ROS 2: the composite as /NAME/composite/color/image_raw, "
+                    "the poses on tf (implies --publish)");
+    addDdsOptions(*sub, o->dds);
     sub->add_option("--target-fps", o->target_fps,
                     "Frame rate the quality ladder holds at real pace (default: the colour "
                     "stream's; 0: never lower quality)");

@@ -257,7 +257,9 @@ Status CompositorNode::connect(Graph& graph) {
 
     StreamInfo out;
     out.name = options_.output_stream;
-    out.device = options_.name;
+    // Streams are named device/stream ("composite/color" is device "composite"), which is how
+    // other hosts address it (a dds device HOST/composite).
+    out.device = out.name.substr(0, out.name.find('/'));
     out.kind = StreamKind::kColor;
     out.format = ImageDesc::packed(PixelFormat::kRGB8, info.format.width, info.format.height);
     out.nominal_fps = info.nominal_fps;

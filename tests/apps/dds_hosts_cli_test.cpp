@@ -87,6 +87,42 @@ TEST(PublishToRos2, SaysWhichCameraInfoAndTransformsItPublishes) {
     EXPECT_NE(no_ros2.output.find("add --ros2"), std::string::npos) << no_ros2.output;
 }
 
+// The composite is a stream like any other: `mixray run --publish` puts it (and the poses) on
+// DDS, and another mixray reads it as a device and records it.
+TEST(RunPublish, AnotherHostRecordsTheComposite) {
+    const auto dir = tempDir();
+    const std::string domain = std::to_string(1 + getpid() % 200);
+    writeText(dir / "viewer.yaml",
+              "rig: viewer\ndevices:\n  - name: remote\n    driver: dds\n"
+              "    id: renderer/composite\n    options: {domain: " +
+                  domain + ", discovery_timeout_ms: 20000}\n");
+    CliProcess run =
+        startMixray({"run", (fixturesDir() / "sessions/sim_tabletop.mkv").string(), "--scene",
+                     (fixturesDir() / "scenes/sim_tabletop_demo.yaml").string(), "--max-depth", "0",
+                     "--loop", "--duration", "8", "--publish", "--ros2", "studio", "--host",
+                     "renderer", "--domain", domain, "-o", (dir / "run").string()},
+                    dir / "run.log");
+    const CliRun recorded = mixray("record " + q(dir / "viewer.yaml") + " -o " +
+                                   q(dir / "composite.mkv") + " --duration 4");
+    const CliRun ran = waitMixray(run);
+    ASSERT_EQ(ran.exit_code, 0) << ran.output;
+    EXPECT_NE(ran.output.find("publishing composite/color, tracking/pose over DDS as host "
+                              "'renderer'"),
+              std::string::npos)
+        << ran.output;
+    ASSERT_EQ(recorded.exit_code, 0) << recorded.output << "\n" << ran.output;
+    const CliRun info = mixray("info " + q(dir / "composite.mkv"));
+    ASSERT_EQ(info.exit_code, 0) << info.output;
+    const size_t at = info.output.find("remote/color");
+    ASSERT_NE(at, std::string::npos) << info.output;
+    const std::string line = info.output.substr(at, info.output.find('\n', at) - at);
+    EXPECT_NE(line.find("rgb8 640x480"), std::string::npos) << line;
+    const size_t frames = line.find(" frames");
+    ASSERT_NE(frames, std::string::npos) << line;
+    const size_t start = line.rfind(' ', frames - 1);
+    EXPECT_GE(std::stoi(line.substr(start + 1, frames - start - 1)), 10) << line;
+}
+
 // Three namespaces: a and b each joined to c by a veth pair. Deleted with the fixture.
 class Hosts : public ::testing::Test {
 protected:

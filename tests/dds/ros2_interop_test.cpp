@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include "mixray/dds/ros2_source.h"
 #include "mixray/dds/ros_types.h"
 #include "mixray/graph/graph.h"
+#include "mixray/graph/pose.h"
 #include "sensor_msgs/msg/CameraInfo.h"
 #include "sensor_msgs/msg/Image.h"
 #include "tf2_msgs/msg/TFMessage.h"
@@ -91,6 +94,17 @@ private:
     dds_entity_t participant_;
 };
 
+// A publisher as host "hostA" on loopback UDP in the test's domain, its ROS 2 topics under
+// `rig`.
+DdsPublisherOptions rosPublisher(const std::string& rig) {
+    DdsPublisherOptions options;
+    options.dds.domain = testDomain();
+    options.dds.host = "hostA";
+    options.dds.transport = DdsTransport::kUdp;
+    options.ros2_rig = rig;
+    return options;
+}
+
 // Adds a publisher of `options` to `graph` and starts the graph; nullptr when either fails.
 DdsPublisher* startPublishing(Graph& graph, const DdsPublisherOptions& options) {
     auto publisher = DdsPublisher::create(options);
@@ -133,11 +147,7 @@ TEST_P(Ros2Interop, CycloneReceivesTheImagesByteForByte) {
     const StreamInfo info = imageStream("cam", "image", c.kind, c.format, 640, 480);
     auto stream = addPooledStream(graph, info, 8);
     ASSERT_TRUE(stream.isOk());
-    DdsPublisherOptions options;
-    options.dds.domain = testDomain();
-    options.dds.host = "hostA";
-    options.dds.transport = DdsTransport::kUdp;
-    options.ros2_rig = "testrig";
+    DdsPublisherOptions options = rosPublisher("testrig");
     DdsPublisher* pub = startPublishing(graph, options);
     ASSERT_NE(pub, nullptr);
 
@@ -261,11 +271,7 @@ TEST(Ros2Calibration, CycloneReadsCameraInfoTfStaticAndTheTypeHashes) {
     camera.k = {525.5, 0, 319.25, 0, 526.5, 241.75, 0, 0, 1};
     camera.r = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     camera.p = {525.5, 0, 319.25, 0, 0, 526.5, 241.75, 0, 0, 0, 1, 0};
-    DdsPublisherOptions options;
-    options.dds.domain = testDomain();
-    options.dds.host = "hostA";
-    options.dds.transport = DdsTransport::kUdp;
-    options.ros2_rig = "studio";
+    DdsPublisherOptions options = rosPublisher("studio");
     options.ros2_camera_info["kinect/color"] = camera;
     options.ros2_transforms = {{.parent = "world",
                                 .child = "kinect/color",
@@ -420,6 +426,94 @@ TEST(Ros2Calibration, CycloneReadsCameraInfoTfStaticAndTheTypeHashes) {
     }
 
     EXPECT_GE(pub->stats().at(0).ros_camera_info_written, 3u);
+    graph.stop();
+}
+
+// Tracked poses (a kPose stream, as tracking/pose is in `mixray run`) go to ROS 2's tf: each
+// valid pose as the camera's transform in its anchor's frame, stamped as its frame; stale and
+// lost poses are not sent.
+TEST(Ros2Calibration, ValidTrackedPosesGoToTf) {
+    Graph graph;
+    auto stream =
+        addPooledStream(graph, makePoseStreamInfo("tracking/pose", "kinect/color", 30, false), 8);
+    ASSERT_TRUE(stream.isOk());
+    DdsPublisherOptions options = rosPublisher("studio");
+    DdsPublisher* pub = startPublishing(graph, options);
+    ASSERT_NE(pub, nullptr);
+    const Cyclone cyclone;
+    ASSERT_TRUE(cyclone.ok());
+    const dds_entity_t tf = cyclone.reader(&tf2_msgs_msg_dds__TFMessage__desc, "rt/tf");
+    ASSERT_GT(tf, 0) << dds_strretcode(tf);
+    const auto until = std::chrono::steady_clock::now() + 15s;
+    dds_subscription_matched_status_t matched{};
+    while (std::chrono::steady_clock::now() < until) {
+        (void)dds_get_subscription_matched_status(tf, &matched);
+        if (matched.current_count > 0)
+            break;
+        std::this_thread::sleep_for(10ms);
+    }
+    ASSERT_GT(matched.current_count, 0u);
+    std::this_thread::sleep_for(300ms);  // mixray's writer has matched Cyclone's reader too
+
+    // Sent: a valid pose in the marker's frame, a lost one, then a valid one in the world's.
+    const auto send = [&](uint64_t i, PoseStatus status, const std::string& anchor, int marker) {
+        PoseRecord pose;
+        pose.frame_sequence = i;
+        pose.status = status;
+        pose.anchor = anchor;
+        pose.marker_id = marker;
+        pose.translation = Eigen::Vector3d(0.1 * static_cast<double>(i + 1), -0.2, 1.5);
+        pose.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+        if (status != PoseStatus::kValid)
+            pose.reason = "marker 23 not seen";
+        auto bytes = encodePoseRecord(pose);
+        ASSERT_TRUE(bytes.isOk()) << bytes.status().toString();
+        WritableFrame frame = stream->pool->acquire();
+        ASSERT_TRUE(frame);
+        std::memcpy(frame.image().data, bytes->data(), bytes->size());
+        frame.setPayloadBytes(bytes->size());
+        frame.meta().stream = stream->id;
+        frame.meta().sequence = i;
+        frame.meta().host_stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                         std::chrono::steady_clock::now().time_since_epoch())
+                                         .count();
+        graph.publish(std::move(frame).publish());
+        // Paced as a camera's: the publisher's live edge keeps the newest two.
+        std::this_thread::sleep_for(50ms);
+    };
+    send(0, PoseStatus::kValid, "marker:23", 23);
+    send(1, PoseStatus::kLost, "marker:23", 23);
+    send(2, PoseStatus::kValid, "world", -1);
+
+    std::vector<std::tuple<std::string, std::string, double, double>> got;
+    void* samples[1] = {nullptr};
+    dds_sample_info_t info[1];
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    while (got.size() < 2 && std::chrono::steady_clock::now() < deadline) {
+        const int n = dds_take(tf, samples, info, 1, 1);
+        if (n <= 0) {
+            std::this_thread::sleep_for(20ms);
+            continue;
+        }
+        if (info[0].valid_data) {
+            const auto* message = static_cast<const tf2_msgs_msg_dds__TFMessage_*>(samples[0]);
+            EXPECT_EQ(message->transforms._length, 1u);
+            const auto& t = message->transforms._buffer[0];
+            got.emplace_back(t.header.frame_id, t.child_frame_id, t.transform.translation.x,
+                             t.transform.rotation.z);
+        }
+        dds_return_loan(tf, samples, n);
+        samples[0] = nullptr;
+    }
+    std::this_thread::sleep_for(300ms);
+    EXPECT_LE(dds_take(tf, samples, info, 1, 1), 0) << "the lost pose went to tf";
+    ASSERT_EQ(got.size(), 2u);
+    EXPECT_EQ(std::get<0>(got[0]), "marker_23");
+    EXPECT_EQ(std::get<1>(got[0]), "kinect_color");
+    EXPECT_DOUBLE_EQ(std::get<2>(got[0]), 0.1);
+    EXPECT_NEAR(std::get<3>(got[0]), std::sin(0.15), 1e-12);
+    EXPECT_EQ(std::get<0>(got[1]), "world");
+    EXPECT_DOUBLE_EQ(std::get<2>(got[1]), 0.30000000000000004);
     graph.stop();
 }
 

@@ -10,6 +10,7 @@
 
 #include "frame_message.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/pose.h"
 #include "participant.h"
 #include "ros_camera.h"
 #include "ros_image.h"
@@ -55,6 +56,10 @@ struct DdsPublisher::Impl {
         fdds::DataWriter* writer = nullptr;
         fdds::DataWriter* ros_writer = nullptr;
         fdds::DataWriter* ros_camera_info_writer = nullptr;
+        // A pose stream's poses go to ROS 2 as tf (the shared rt/tf writer), the camera its
+        // `pose_of` tag names as the child frame.
+        bool ros_tf = false;
+        std::string tf_child;
         std::optional<std::string_view> ros_encoding;
         std::optional<calibration::RosCameraInfo> camera_info;
         fdds::InstanceHandle_t announcement;
@@ -73,6 +78,7 @@ struct DdsPublisher::Impl {
     std::shared_ptr<detail::Participant> participant;
     fdds::DataWriter* announcer = nullptr;
     fdds::DataWriter* tf_static_writer = nullptr;
+    fdds::DataWriter* tf_writer = nullptr;  // shared by every pose stream
     // Answers other hosts' clock requests for as long as this host publishes.
     std::unique_ptr<detail::TimeResponder> time_responder;
     std::atomic<bool> stopping{false};
@@ -92,6 +98,9 @@ struct DdsPublisher::Impl {
     }
     Status createWriters();
     Status createRosWriters(Stream& stream);
+    // A valid pose as one tf transform, stamped as its frame; stale and lost poses are not
+    // sent (tf would take them for current).
+    void writeTf(Stream& stream, const FrameRef& frame);
     // Checks each calibration against the stream it names and hands it to the stream.
     Status assignCameraInfo();
 };
@@ -105,6 +114,8 @@ void DdsPublisher::Impl::run(Stream& stream) {
     const std::string frame_id = detail::rosFrameId(stream.info.name);
     while (!stopping.load(std::memory_order_relaxed)) {
         std::optional<FrameRef> frame = stream.queue->pop(std::chrono::milliseconds(100));
+        if (frame && stream.ros_tf)
+            writeTf(stream, *frame);
         if (!frame) {
             if (stream.queue->closed()) {
                 // Graph::stop() closes every queue too, after it stops running.
@@ -180,6 +191,17 @@ Status DdsPublisher::Impl::createWriters() {
                     "dds publisher: cannot create a writer for " + stream->topic};
         if (!options.ros2_rig.empty() && stream->ros_encoding)
             MIXRAY_RETURN_IF_ERROR(createRosWriters(*stream));
+        if (!options.ros2_rig.empty() && stream->ros_tf && !tf_writer) {
+            auto tf_topic = participant->topic(detail::kRosTfTopic, detail::rosTfType());
+            if (!tf_topic)
+                return tf_topic.status();
+            // tf2_ros's broadcaster and listeners: reliable, volatile, keep last 100.
+            tf_writer = participant->publisher()->create_datawriter(
+                *tf_topic, detail::withRosTypeHash(detail::frameWriterQos(options.dds, 100),
+                                                   "tf2_msgs/msg/TFMessage"));
+            if (!tf_writer)
+                return {ErrorCode::kInternal, "dds publisher: cannot create the tf writer"};
+        }
         detail::AnnouncementMessage announcement =
             detail::toAnnouncement(stream->info, host, deviceStreams(stream->info.device));
         stream->announcement = announcer->register_instance(&announcement);
@@ -200,6 +222,25 @@ Status DdsPublisher::Impl::createWriters() {
             return {ErrorCode::kInternal, "dds publisher: cannot write tf_static"};
     }
     return Status::ok();
+}
+
+void DdsPublisher::Impl::writeTf(Stream& stream, const FrameRef& frame) {
+    auto pose = decodePoseRecord(frame.image());
+    if (!pose || pose->status != PoseStatus::kValid)
+        return;
+    const Eigen::Isometry3d T = pose->transform();
+    const Eigen::Quaterniond q(T.rotation());
+    const calibration::RosTransform transform{
+        .parent = pose->anchor,
+        .child = stream.tf_child,
+        .translation = {T.translation().x(), T.translation().y(), T.translation().z()},
+        .rotation_xyzw = {q.x(), q.y(), q.z(), q.w()}};
+    detail::RosTfMessage message =
+        detail::toRosTf({transform}, detail::liveRosStampNs(frame.meta()));
+    if (tf_writer->write(&message))
+        stream.ros_written.fetch_add(1, std::memory_order_relaxed);
+    else
+        stream.write_errors.fetch_add(1, std::memory_order_relaxed);
 }
 
 Status DdsPublisher::Impl::createRosWriters(Stream& stream) {
@@ -291,6 +332,12 @@ Status DdsPublisher::connect(Graph& graph) {
         stream->info = graph.stream(id);
         stream->topic = frameTopic(d.host, stream->info.name);
         stream->ros_encoding = detail::rosEncoding(stream->info.format.format);
+        if (stream->info.kind == StreamKind::kPose) {
+            const auto pose_of = stream->info.tags.find("pose_of");
+            stream->ros_tf = pose_of != stream->info.tags.end();
+            if (stream->ros_tf)
+                stream->tf_child = pose_of->second;
+        }
         auto queue = graph.subscribe(
             id,
             {.capacity = d.options.queue_capacity, .policy = QueuePolicy::kLive, .name = name()});
@@ -307,7 +354,7 @@ Status DdsPublisher::connect(Graph& graph) {
         d.participant.reset();
         for (auto& stream : d.streams)
             stream->writer = stream->ros_writer = stream->ros_camera_info_writer = nullptr;
-        d.announcer = d.tf_static_writer = nullptr;
+        d.announcer = d.tf_static_writer = d.tf_writer = nullptr;
         return made;
     }
     return Status::ok();
@@ -358,7 +405,7 @@ void DdsPublisher::stop() {
             (void)d.announcer->unregister_instance(&announcement, stream->announcement);
         stream->writer = stream->ros_writer = stream->ros_camera_info_writer = nullptr;
     }
-    d.announcer = d.tf_static_writer = nullptr;
+    d.announcer = d.tf_static_writer = d.tf_writer = nullptr;
     d.time_responder.reset();
     d.participant.reset();
 }

@@ -19,6 +19,15 @@ std::string rosCameraInfoTopic(std::string_view rig, std::string_view stream) {
     return "rt/" + std::string(rig) + "/" + std::string(stream) + "/camera_info";
 }
 
+std::string rosTfFrame(std::string_view name) {
+    std::string id(name);
+    for (char& c : id) {
+        if (c == '/' || c == ':')
+            c = '_';
+    }
+    return id;
+}
+
 void toRosCameraInfo(const calibration::RosCameraInfo& info, RosCameraInfoMessage* message) {
     message->height(info.height);
     message->width(info.width);
@@ -38,8 +47,8 @@ RosTfMessage toRosTf(const std::vector<calibration::RosTransform>& transforms, i
     for (const calibration::RosTransform& t : transforms) {
         geometry_msgs::msg::dds_::TransformStamped_ stamped;
         stamped.header().stamp(rosTime(wall_ns));
-        stamped.header().frame_id(rosFrameId(t.parent));
-        stamped.child_frame_id(rosFrameId(t.child));
+        stamped.header().frame_id(rosTfFrame(t.parent));
+        stamped.child_frame_id(rosTfFrame(t.child));
         stamped.transform().translation().x(t.translation[0]);
         stamped.transform().translation().y(t.translation[1]);
         stamped.transform().translation().z(t.translation[2]);
