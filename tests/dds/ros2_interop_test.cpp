@@ -647,6 +647,28 @@ TEST(Ros2Source, AnImageTopicOfAnotherDdsIsAMixrayDeviceByteForByte) {
     graph.stop();
 }
 
+// The conversion the device makes, on bytes (the fuzz target's seam): a padded mono16 image
+// makes a mono16 stream of its stride, and comes back as a frame of it byte for byte.
+TEST(Ros2Source, AnImageSampleMakesItsStreamAndFrame) {
+    Image padded(
+        ImageDesc{.format = PixelFormat::kMono16, .width = 5, .height = 3, .stride_bytes = 16});
+    for (size_t k = 0; k < padded.bytes().size(); ++k)
+        padded.bytes()[k] = static_cast<uint8_t>(k * 3);
+    const auto sample = serializeRosImage(padded.view(), 1'700'000'000'250'000'000, "cam");
+    auto stream = rosImageStream(sample, "robot", "/robot/image_raw");
+    ASSERT_TRUE(stream.isOk()) << stream.status().toString();
+    EXPECT_EQ(stream->name, "robot/image");
+    EXPECT_EQ(stream->format, padded.desc());
+    EXPECT_EQ(stream->kind, StreamKind::kMono);
+    FrameMetadata meta;
+    Image image;
+    ASSERT_TRUE(rosImageFrame(sample, *stream, &meta, &image).isOk());
+    EXPECT_EQ(meta.device_stamp_ns, 1'700'000'000'250'000'000);
+    EXPECT_EQ(image.bytes(), padded.bytes());
+    const std::vector<uint8_t> garbage{0, 1, 0, 0, 9, 9, 9};
+    EXPECT_EQ(rosImageStream(garbage, "robot", "/t").status().code(), ErrorCode::kCorruptData);
+}
+
 TEST(Ros2Source, NoPublisherAnOddEncodingAndABadTopicAreSaid) {
     Ros2Backend backend;
     DeviceConfig config;

@@ -1,11 +1,13 @@
 // libFuzzer target for the DDS messages another host sends (drivers/dds): the first byte picks
 // a mixray_msgs Frame (deserializeFrame, against a small rgb8 stream), a StreamAnnouncement
-// (deserializeAnnouncement) or a TimeExchange (deserializeTimeExchange); the rest is the CDR
-// sample as a DDS reader receives it. Any bytes give a clean kCorruptData, never a throw or a
+// (deserializeAnnouncement) or a TimeExchange (deserializeTimeExchange), or from 0xF0 on a ROS 2
+// node's sensor_msgs Image (rosImageStream, rosImageFrame); the rest is the CDR sample as a DDS
+// reader receives it. Any bytes give a clean kCorruptData, never a throw or a
 // crash (fastcdr throws more than Fast DDS's generated code catches); an accepted frame fits the
 // stream and serializes and reads back to the same frame; an accepted announcement is a stream
 // the graph can declare; an accepted exchange reads back the same, and its stamps, fed to a
-// HostClockEstimator and mapped through its fit, overflow nothing (UBSan watches).
+// HostClockEstimator and mapped through its fit, overflow nothing (UBSan watches); an image
+// that makes a stream is a frame of that stream with exactly its bytes.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -15,6 +17,7 @@
 
 #include "mixray/dds/frame_message.h"
 #include "mixray/dds/host_clock.h"
+#include "mixray/dds/ros2_source.h"
 
 namespace {
 
@@ -39,6 +42,28 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size == 0)
         return 0;
     const std::span<const uint8_t> bytes(data + 1, size - 1);
+    if (data[0] >= 0xF0) {
+        auto stream = dds::rosImageStream(bytes, "robot", "/robot/image_raw");
+        if (!stream.isOk()) {
+            const ErrorCode code = stream.status().code();
+            if (code != ErrorCode::kCorruptData && code != ErrorCode::kUnsupported)
+                broken("image rejection is neither kCorruptData nor kUnsupported",
+                       stream.status().toString());
+            return 0;
+        }
+        const ImageDesc& f = stream->format;
+        if (f.width <= 0 || f.height <= 0 ||
+            f.stride_bytes < ImageDesc::packed(f.format, f.width, f.height).stride_bytes)
+            broken("accepted image makes no stream", stream->name);
+        FrameMetadata meta;
+        Image image;
+        const Status frame = dds::rosImageFrame(bytes, *stream, &meta, &image);
+        if (!frame.isOk())
+            broken("the image that made the stream is no frame of it", frame.toString());
+        if (image.bytes().size() != f.bufferBytes() || meta.clock_domain != stream->clock_domain)
+            broken("the frame does not fit its stream", "");
+        return 0;
+    }
     if (data[0] % 3 == 2) {
         auto exchange = dds::deserializeTimeExchange(bytes);
         if (!exchange.isOk()) {

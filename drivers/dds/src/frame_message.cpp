@@ -196,44 +196,21 @@ Result<StreamInfo> streamOf(const AnnouncementMessage& announcement) {
 
 }  // namespace detail
 
-namespace {
-
-template <typename Type, typename Message>
-std::vector<uint8_t> serialize(Message& message) {
-    Type type;
-    eprosima::fastrtps::rtps::SerializedPayload_t payload(
-        type.getSerializedSizeProvider(&message)());
-    type.serialize(&message, &payload);
-    return {payload.data, payload.data + payload.length};
-}
-
-// What a reader of the topic does with the bytes of a sample.
-template <typename Type, typename Message>
-bool deserialize(std::span<const uint8_t> bytes, Message* message) {
-    detail::GuardedType<Type> type;
-    eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<uint32_t>(bytes.size()));
-    if (!bytes.empty())
-        std::memcpy(payload.data, bytes.data(), bytes.size());
-    payload.length = static_cast<uint32_t>(bytes.size());
-    return type.deserialize(&payload, message);
-}
-
-}  // namespace
-
 std::vector<uint8_t> serializeFrame(const FrameMetadata& meta, const ImageView& image) {
     detail::FrameMessage message;
     detail::toMessage(meta, image, &message);
-    return serialize<mixray_msgs::msg::dds_::Frame_PubSubType>(message);
+    return detail::serializeSample<mixray_msgs::msg::dds_::Frame_PubSubType>(message);
 }
 
 std::vector<uint8_t> serializeAnnouncement(const StreamInfo& stream, const std::string& host) {
     detail::AnnouncementMessage message = detail::toAnnouncement(stream, host, {stream.name});
-    return serialize<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(message);
+    return detail::serializeSample<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(message);
 }
 
 Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes) {
     detail::AnnouncementMessage message;
-    if (!deserialize<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(bytes, &message)) {
+    if (!detail::deserializeSample<mixray_msgs::msg::dds_::StreamAnnouncement_PubSubType>(
+            bytes, &message)) {
         return Status{ErrorCode::kCorruptData,
                       "dds announcement: not a mixray_msgs StreamAnnouncement in CDR"};
     }
@@ -242,12 +219,13 @@ Result<StreamInfo> deserializeAnnouncement(std::span<const uint8_t> bytes) {
 
 std::vector<uint8_t> serializeTimeExchange(const TimeExchange& exchange) {
     detail::TimeExchangeMessage message = detail::toMessage(exchange);
-    return serialize<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(message);
+    return detail::serializeSample<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(message);
 }
 
 Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes) {
     detail::TimeExchangeMessage message;
-    if (!deserialize<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(bytes, &message)) {
+    if (!detail::deserializeSample<mixray_msgs::msg::dds_::TimeExchange_PubSubType>(bytes,
+                                                                                    &message)) {
         return Status{ErrorCode::kCorruptData,
                       "dds time exchange: not a mixray_msgs TimeExchange in CDR"};
     }
@@ -263,7 +241,7 @@ Result<TimeExchange> deserializeTimeExchange(std::span<const uint8_t> bytes) {
 Status deserializeFrame(std::span<const uint8_t> bytes, const StreamInfo& stream,
                         FrameMetadata* meta, Image* image) {
     detail::FrameMessage message;
-    if (!deserialize<mixray_msgs::msg::dds_::Frame_PubSubType>(bytes, &message))
+    if (!detail::deserializeSample<mixray_msgs::msg::dds_::Frame_PubSubType>(bytes, &message))
         return {ErrorCode::kCorruptData, "dds frame: not a mixray_msgs Frame in CDR"};
     MIXRAY_RETURN_IF_ERROR(detail::checkMessage(message, stream));
     *meta = detail::metadataOf(message);

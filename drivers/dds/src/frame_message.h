@@ -2,9 +2,14 @@
 // types that carry them. Internal to drivers/dds.
 #pragma once
 
+#include <fastdds/rtps/common/SerializedPayload.h>
+
+#include <cstring>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 #include <memory>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "mixray/dds/frame_message.h"
 #include "mixray/graph/frame.h"
@@ -34,6 +39,28 @@ public:
         }
     }
 };
+
+// A message in CDR with its encapsulation header, as a writer of `Type` sends it.
+template <typename Type, typename Message>
+std::vector<uint8_t> serializeSample(Message& message) {
+    Type type;
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(
+        type.getSerializedSizeProvider(&message)());
+    type.serialize(&message, &payload);
+    return {payload.data, payload.data + payload.length};
+}
+
+// What a reader of a `Type` topic does with the bytes of a sample: false for bytes that are not
+// one. Never throws.
+template <typename Type, typename Message>
+bool deserializeSample(std::span<const uint8_t> bytes, Message* message) {
+    GuardedType<Type> type;
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<uint32_t>(bytes.size()));
+    if (!bytes.empty())
+        std::memcpy(payload.data, bytes.data(), bytes.size());
+    payload.length = static_cast<uint32_t>(bytes.size());
+    return type.deserialize(&payload, message);
+}
 
 // The topic type of frames and of announcements (type names as mixray_msgs puts them on the
 // wire: "mixray_msgs::msg::dds_::Frame_").

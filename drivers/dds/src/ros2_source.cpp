@@ -7,6 +7,7 @@
 #include <mutex>
 #include <thread>
 
+#include "frame_message.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
@@ -35,7 +36,95 @@ int64_t stampNs(const detail::RosImage& image) {
     return int64_t{image.header().stamp().sec()} * 1'000'000'000 + image.header().stamp().nanosec();
 }
 
+// Whether `image` is a frame of `stream`: its encoding, size, row step and data length.
+bool fitsStream(const detail::RosImage& image, const StreamInfo& stream) {
+    const ImageDesc& desc = stream.format;
+    return image.encoding() == detail::rosEncoding(desc.format) &&
+           image.width() == static_cast<uint32_t>(desc.width) &&
+           image.height() == static_cast<uint32_t>(desc.height) &&
+           image.step() == static_cast<uint32_t>(desc.stride_bytes) && image.is_bigendian() == 0 &&
+           image.data().size() == desc.bufferBytes();
+}
+
+// The stream `device` makes of `first`, an image of `topic`.
+Result<StreamInfo> streamOf(const detail::RosImage& first, const std::string& device,
+                            const std::string& topic) {
+    const std::optional<PixelFormat> format = pixelFormatOfRosEncoding(first.encoding());
+    if (!format) {
+        return Status(ErrorCode::kUnsupported,
+                      topic + " is " + first.encoding() +
+                          ", which mixray has no pixel format for (rgb8, bgr8, mono8, mono16, "
+                          "16UC1, bayer_*8, yuv422_yuy2)");
+    }
+    constexpr uint32_t kMaxSide = 1 << 15;
+    if (first.width() == 0 || first.height() == 0 || first.width() > kMaxSide ||
+        first.height() > kMaxSide) {
+        return Status(ErrorCode::kCorruptData, topic + "'s image is " +
+                                                   std::to_string(first.width()) + "x" +
+                                                   std::to_string(first.height()));
+    }
+    ImageDesc desc = ImageDesc::packed(*format, static_cast<int>(first.width()),
+                                       static_cast<int>(first.height()));
+    if (first.is_bigendian() != 0 || first.step() < static_cast<uint32_t>(desc.stride_bytes) ||
+        first.step() > static_cast<uint32_t>(desc.stride_bytes) + 4096 ||
+        first.data().size() != size_t{first.step()} * first.height()) {
+        return Status(ErrorCode::kCorruptData, topic + "'s images are not a " + first.encoding() +
+                                                   " image of " + std::to_string(first.width()) +
+                                                   "x" + std::to_string(first.height()) +
+                                                   " in little-endian rows of step bytes (step " +
+                                                   std::to_string(first.step()) + ", " +
+                                                   std::to_string(first.data().size()) + " bytes)");
+    }
+    desc.stride_bytes = static_cast<int>(first.step());
+    StreamInfo info;
+    info.name = device + "/image";
+    info.device = device;
+    info.kind = kindOf(*format);
+    info.format = desc;
+    info.clock_domain = deviceClockDomain("ros2", topic);
+    info.tags["ros2.topic"] = topic;
+    info.tags["ros2.frame_id"] = first.header().frame_id();
+    info.tags["ros2.encoding"] = first.encoding();
+    return info;
+}
+
 }  // namespace
+
+Result<StreamInfo> rosImageStream(std::span<const uint8_t> sample, const std::string& device,
+                                  const std::string& topic) {
+    detail::RosImage image;
+    if (!detail::deserializeSample<sensor_msgs::msg::dds_::Image_PubSubType>(sample, &image))
+        return Status(ErrorCode::kCorruptData, "ros2: not a sensor_msgs Image in CDR");
+    return streamOf(image, device, topic);
+}
+
+Status rosImageFrame(std::span<const uint8_t> sample, const StreamInfo& stream, FrameMetadata* meta,
+                     Image* image) {
+    detail::RosImage message;
+    if (!detail::deserializeSample<sensor_msgs::msg::dds_::Image_PubSubType>(sample, &message))
+        return {ErrorCode::kCorruptData, "ros2: not a sensor_msgs Image in CDR"};
+    if (!fitsStream(message, stream))
+        return {ErrorCode::kCorruptData, "ros2: the image is not of stream " + stream.name};
+    *meta = FrameMetadata{};
+    meta->device_stamp_ns = stampNs(message);
+    meta->clock_domain = stream.clock_domain;
+    *image = Image(stream.format);
+    image->bytes().assign(message.data().begin(), message.data().end());
+    return Status::ok();
+}
+
+std::vector<uint8_t> serializeRosImage(const ImageView& image, int64_t stamp_ns,
+                                       const std::string& frame_id) {
+    detail::RosImage message;
+    message.header().stamp(detail::rosTime(stamp_ns));
+    message.header().frame_id(frame_id);
+    message.height(static_cast<uint32_t>(image.desc.height));
+    message.width(static_cast<uint32_t>(image.desc.width));
+    message.encoding(std::string(detail::rosEncoding(image.desc.format).value_or("")));
+    message.step(static_cast<uint32_t>(image.desc.stride_bytes));
+    message.data().assign(image.data, image.data + image.size_bytes);
+    return detail::serializeSample<sensor_msgs::msg::dds_::Image_PubSubType>(message);
+}
 
 std::optional<PixelFormat> pixelFormatOfRosEncoding(std::string_view encoding) {
     // The formats the publisher writes (rosEncoding), read back; mono16 is read as mono, not IR.
@@ -98,12 +187,7 @@ void Ros2ImageDevice::Impl::take(detail::RosImage& image) {
             continue;
         const int64_t arrival_ns = monotonicNowNs();
         received.fetch_add(1, std::memory_order_relaxed);
-        const ImageDesc& desc = info.format;
-        const bool fits = image.encoding() == detail::rosEncoding(desc.format) &&
-                          image.width() == static_cast<uint32_t>(desc.width) &&
-                          image.height() == static_cast<uint32_t>(desc.height) &&
-                          image.step() == static_cast<uint32_t>(desc.stride_bytes) &&
-                          image.is_bigendian() == 0 && image.data().size() == desc.bufferBytes();
+        const bool fits = fitsStream(image, info);
         if (!fits) {
             rejected.fetch_add(1, std::memory_order_relaxed);
             continue;
@@ -252,34 +336,10 @@ Result<std::unique_ptr<Device>> Ros2Backend::open(const DeviceConfig& config) {
                                                   : "") +
                           ")");
     }
-    const std::optional<PixelFormat> format = pixelFormatOfRosEncoding(first.encoding());
-    if (!format) {
-        return Status(ErrorCode::kUnsupported,
-                      who + ": " + impl->topic + " is " + first.encoding() +
-                          ", which mixray has no pixel format for (rgb8, bgr8, mono8, mono16, "
-                          "16UC1, bayer_*8, yuv422_yuy2)");
-    }
-    ImageDesc desc = ImageDesc::packed(*format, static_cast<int>(first.width()),
-                                       static_cast<int>(first.height()));
-    if (first.is_bigendian() != 0 || first.step() < static_cast<uint32_t>(desc.stride_bytes) ||
-        first.data().size() != size_t{first.step()} * first.height()) {
-        return Status(
-            ErrorCode::kUnsupported,
-            who + ": " + impl->topic + "'s images are not a " + first.encoding() + " image of " +
-                std::to_string(first.width()) + "x" + std::to_string(first.height()) +
-                " in little-endian rows of step bytes (step " + std::to_string(first.step()) +
-                ", " + std::to_string(first.data().size()) + " bytes)");
-    }
-    desc.stride_bytes = static_cast<int>(first.step());
-    StreamInfo& info = impl->info;
-    info.name = config.name + "/image";
-    info.device = config.name;
-    info.kind = kindOf(*format);
-    info.format = desc;
-    info.clock_domain = deviceClockDomain("ros2", impl->topic);
-    info.tags["ros2.topic"] = impl->topic;
-    info.tags["ros2.frame_id"] = first.header().frame_id();
-    info.tags["ros2.encoding"] = first.encoding();
+    auto info = streamOf(first, config.name, impl->topic);
+    if (!info)
+        return info.status().withContext(who);
+    impl->info = std::move(info).value();
     return std::unique_ptr<Device>(new Ros2ImageDevice(std::move(impl)));
 }
 

@@ -5,11 +5,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "mixray/dds/dds_options.h"
 #include "mixray/graph/device.h"
+#include "mixray/graph/image.h"
 
 namespace mixray::dds {
 
@@ -39,6 +42,21 @@ Status parseRos2SourceOptions(const DeviceConfig& config, Ros2SourceOptions* opt
 // The graph pixel format of a sensor_msgs/image_encodings name ("rgb8", "16UC1"); nullopt for
 // encodings mixray has no format for (32FC1, rgba8, 16-bit colour, ...).
 std::optional<PixelFormat> pixelFormatOfRosEncoding(std::string_view encoding);
+
+// A sensor_msgs/msg/Image sample as the ros2 device reads it, for tests and fuzzing (the device
+// converts the same way):
+//   rosImageStream: the stream `device` makes of its first sample from `topic`;
+//   rosImageFrame: a later sample as a frame of that stream (its header stamp as device stamp).
+// kCorruptData when the bytes are not an Image in CDR, or the image is not what its encoding,
+// width, height and step say (or not of the stream); kUnsupported for an encoding mixray has
+// no format for. Never throws.
+Result<StreamInfo> rosImageStream(std::span<const uint8_t> sample, const std::string& device,
+                                  const std::string& topic);
+Status rosImageFrame(std::span<const uint8_t> sample, const StreamInfo& stream, FrameMetadata* meta,
+                     Image* image);
+// An image as a ROS 2 node sends it (sensor_msgs/msg/Image in CDR), for tests and seeds.
+std::vector<uint8_t> serializeRosImage(const ImageView& image, int64_t stamp_ns,
+                                       const std::string& frame_id);
 
 struct Ros2SourceStats {
     uint64_t received = 0;        // images taken from DDS
