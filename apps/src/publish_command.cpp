@@ -2,7 +2,6 @@
 // other hosts (the dds backend) and for ROS 2 (--ros2).
 #include <chrono>
 #include <cstdio>
-#include <map>
 #include <thread>
 
 #include "backends.h"
@@ -10,8 +9,8 @@
 #include "console.h"
 #include "dds_options_cli.h"
 #include "mixray/calibration/calibration_file.h"
-#include "mixray/calibration/ros_camera_info.h"
 #include "mixray/dds/dds_publisher.h"
+#include "mixray/dds/ros_calibration.h"
 #include "mixray/graph/graph.h"
 #include "mixray/graph/host_time.h"
 #include "mixray/graph/rig.h"
@@ -27,59 +26,6 @@ struct PublishOptions {
     int wait_readers = 0;
     double wait_timeout_s = 60;
 };
-
-// The calibration ROS 2 sees (CameraInfo beside each image, the extrinsics on tf_static), from
-// `calibration` when named, else from the files the rig names for each stream: a camera named
-// as the stream, or the only camera of a file the rig gives that stream alone.
-Status addRosCalibration(const RigDescription& rig, const Graph& graph,
-                         const std::string& calibration, dds::DdsPublisherOptions* publisher) {
-    std::map<std::string, calibration::CalibrationFile> files;
-    const auto load = [&](const std::string& path) -> Result<const calibration::CalibrationFile*> {
-        auto found = files.find(path);
-        if (found == files.end()) {
-            auto read = calibration::importCalibration(path);
-            if (!read)
-                return read.status();
-            for (const calibration::RosTransform& t : calibration::toRosTransforms(*read)) {
-                bool known = false;
-                for (const auto& existing : publisher->ros2_transforms)
-                    known = known || existing.child == t.child;
-                if (!known)
-                    publisher->ros2_transforms.push_back(t);
-            }
-            found = files.emplace(path, std::move(read).value()).first;
-        }
-        return &found->second;
-    };
-    for (StreamId id = 0; id < graph.streamCount(); ++id) {
-        const StreamInfo& info = graph.stream(id);
-        if (!dds::rosImageEncoding(info.format.format))
-            continue;
-        std::string path = calibration;
-        bool stream_alone = false;
-        if (path.empty()) {
-            const std::string stream = info.name.substr(info.name.find('/') + 1);
-            const RigCalibrationFile* entry = rig.findCalibration(info.device, stream);
-            if (!entry)
-                continue;
-            path = entry->resolved.string();
-            stream_alone = !entry->stream.empty();
-        }
-        auto file = load(path);
-        if (!file)
-            return file.status();
-        const calibration::CalibratedCamera* camera = (*file)->find(info.name);
-        if (!camera && stream_alone && (*file)->cameras.size() == 1)
-            camera = &(*file)->cameras.front();
-        if (!camera)
-            continue;
-        auto camera_info = calibration::toRosCameraInfo(*camera);
-        if (!camera_info)
-            return camera_info.status();
-        publisher->ros2_camera_info[info.name] = std::move(camera_info).value();
-    }
-    return Status::ok();
-}
 
 int runPublish(const PublishOptions& options) {
     InterruptFlag interrupt;
@@ -97,9 +43,24 @@ int runPublish(const PublishOptions& options) {
     }
     dds::DdsPublisherOptions publisher_options = options.publisher;
     if (!publisher_options.ros2_rig.empty()) {
-        if (Status added = addRosCalibration(*rig, graph, options.calibration, &publisher_options);
-            !added)
-            return fail("publish", added);
+        // --calibration stands for every calibration file the rig names (and for the rig's own
+        // when it names none).
+        RigDescription calibrated = *rig;
+        if (!options.calibration.empty()) {
+            calibrated.calibration = {{.device = "",
+                                       .stream = "",
+                                       .path = options.calibration,
+                                       .resolved = options.calibration,
+                                       .where = {}}};
+        }
+        auto ros =
+            dds::rosCalibrationOf(calibrated, graph.streams(), [](const RigCalibrationFile& entry) {
+                return calibration::importCalibration(entry.resolved);
+            });
+        if (!ros)
+            return fail("publish", ros.status());
+        publisher_options.ros2_camera_info = std::move(ros->camera_info);
+        publisher_options.ros2_transforms = std::move(ros->transforms);
     } else if (!options.calibration.empty()) {
         return fail("publish",
                     {ErrorCode::kInvalidArgument,

@@ -50,9 +50,26 @@ TEST(McapExport, FoxglovesReadersGetEveryImageByteForByteWithItsStamp) {
     header.streams = {stream("kinect/color", StreamKind::kColor, PixelFormat::kRGB8),
                       stream("kinect/depth", StreamKind::kDepth, PixelFormat::kDepth16),
                       stream("env/color", StreamKind::kColor, PixelFormat::kMJPEG)};
-    const std::string rig = "rig: my-studio\ndevices:\n  - name: kinect\n    driver: pattern\n";
-    header.attachments = {{"rig.yaml", "application/x-yaml", {rig.begin(), rig.end()}},
-                          {"calibration.yaml", "application/x-yaml", {1, 2, 3, 4, 5}}};
+    // The rig names the Kinect's calibration, which the recording carries: kinect/color's
+    // camera is calibrated at the stream's size, kinect/depth's at another.
+    const std::string rig =
+        "rig: my-studio\ndevices:\n  - name: kinect\n    driver: pattern\n"
+        "    calibration: calib/kinect.yaml\n";
+    const std::string calibration =
+        "version: 1\ncameras:\n"
+        "  - name: kinect/color\n"
+        "    model: {lens: pinhole, width: 64, height: 48, fx: 50, fy: 51, cx: 31.5, cy: 23.5,\n"
+        "            distortion: [0.1, -0.2, 0.001, 0.002]}\n"
+        "    parent: world\n"
+        "    T_parent_camera: {translation: [0.1, 0.2, 0.3], quaternion: [1, 0, 0, 0]}\n"
+        "  - name: kinect/depth\n"
+        "    model: {lens: pinhole, width: 32, height: 24, fx: 25, fy: 25, cx: 15.5, cy: 11.5,\n"
+        "            distortion: []}\n"
+        "    parent: kinect/color\n"
+        "    T_parent_camera: {translation: [-0.025, 0, 0], quaternion: [1, 0, 0, 0]}\n";
+    header.attachments = {
+        {"rig.yaml", "application/x-yaml", {rig.begin(), rig.end()}},
+        {"kinect.yaml", "application/x-yaml", {calibration.begin(), calibration.end()}}};
     constexpr int64_t kUtcMinusHost = 1'795'000'000'000'000'000;
     header.tags = {{std::string(kUtcMinusHostTag), std::to_string(kUtcMinusHost)},
                    {"title", "a test session"}};
@@ -61,7 +78,11 @@ TEST(McapExport, FoxglovesReadersGetEveryImageByteForByteWithItsStamp) {
     ASSERT_EQ(unwritable.size(), 1u);
     EXPECT_EQ(unwritable[0].first, 2u);
     EXPECT_NE(unwritable[0].second.find("env/color"), std::string::npos) << unwritable[0].second;
-    EXPECT_EQ(mcapChangedData(header).size(), 1u) << "stamps are on UTC: the tag is there";
+    const std::vector<std::string> changed = mcapChangedData(header);
+    ASSERT_EQ(changed.size(), 2u) << "stamps are on UTC: the tag is there";
+    EXPECT_NE(changed[1].find("camera_info of kinect/depth: the calibration is for 32x24"),
+              std::string::npos)
+        << changed[1];
 
     const fs::path file = test::tempDir() / "session.mcap";
     // Small chunks: the file has several, each with its message indexes.
@@ -107,22 +128,40 @@ TEST(McapExport, FoxglovesReadersGetEveryImageByteForByteWithItsStamp) {
     const nlohmann::json got = test::readMcapWithFoxglove(file);
     ASSERT_TRUE(got.is_object());
     EXPECT_EQ(got["profile"], "ros2");
-    ASSERT_EQ(got["schemas"].size(), 1u);
+    ASSERT_EQ(got["schemas"].size(), 3u);
     EXPECT_EQ(got["schemas"][0]["name"], "sensor_msgs/msg/Image");
+    EXPECT_EQ(got["schemas"][1]["name"], "sensor_msgs/msg/CameraInfo");
+    EXPECT_EQ(got["schemas"][2]["name"], "tf2_msgs/msg/TFMessage");
     EXPECT_EQ(got["schemas"][0]["encoding"], "ros2msg");
-    ASSERT_EQ(got["channels"].size(), 2u);
+    std::vector<std::string> topics;
+    for (const auto& channel : got["channels"])
+        topics.push_back(channel["topic"]);
+    EXPECT_EQ(topics, (std::vector<std::string>{
+                          "/my_studio/kinect/color/image_raw", "/my_studio/kinect/depth/image_raw",
+                          "/my_studio/kinect/color/camera_info", "/tf_static"}));
     for (const auto& channel : got["channels"]) {
         EXPECT_EQ(channel["messageEncoding"], "cdr");
         EXPECT_TRUE(channel["offeredQos"].is_string()) << "rosbag2 needs offered_qos_profiles";
     }
-    EXPECT_EQ(got["statistics"]["messageCount"], 12);
+    // 12 images, a camera_info with each of the 6 colour images, tf_static once.
+    EXPECT_EQ(got["statistics"]["messageCount"], 19);
     EXPECT_GT(got["statistics"]["chunkCount"].get<int>(), 1);
     EXPECT_EQ(got["chunkIndexes"], got["statistics"]["chunkCount"]);
-    EXPECT_EQ(got["streamedMessages"], 12);
+    EXPECT_EQ(got["streamedMessages"], 19);
     EXPECT_TRUE(got["streamDone"].get<bool>());
     EXPECT_TRUE(got["dataSectionCrcMatches"].get<bool>());
 
-    const auto& messages = got["messages"];
+    nlohmann::json messages = nlohmann::json::array();
+    nlohmann::json infos = nlohmann::json::array();
+    nlohmann::json tf_static = nlohmann::json::array();
+    for (const auto& m : got["messages"]) {
+        if (m["schema"] == "sensor_msgs/msg/Image")
+            messages.push_back(m);
+        else if (m["schema"] == "sensor_msgs/msg/CameraInfo")
+            infos.push_back(m);
+        else
+            tf_static.push_back(m);
+    }
     ASSERT_EQ(messages.size(), sent.size());
     std::map<std::string, uint32_t> next_sequence;
     for (size_t i = 0; i < sent.size(); ++i) {
@@ -144,12 +183,38 @@ TEST(McapExport, FoxglovesReadersGetEveryImageByteForByteWithItsStamp) {
         EXPECT_EQ(m["sha256"], sent[i].sha256) << "the pixels differ";
     }
 
+    // Each colour image's camera_info: the calibration's K, D (plumb_bob), P, with its header.
+    ASSERT_EQ(infos.size(), 6u);
+    for (size_t i = 0; i < infos.size(); ++i) {
+        const auto& info = infos[i];
+        const auto& image = messages[2 * i];
+        EXPECT_EQ(info["sec"], image["sec"]);
+        EXPECT_EQ(info["nanosec"], image["nanosec"]);
+        EXPECT_EQ(info["frameId"], "kinect_color");
+        EXPECT_EQ(info["width"], 64);
+        EXPECT_EQ(info["distortionModel"], "plumb_bob");
+        EXPECT_EQ(info["d"], (std::vector<double>{0.1, -0.2, 0.001, 0.002, 0}));
+        EXPECT_EQ(info["k"], (std::vector<double>{50, 0, 31.5, 0, 51, 23.5, 0, 0, 1}));
+        EXPECT_EQ(info["p"], (std::vector<double>{50, 0, 31.5, 0, 0, 51, 23.5, 0, 0, 0, 1, 0}));
+    }
+    // The extrinsics once, with the first image's stamp.
+    ASSERT_EQ(tf_static.size(), 1u);
+    EXPECT_EQ(tf_static[0]["logTime"], messages[0]["logTime"]);
+    const auto& transforms = tf_static[0]["transforms"];
+    ASSERT_EQ(transforms.size(), 2u);
+    EXPECT_EQ(transforms[0]["parent"], "world");
+    EXPECT_EQ(transforms[0]["child"], "kinect_color");
+    EXPECT_EQ(transforms[0]["translation"], (std::vector<double>{0.1, 0.2, 0.3}));
+    EXPECT_EQ(transforms[1]["parent"], "kinect_color");
+    EXPECT_EQ(transforms[1]["child"], "kinect_depth");
+    EXPECT_EQ(transforms[1]["rotation"], (std::vector<double>{0, 0, 0, 1}));
+
     ASSERT_EQ(got["attachments"].size(), 2u);
     EXPECT_EQ(got["attachments"][0]["name"], "rig.yaml");
     EXPECT_EQ(got["attachments"][0]["sha256"],
               sha256(reinterpret_cast<const uint8_t*>(rig.data()), rig.size()));
-    EXPECT_EQ(got["attachments"][1]["name"], "calibration.yaml");
-    EXPECT_EQ(got["attachments"][1]["size"], 5);
+    EXPECT_EQ(got["attachments"][1]["name"], "kinect.yaml");
+    EXPECT_EQ(got["attachments"][1]["size"], calibration.size());
     ASSERT_EQ(got["metadata"].size(), 1u);
     EXPECT_EQ(got["metadata"][0]["name"], "mixray");
     EXPECT_EQ(got["metadata"][0]["entries"]["title"], "a test session");

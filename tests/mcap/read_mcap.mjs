@@ -51,23 +51,49 @@ const out = {
 };
 for await (const message of reader.readMessages()) {
   const channel = reader.channelsById.get(message.channelId);
-  const image = decoders.get(channel.schemaId).readMessage(message.data);
-  out.messages.push({
+  const schema = reader.schemasById.get(channel.schemaId).name;
+  const decoded = decoders.get(channel.schemaId).readMessage(message.data);
+  const out_message = {
     topic: channel.topic,
+    schema,
     sequence: message.sequence,
     logTime: message.logTime.toString(),
     publishTime: message.publishTime.toString(),
-    sec: image.header.stamp.sec,
-    nanosec: image.header.stamp.nanosec,
-    frameId: image.header.frame_id,
-    width: image.width,
-    height: image.height,
-    encoding: image.encoding,
-    isBigendian: image.is_bigendian,
-    step: image.step,
-    dataLength: image.data.length,
-    sha256: sha256(image.data),
-  });
+  };
+  if (decoded.header) {
+    out_message.sec = decoded.header.stamp.sec;
+    out_message.nanosec = decoded.header.stamp.nanosec;
+    out_message.frameId = decoded.header.frame_id;
+  }
+  if (schema === "sensor_msgs/msg/Image") {
+    Object.assign(out_message, {
+      width: decoded.width,
+      height: decoded.height,
+      encoding: decoded.encoding,
+      isBigendian: decoded.is_bigendian,
+      step: decoded.step,
+      dataLength: decoded.data.length,
+      sha256: sha256(decoded.data),
+    });
+  } else if (schema === "sensor_msgs/msg/CameraInfo") {
+    Object.assign(out_message, {
+      width: decoded.width,
+      height: decoded.height,
+      distortionModel: decoded.distortion_model,
+      d: Array.from(decoded.d),
+      k: Array.from(decoded.k),
+      r: Array.from(decoded.r),
+      p: Array.from(decoded.p),
+    });
+  } else if (schema === "tf2_msgs/msg/TFMessage") {
+    out_message.transforms = decoded.transforms.map((t) => ({
+      parent: t.header.frame_id,
+      child: t.child_frame_id,
+      translation: [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+      rotation: [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w],
+    }));
+  }
+  out.messages.push(out_message);
 }
 for await (const a of reader.readAttachments()) {
   out.attachments.push({ name: a.name, mediaType: a.mediaType, size: a.data.length, sha256: sha256(a.data) });
