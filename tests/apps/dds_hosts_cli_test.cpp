@@ -87,8 +87,8 @@ TEST(PublishToRos2, SaysWhichCameraInfoAndTransformsItPublishes) {
     EXPECT_NE(no_ros2.output.find("add --ros2"), std::string::npos) << no_ros2.output;
 }
 
-// The composite is a stream like any other: `mixray run --publish` puts it (and the poses) on
-// DDS, and another mixray reads it as a device and records it.
+// The composite is a stream like any other: `mixray run --publish` puts it (and the poses, as
+// mixray frames: no ROS 2 here) on DDS, and another mixray reads it as a device and records it.
 TEST(RunPublish, AnotherHostRecordsTheComposite) {
     const auto dir = tempDir();
     const std::string domain = std::to_string(1 + getpid() % 200);
@@ -99,8 +99,8 @@ TEST(RunPublish, AnotherHostRecordsTheComposite) {
     CliProcess run =
         startMixray({"run", (fixturesDir() / "sessions/sim_tabletop.mkv").string(), "--scene",
                      (fixturesDir() / "scenes/sim_tabletop_demo.yaml").string(), "--max-depth", "0",
-                     "--loop", "--duration", "8", "--publish", "--ros2", "studio", "--host",
-                     "renderer", "--domain", domain, "-o", (dir / "run").string()},
+                     "--loop", "--duration", "8", "--publish", "--host", "renderer", "--domain",
+                     domain, "-o", (dir / "run").string()},
                     dir / "run.log");
     const CliRun recorded = mixray("record " + q(dir / "viewer.yaml") + " -o " +
                                    q(dir / "composite.mkv") + " --duration 4");

@@ -191,7 +191,7 @@ Status DdsPublisher::Impl::createWriters() {
                     "dds publisher: cannot create a writer for " + stream->topic};
         if (!options.ros2_rig.empty() && stream->ros_encoding)
             MIXRAY_RETURN_IF_ERROR(createRosWriters(*stream));
-        if (!options.ros2_rig.empty() && stream->ros_tf && !tf_writer) {
+        if (stream->ros_tf && !tf_writer) {
             auto tf_topic = participant->topic(detail::kRosTfTopic, detail::rosTfType());
             if (!tf_topic)
                 return tf_topic.status();
@@ -332,7 +332,7 @@ Status DdsPublisher::connect(Graph& graph) {
         stream->info = graph.stream(id);
         stream->topic = frameTopic(d.host, stream->info.name);
         stream->ros_encoding = detail::rosEncoding(stream->info.format.format);
-        if (stream->info.kind == StreamKind::kPose) {
+        if (stream->info.kind == StreamKind::kPose && !d.options.ros2_rig.empty()) {
             const auto pose_of = stream->info.tags.find("pose_of");
             stream->ros_tf = pose_of != stream->info.tags.end();
             if (stream->ros_tf)
