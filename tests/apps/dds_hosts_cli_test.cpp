@@ -8,8 +8,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdlib>
 #include <fstream>
@@ -21,6 +23,7 @@
 #include <vector>
 
 #include "cli_runner.h"
+#include "gv_simulator.h"
 #include "mixray/graph/mkv.h"
 #include "network_namespaces.h"
 
@@ -413,6 +416,104 @@ TEST_F(Hosts, RunRendersOnOneHostTheKinectStreamOfAnother) {
     ASSERT_EQ(info.exit_code, 0) << info.output;
     for (const char* stream : {"kinect/color", "kinect/depth", "tracking/pose", "composite/color"})
         EXPECT_NE(info.output.find(stream), std::string::npos) << stream << "\n" << info.output;
+}
+
+// PTP cameras on two hosts share one time on the third. Hosts A and B each run Aravis's GigE
+// Vision simulator described with IEEE 1588 (GevIEEE1588), opened with ptp: true and published;
+// their monotonic clocks are 1000 s and 2000 s ahead of C's. The simulator stamps frames with
+// the wall clock, which time namespaces leave shared: two cameras following one grandmaster.
+// C records both: their streams arrive in the one PTP clock domain, and the two cameras' stamps
+// stand in the same relation to C's clock, within a few milliseconds.
+TEST_F(Hosts, PtpCamerasOnTwoHostsShareOneTimeOnTheThird) {
+    if (!GvSimulator::installed())
+        GTEST_SKIP() << "Aravis's simulator is not installed (aravis-tools)";
+    const auto dir = tempDir();
+    const std::string genicam = writeGenicam(genicamWithPtp(), "mixray_hosts_ptp.xml");
+    ASSERT_FALSE(genicam.empty());
+    GvSimulator camera_a, camera_b;
+    ASSERT_TRUE(camera_a.start(0, genicam, a_));
+    ASSERT_TRUE(camera_b.start(0, genicam, b_));
+    // Each answers GVCP within a second or two on its host's loopback.
+    for (const std::string& ns : {a_, b_}) {
+        bool up = false;
+        for (int i = 0; i < 50 && !up; ++i) {
+            up = shell("ip netns exec " + ns + " ss -uln | grep -q ':3956 '") == 0;
+            if (!up)
+                std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        ASSERT_TRUE(up) << "the simulator never listened in " << ns;
+    }
+    const std::string camera =
+        "rig: HOST\ndevices:\n  - name: gv\n    driver: aravis\n    id: 127.0.0.1\n"
+        "    mode:\n      mono: 256x128@20 mono8\n"
+        "    options: {ptp: true, packet_size: 8000, buffers: 64}\n";
+    auto named = [&](const std::string& host) {
+        std::string text = camera;
+        return text.replace(text.find("HOST"), 4, host);
+    };
+    writeText(dir / "a.yaml", named("host-a"));
+    writeText(dir / "b.yaml", named("host-b"));
+    const std::string domain = std::to_string(1 + getpid() % 200);
+    auto device = [&](const char* name, const char* id, const std::string& c_address,
+                      const std::string& peer) {
+        return std::string("  - name: ") + name + "\n    driver: dds\n    id: " + id +
+               "\n    options: {domain: " + domain + ", address: " + c_address +
+               ", peers: " + peer + ", transport: udp, discovery_timeout_ms: 20000}\n";
+    };
+    writeText(dir / "c.yaml", "rig: host-c\ndevices:\n" +
+                                  device("left", "hostA/gv", net_ + "1.1", net_ + "1.2") +
+                                  device("right", "hostB/gv", net_ + "2.1", net_ + "2.2") +
+                                  "sync:\n  streams: [left/mono, right/mono]\n  max_skew_ms: 30\n");
+    auto publish = [&](const std::string& host, const std::string& address,
+                       const std::string& peer) {
+        return std::vector<std::string>{
+            "publish",     (dir / (host + ".yaml")).string(),
+            "--host",      "host" + std::string(1, std::toupper(host[0])),
+            "--domain",    domain,
+            "--address",   address,
+            "--peers",     peer,
+            "--transport", "udp",
+            "--duration",  "8"};
+    };
+    CliProcess a = startIn(a_, 1000, publish("a", net_ + "1.2", net_ + "1.1"), dir / "a.log");
+    CliProcess b = startIn(b_, 2000, publish("b", net_ + "2.2", net_ + "2.1"), dir / "b.log");
+    CliProcess c = startIn(
+        c_, 0,
+        {"record", (dir / "c.yaml").string(), "-o", (dir / "c.mkv").string(), "--duration", "3"},
+        dir / "c.log");
+    const CliRun recorded = waitMixray(c);
+    const CliRun published_a = waitMixray(a);
+    const CliRun published_b = waitMixray(b);
+    ASSERT_EQ(recorded.exit_code, 0) << recorded.output << published_a.output << published_b.output;
+    ASSERT_EQ(published_a.exit_code, 0) << published_a.output;
+    ASSERT_EQ(published_b.exit_code, 0) << published_b.output;
+
+    auto reader = openMkv(dir / "c.mkv");
+    ASSERT_TRUE(reader.isOk()) << reader.status().toString();
+    constexpr ClockDomainId kPtpClockDomain = 0x50545031;  // aravis::kPtpClockDomain, "PTP1"
+    for (const StreamInfo& s : (*reader)->streams())
+        EXPECT_EQ(s.clock_domain, kPtpClockDomain) << s.name;
+    // Camera stamp minus C's host stamp, per host: one time base gives one value (up to each
+    // host's capture and network delay), where the hosts' own clocks are 1000 s apart.
+    std::map<std::string, std::vector<int64_t>> offsets;
+    for (auto frame = (*reader)->next(); frame.isOk(); frame = (*reader)->next()) {
+        const FrameMetadata& meta = frame->meta();
+        offsets[(*reader)->streams()[meta.stream].name].push_back(meta.device_stamp_ns -
+                                                                  meta.host_stamp_ns);
+    }
+    ASSERT_GE(offsets["left/mono"].size(), 20u) << recorded.output;
+    ASSERT_GE(offsets["right/mono"].size(), 20u) << recorded.output;
+    const auto median = [](std::vector<int64_t> v) {
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    const double apart_ms =
+        static_cast<double>(median(offsets["left/mono"]) - median(offsets["right/mono"])) / 1e6;
+    RecordProperty("ptp_cameras_apart_ms", std::to_string(apart_ms));
+    EXPECT_LT(std::abs(apart_ms), 10.0) << "the two PTP cameras are not on one time base";
+    const size_t sets = recorded.output.rfind("sync ");
+    ASSERT_NE(sets, std::string::npos) << recorded.output;
+    EXPECT_GT(std::stoul(recorded.output.substr(sets + 5)), 10u) << recorded.output;
 }
 
 enum class Fault { kHostTornDown, kPartition };

@@ -21,8 +21,11 @@
 namespace mixray::aravis {
 namespace {
 
+using test::genicamWith;
+using test::genicamWithPtp;
 using test::GvSimulator;
 using test::openWhenUp;
+using test::writeGenicam;
 constexpr const char* kSimulator = test::kGvSimulator;
 constexpr const char* kSerial = test::kGvSimulatorSerial;
 constexpr const char* kAddress = test::kGvSimulatorAddress;
@@ -275,52 +278,6 @@ TEST_F(AravisGv, MissingLineAndPtpAreClearErrors) {
 
 // Aravis's fake camera description with `nodes` added, written to a file the simulator reads;
 // empty when the description has no RegisterDescription.
-std::string genicamWith(const std::string& nodes) {
-    ArvFakeCamera* fake = arv_fake_camera_new("DESC");
-    size_t size = 0;
-    const char* xml = arv_fake_camera_get_genicam_xml(fake, &size);
-    std::string text(xml ? xml : "", xml ? size : 0);
-    g_object_unref(fake);
-    const size_t end = text.rfind("</RegisterDescription>");
-    if (end == std::string::npos)
-        return {};
-    text.insert(end, nodes);
-    return text;
-}
-
-std::string writeGenicam(const std::string& xml, const std::string& name) {
-    const std::string path = ::testing::TempDir() + name;
-    std::ofstream out(path, std::ios::binary);
-    out << xml;
-    return out.good() ? path : std::string();
-}
-
-// Aravis's fake camera description with GigE Vision's IEEE 1588 features added: GevIEEE1588
-// on a free register of the simulator's memory, and GevIEEE1588Status reading the same
-// register, Disabled (0) or Listening (1), which is what a PTP port reports while it hears no
-// grandmaster. The simulator keeps registers it does not know as plain memory, so it stands in
-// for a camera that has the features; it runs no PTP, and its clock stays the system clock.
-std::string genicamWithPtp() {
-    return genicamWith(R"(
-<Boolean Name="GevIEEE1588" NameSpace="Standard">
-  <pValue>MixrayPtpRegister</pValue>
-</Boolean>
-<Enumeration Name="GevIEEE1588Status" NameSpace="Standard">
-  <EnumEntry Name="Disabled" NameSpace="Standard"><Value>0</Value></EnumEntry>
-  <EnumEntry Name="Listening" NameSpace="Standard"><Value>1</Value></EnumEntry>
-  <pValue>MixrayPtpRegister</pValue>
-</Enumeration>
-<IntReg Name="MixrayPtpRegister" NameSpace="Custom">
-  <Address>0xb000</Address>
-  <Length>4</Length>
-  <AccessMode>RW</AccessMode>
-  <pPort>Device</pPort>
-  <Sign>Unsigned</Sign>
-  <Endianess>BigEndian</Endianess>
-</IntReg>
-)");
-}
-
 // ptp=true on a camera that has GevIEEE1588: the feature is switched on (its status register
 // reads back Listening), the status is reported, and the stamps are put in the PTP domain.
 TEST_F(AravisGv, PtpIsEnabledWhereTheCameraHasIt) {
