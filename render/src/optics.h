@@ -4,9 +4,12 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <optional>
+#include <vector>
 
 namespace mixray::render::optics {
 
@@ -65,8 +68,69 @@ inline float linearToSrgb(float c) {
     return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.f / 2.4f) - 0.055f;
 }
 
-inline uint8_t encodeSrgb8(float linear) {
+// The 8-bit sRGB code of a linear value, by the formula: pow per channel.
+inline uint8_t encodeSrgb8ByFormula(float linear) {
     return static_cast<uint8_t>(std::lround(linearToSrgb(linear) * 255.f));
+}
+
+// encodeSrgb8ByFormula() without pow, giving the same byte for every float: the code is the
+// number of the 255 thresholds (the least float of each code 1..255, found once by bisection
+// on the formula itself) at or below the value. A table indexed by the float's top bits gives
+// the code at the bottom of its bucket, and at most a few thresholds are stepped over from
+// there. The composite encodes every pixel it traces, and pow was a sixth of a full frame.
+class SrgbEncoder {
+public:
+    static const SrgbEncoder& instance() {
+        static const SrgbEncoder encoder;
+        return encoder;
+    }
+    uint8_t encode(float linear) const {
+        if (!(linear > 0))  // negative, zero and NaN: as the formula, whose clamp gives 0
+            return linear == linear ? 0 : encodeSrgb8ByFormula(linear);
+        if (linear >= 1)
+            return 255;
+        uint32_t code = bucket_code_[bucketOf(linear)];
+        while (code < 255 && linear >= threshold_[code + 1])
+            ++code;
+        return static_cast<uint8_t>(code);
+    }
+
+private:
+    static constexpr int kShift = 17;  // 2^6 buckets per power of two below 1
+    static uint32_t bitsOf(float v) {
+        uint32_t b;
+        std::memcpy(&b, &v, sizeof b);
+        return b;
+    }
+    static float floatOf(uint32_t b) {
+        float v;
+        std::memcpy(&v, &b, sizeof v);
+        return v;
+    }
+    static size_t bucketOf(float v) { return bitsOf(v) >> kShift; }
+
+    SrgbEncoder() {
+        // Positive floats order as their bits: bisect each code's least float in (0, 1].
+        threshold_[0] = 0;
+        for (int code = 1; code < 256; ++code) {
+            uint32_t lo = 0, hi = bitsOf(1.f);  // encode(lo) < code <= encode(hi)
+            while (hi - lo > 1) {
+                const uint32_t mid = lo + (hi - lo) / 2;
+                (encodeSrgb8ByFormula(floatOf(mid)) >= code ? hi : lo) = mid;
+            }
+            threshold_[code] = floatOf(hi);
+        }
+        bucket_code_.resize(bucketOf(1.f) + 1);
+        for (size_t b = 0; b < bucket_code_.size(); ++b)
+            bucket_code_[b] = encodeSrgb8ByFormula(floatOf(static_cast<uint32_t>(b << kShift)));
+    }
+
+    std::array<float, 256> threshold_{};
+    std::vector<uint8_t> bucket_code_;
+};
+
+inline uint8_t encodeSrgb8(float linear) {
+    return SrgbEncoder::instance().encode(linear);
 }
 
 // Point k of n on the unit disc: a golden-angle spiral, stratified in area (ring k holds area

@@ -5,6 +5,8 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
 namespace mixray::render::optics {
 namespace {
@@ -79,6 +81,34 @@ TEST(Optics, GlassSlabShiftsARayByTheAnalyticLateralOffset) {
 TEST(Optics, SrgbRoundTripsEveryByte) {
     for (int i = 0; i < 256; ++i)
         EXPECT_EQ(encodeSrgb8(srgbToLinear(i / 255.f)), i);
+}
+
+// The table encoder gives the formula's byte: at every code's threshold and the floats either
+// side of it, through (0, 1] in steps of 4099 floats, and outside [0, 1].
+TEST(Optics, SrgbEncoderGivesTheFormulasByteForEveryFloat) {
+    const auto bits = [](float v) {
+        uint32_t b;
+        std::memcpy(&b, &v, sizeof b);
+        return b;
+    };
+    const auto value = [](uint32_t b) {
+        float v;
+        std::memcpy(&v, &b, sizeof v);
+        return v;
+    };
+    int checked = 0;
+    for (uint32_t b = 0; b <= bits(1.f); b += 4099, ++checked)
+        ASSERT_EQ(encodeSrgb8(value(b)), encodeSrgb8ByFormula(value(b))) << value(b);
+    for (int code = 1; code < 256; ++code) {
+        const float at = srgbToLinear((code - 0.5f) / 255.f);
+        for (uint32_t b = bits(at) - 64; b <= bits(at) + 64; ++b, ++checked)
+            ASSERT_EQ(encodeSrgb8(value(b)), encodeSrgb8ByFormula(value(b))) << value(b);
+    }
+    for (float v : {-1.f, -0.f, 0.f, 1.f, 1.5f, 1e30f, std::numeric_limits<float>::infinity(),
+                    -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::min(),
+                    std::numeric_limits<float>::denorm_min()})
+        EXPECT_EQ(encodeSrgb8(v), encodeSrgb8ByFormula(v)) << v;
+    EXPECT_GT(checked, 250000);
 }
 
 TEST(Optics, DiscSamplesCoverTheDiscEvenly) {
