@@ -19,6 +19,9 @@
 
 #include "console.h"
 #include "mixray/render/assets.h"
+#include "mixray/render/bench_seam.h"
+#include "mixray/render/output.h"
+#include "mixray/render/povray.h"
 #include "mixray/render/renderer.h"
 #include "test_data_paths.h"
 
@@ -38,6 +41,7 @@ struct BenchRenderOptions {
     std::string shared_data;
     std::string embree_isas = "best";         // "best", "all" or a comma list of embreeIsas()
     std::string map_sizes = "512,1024,2048";  // shadow-maps: texels on a side
+    std::string peer;                         // "povray": the same scene in POV-Ray instead
 };
 
 struct Size {
@@ -329,6 +333,19 @@ struct Config {
     bool move_light = false;
 };
 
+// RT²AR's teapot rows: primary rays only, + hard shadows, + shadows and 3 bounces.
+std::vector<std::pair<std::string, RenderOptions>> teapotVariants(const RenderOptions& base) {
+    RenderOptions primary = base;
+    primary.max_depth = 0;
+    primary.shadows = false;
+    RenderOptions shadows = base;
+    shadows.max_depth = 0;
+    RenderOptions bounces = base;
+    bounces.max_depth = 3;
+    return {
+        {"primary only", primary}, {"+ hard shadows", shadows}, {"+ shadows + 3 bounces", bounces}};
+}
+
 std::vector<Config> configsFor(const std::string& scene, int threads,
                                const std::vector<int>& map_sizes) {
     RenderOptions base;
@@ -336,16 +353,9 @@ std::vector<Config> configsFor(const std::string& scene, int threads,
     base.soft_shadows = SoftShadowMethod::kHard;
     std::vector<Config> out;
     if (scene == "teapot") {
-        RenderOptions primary = base;
-        primary.max_depth = 0;
-        primary.shadows = false;
-        RenderOptions shadows = base;
-        shadows.max_depth = 0;
-        RenderOptions bounces = base;
-        bounces.max_depth = 3;
-        out.push_back({scene, "primary only", primary});
-        out.push_back({scene, "+ hard shadows", shadows});
-        out.push_back({scene, "+ shadows + 3 bounces", bounces});
+        for (const auto& [name, options] : teapotVariants(base))
+            out.push_back({scene, name, options});
+        const RenderOptions bounces = out.back().options;  // a copy: out grows below
         // RT²AR §IV-F's lens effects on the frame above. Thresholds low enough that most of the
         // teapot blooms: the effects' worst case, against the row above as the baseline.
         LensEffects lens;
@@ -532,7 +542,7 @@ struct Figures {
     uint64_t logged_rays = 0;
     double renderer_ms = 0;
     double renderer_cpu_ms = 0;  // the process's CPU time
-    BareTraceTimes bare;
+    bench::BareTraceTimes bare;
     bool log_matches_stats = false;
 };
 
@@ -599,16 +609,16 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
 
     // One frame logged, then the same frame (same pose, same seed: the same rays) timed
     // without the log, best of `repeats` as for bare Embree.
-    RayLog log;
-    inputs.ray_log = &log;
-    MIXRAY_RETURN_IF_ERROR(frame(frames / 2, stats).status());
-    inputs.ray_log = nullptr;
+    bench::RayLog log;
+    inputs.T_world_cam = cameraPose(frames / 2);
+    paintCameraImage(inputs.camera, inputs.T_world_cam, image);
+    MIXRAY_RETURN_IF_ERROR(bench::renderLoggingRays(renderer, inputs, out, &stats, log));
     fig.composite = out.composite;
     fig.camera = image;
     fig.logged_rays = log.rays.size();
-    fig.log_matches_stats = log.count(RayLog::Kind::kPrimary) == stats.primary_rays &&
-                            log.count(RayLog::Kind::kSecondary) == stats.secondary_rays &&
-                            log.count(RayLog::Kind::kShadow) == stats.shadow_rays;
+    fig.log_matches_stats = log.count(bench::RayLog::Kind::kPrimary) == stats.primary_rays &&
+                            log.count(bench::RayLog::Kind::kSecondary) == stats.secondary_rays &&
+                            log.count(bench::RayLog::Kind::kShadow) == stats.shadow_rays;
     double best = 1e30, best_cpu = 1e30;
     for (int r = 0; r < repeats; ++r) {
         auto seconds = frame(frames / 2, stats);
@@ -619,7 +629,7 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
     }
     fig.renderer_ms = 1e3 * best;
     fig.renderer_cpu_ms = 1e3 * best_cpu;
-    fig.bare = renderer.traceBare(log, repeats);
+    fig.bare = bench::traceBare(renderer, log, repeats);
     return fig;
 }
 
@@ -737,6 +747,264 @@ double rmse(const Image& a, const Image& b, const Image& camera) {
     return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
 }
 
+// --peer povray: RT²AR's teapot scene as both renderers can draw it identically (povray.h):
+// a mirror-and-diffuse Newell teapot on a table with a chessboard of 25 mm squares (two meshes,
+// dark and light, 0.5 mm above the table), one point light, every object virtual: the full
+// frame. `ar`: the AR frame instead, where the table is a ghost and the camera image shows the
+// board, as in the teapot scene.
+std::shared_ptr<TriangleMesh> boardSquares(bool dark) {
+    auto mesh = std::make_shared<TriangleMesh>();
+    for (int i = 0; i < 10; ++i)
+        for (int j = 0; j < 7; ++j) {
+            if (((i + j) % 2 == 1) != dark)
+                continue;
+            const auto base = static_cast<uint32_t>(mesh->positions.size());
+            for (const auto& [x, y] : {std::pair{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}})
+                mesh->positions.emplace_back(0.025f * static_cast<float>(x),
+                                             0.025f * static_cast<float>(y), 0.0005f);
+            mesh->triangles.push_back({base, base + 1, base + 2});
+            mesh->triangles.push_back({base, base + 2, base + 3});
+        }
+    return mesh;
+}
+
+SceneDescription peerTeapotScene(const fs::path& shared, bool ar) {
+    SceneDescription scene = teapotScene(shared, false);
+    Material teapot;
+    teapot.name = "teapot_mirror_diffuse";
+    teapot.albedo = {0.75f, 0.72f, 0.65f};
+    teapot.reflectance = 0.6f;
+    scene.materials[teapot.name] = teapot;
+    scene.objects[0].material = teapot.name;
+    if (ar)
+        return scene;
+    scene.objects[1].role = ObjectRole::kVirtual;
+    for (bool dark : {true, false}) {
+        Material square;
+        square.name = dark ? "board_dark" : "board_light";
+        square.albedo = Rgb::Constant(dark ? 0.03f : 0.8f);
+        square.reflectance = 0.15f;
+        scene.materials[square.name] = square;
+        SceneObject squares;
+        squares.name = square.name;
+        squares.role = ObjectRole::kVirtual;
+        squares.shape.type = ShapeType::kMesh;
+        squares.shape.mesh_data = boardSquares(dark);
+        squares.shape.mesh = "chessboard squares (built in code)";
+        squares.material = square.name;
+        scene.objects.push_back(squares);
+    }
+    return scene;
+}
+
+struct PeerFigures {
+    std::string config;
+    Size size;
+    double mixray_ms = 0;  // full frame, median of the timed frames
+    uint64_t mixray_rays = 0;
+    double ar_ms = 0;  // the AR frame (footprint on), median
+    uint64_t ar_rays = 0;
+    PovrayStats povray;
+    double povray_wall_ms = 0;
+    double rmse = 0;             // codes, over every pixel and channel
+    double far_off_percent = 0;  // pixels with a channel more than 24 codes apart
+};
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+// Median milliseconds of `frames` renders of one pose (after one warm-up), and the rays of one.
+Result<std::pair<double, uint64_t>> timeFrames(Renderer& renderer, const RenderInputs& inputs,
+                                               int frames, RenderLayers& out) {
+    RenderStats stats;
+    MIXRAY_RETURN_IF_ERROR(renderer.render(inputs, out, &stats));
+    std::vector<double> ms;
+    for (int i = 0; i < frames; ++i) {
+        const auto start = std::chrono::steady_clock::now();
+        MIXRAY_RETURN_IF_ERROR(renderer.render(inputs, out, &stats));
+        ms.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count());
+    }
+    return std::pair{median(std::move(ms)), stats.rays()};
+}
+
+Result<PeerFigures> benchPeer(const fs::path& shared, const std::string& config_name,
+                              const RenderOptions& base, Size size, int frames,
+                              const fs::path& work_dir) {
+    PeerFigures fig;
+    fig.config = config_name;
+    fig.size = size;
+    const double f = 0.9 * size.width;
+    RenderInputs inputs;
+    inputs.camera = calibration::CameraModel::pinhole(
+        size.width, size.height, f, f, (size.width - 1) / 2.0, (size.height - 1) / 2.0);
+    inputs.T_world_cam = cameraPose(0);
+    Image black(ImageDesc::packed(PixelFormat::kRGB8, size.width, size.height));
+    inputs.camera_image = black.view();
+
+    const SceneDescription full = peerTeapotScene(shared, false);
+    RenderOptions full_options = base;
+    full_options.only_virtual_footprint = false;
+    auto full_renderer = Renderer::create(full, full_options);
+    if (!full_renderer)
+        return full_renderer.status();
+    RenderLayers full_out;
+    auto full_time = timeFrames(**full_renderer, inputs, frames, full_out);
+    if (!full_time)
+        return full_time.status();
+    std::tie(fig.mixray_ms, fig.mixray_rays) = *full_time;
+
+    auto ar_renderer = Renderer::create(peerTeapotScene(shared, true), base);
+    if (!ar_renderer)
+        return ar_renderer.status();
+    Image camera_image(black.desc());
+    paintCameraImage(inputs.camera, inputs.T_world_cam, camera_image);
+    RenderInputs ar_inputs = inputs;
+    ar_inputs.camera_image = camera_image.view();
+    RenderLayers ar_out;
+    auto ar_time = timeFrames(**ar_renderer, ar_inputs, frames, ar_out);
+    if (!ar_time)
+        return ar_time.status();
+    std::tie(fig.ar_ms, fig.ar_rays) = *ar_time;
+
+    PovrayView view;
+    view.camera = inputs.camera;
+    view.T_world_cam = inputs.T_world_cam;
+    view.max_depth = base.max_depth;
+    view.shadows = base.shadows;
+    auto text = povrayScene(full, view);
+    if (!text)
+        return text.status();
+    fs::create_directories(work_dir);
+    auto pov = renderWithPovray(
+        *text, size.width, size.height,
+        base.threads > 0 ? base.threads : static_cast<int>(std::thread::hardware_concurrency()),
+        work_dir);
+    if (!pov)
+        return pov.status();
+    fig.povray = pov->stats;
+    fig.povray_wall_ms = 1e3 * pov->wall_s;
+    MIXRAY_RETURN_IF_ERROR(writePng(full_out.composite.view(), work_dir / "mixray.png"));
+    MIXRAY_RETURN_IF_ERROR(writePng(ar_out.composite.view(), work_dir / "mixray_ar.png"));
+    // Where the renderers disagree: each pixel's largest channel difference, times 8, in grey.
+    auto difference = compareImages(full_out.composite.view(), pov->image.view(), 24);
+    if (!difference)
+        return difference.status();
+    MIXRAY_RETURN_IF_ERROR(writePng(difference->worst_x8.view(), work_dir / "difference_x8.png"));
+    fig.rmse = difference->rmse;
+    fig.far_off_percent = difference->farOffPercent();
+    return fig;
+}
+
+double megaRaysPerSecond(uint64_t rays, double ms) {
+    return ms > 0 ? static_cast<double>(rays) / ms / 1e3 : 0.0;
+}
+
+void printPeer(const PeerFigures& f, const fs::path& work_dir) {
+    // The frame's rays are those mixray traced: POV-Ray must trace the same for the same image.
+    // Its own counters are printed too, but they also count the reflected rays it stops at its
+    // last trace level (with max_trace_level 1, one per reflective pixel).
+    const double pov_ms = 1e3 * f.povray.trace_s;
+    const double mixray_rate = megaRaysPerSecond(f.mixray_rays, f.mixray_ms);
+    const double pov_rate = megaRaysPerSecond(f.mixray_rays, pov_ms);
+    std::printf("teapot, %s, %dx%d, %llu rays:\n", f.config.c_str(), f.size.width, f.size.height,
+                static_cast<unsigned long long>(f.mixray_rays));
+    std::printf("  mixray   full frame %8.2f ms  %7.2f Mrays/s   AR frame %6.2f ms (%llu rays)\n",
+                f.mixray_ms, mixray_rate, f.ar_ms, static_cast<unsigned long long>(f.ar_rays));
+    std::printf(
+        "  POV-Ray  full frame %8.2f ms  %7.2f Mrays/s   (trace; parse %.0f ms, the whole "
+        "povray run %.0f ms; its counters: %llu rays, %llu shadow tests)\n",
+        pov_ms, pov_rate, 1e3 * f.povray.parse_s, f.povray_wall_ms,
+        static_cast<unsigned long long>(f.povray.rays),
+        static_cast<unsigned long long>(f.povray.shadow_rays));
+    std::printf(
+        "  mixray / POV-Ray: rays/s %.1fx; full frame in %.3fx the time, the AR frame in "
+        "%.4fx\n",
+        pov_rate > 0 ? mixray_rate / pov_rate : 0.0, pov_ms > 0 ? f.mixray_ms / pov_ms : 0.0,
+        pov_ms > 0 ? f.ar_ms / pov_ms : 0.0);
+    std::printf("  images: RMSE %.2f codes; %.3f %% of pixels more than 24 codes apart (%s)\n",
+                f.rmse, f.far_off_percent, work_dir.c_str());
+}
+
+nlohmann::json peerJson(const PeerFigures& f, const fs::path& work_dir) {
+    return {{"peer", "povray"},
+            {"config", f.config},
+            {"width", f.size.width},
+            {"height", f.size.height},
+            {"mixray_ms", f.mixray_ms},
+            {"mixray_rays", f.mixray_rays},
+            {"mixray_mrays_per_s", megaRaysPerSecond(f.mixray_rays, f.mixray_ms)},
+            {"ar_frame_ms", f.ar_ms},
+            {"ar_frame_rays", f.ar_rays},
+            {"povray_trace_ms", 1e3 * f.povray.trace_s},
+            {"povray_parse_ms", 1e3 * f.povray.parse_s},
+            {"povray_wall_ms", f.povray_wall_ms},
+            {"povray_mrays_per_s", megaRaysPerSecond(f.mixray_rays, 1e3 * f.povray.trace_s)},
+            {"povray_counted_rays", f.povray.rays},
+            {"povray_counted_shadow_tests", f.povray.shadow_rays},
+            {"rmse_codes", f.rmse},
+            {"far_off_percent", f.far_off_percent},
+            {"images", work_dir.string()}};
+}
+
+int runBenchPeer(const BenchRenderOptions& options, const std::vector<Size>& sizes,
+                 const fs::path& shared) {
+    const fs::path teapot = shared / "06_models" / "newell_teapot.obj";
+    if (!fs::exists(teapot)) {
+        std::printf(
+            "peer povray: skipped: %s not found (real data under ../shared/data, see its "
+            "MANIFEST.md; or --shared-data)\n",
+            teapot.c_str());
+        return kExitOk;
+    }
+    std::string dir_template = (fs::temp_directory_path() / "mixray-bench-povray-XXXXXX").string();
+    if (mkdtemp(dir_template.data()) == nullptr)
+        return fail("bench render", {ErrorCode::kIoError, "cannot make a folder under " +
+                                                              fs::temp_directory_path().string()});
+    const fs::path work_dir = dir_template;
+    RenderOptions base;
+    base.threads = options.threads;
+    base.soft_shadows = SoftShadowMethod::kHard;
+    base.samples_per_pixel = 1;
+    const auto configs = teapotVariants(base);
+    if (!options.json)
+        std::printf(
+            "bench render --peer povray: the RT²AR teapot scene (mirror-and-diffuse teapot, "
+            "chessboard table, one point light) in mixray and in POV-Ray, every pixel traced "
+            "with 1 ray, both on %d threads; the AR frame traces only what the virtual teapot "
+            "can change\n",
+            options.threads > 0 ? options.threads
+                                : static_cast<int>(std::thread::hardware_concurrency()));
+    nlohmann::json results = nlohmann::json::array();
+    for (const Size& size : sizes)
+        for (const auto& [name, render_options] : configs) {
+            const fs::path dir =
+                work_dir / (std::to_string(size.width) + "x" + std::to_string(size.height) + "_" +
+                            (render_options.max_depth > 0 ? "bounces"
+                             : render_options.shadows     ? "shadows"
+                                                          : "primary"));
+            auto figures = benchPeer(shared, name, render_options, size, options.frames, dir);
+            if (!figures && figures.status().code() == ErrorCode::kNotFound) {
+                std::printf("peer povray: skipped: %s\n", figures.status().message().c_str());
+                return kExitOk;
+            }
+            if (!figures)
+                return fail("bench render", figures.status());
+            if (options.json) {
+                results.push_back(peerJson(*figures, dir));
+            } else {
+                printPeer(*figures, dir);
+                std::fflush(stdout);
+            }
+        }
+    if (options.json)
+        std::printf("%s\n", results.dump(2).c_str());
+    return kExitOk;
+}
+
 int runBenchRender(BenchRenderOptions options) {
     auto sizes = parseSizes(options.sizes);
     if (!sizes)
@@ -759,6 +1027,8 @@ int runBenchRender(BenchRenderOptions options) {
     }
     const fs::path shared =
         options.shared_data.empty() ? defaultSharedDataDir() : fs::path(options.shared_data);
+    if (!options.peer.empty())
+        return runBenchPeer(options, *sizes, shared);
     const unsigned threads = options.threads > 0
                                  ? static_cast<unsigned>(options.threads)
                                  : std::max(1u, std::thread::hardware_concurrency());
@@ -888,6 +1158,12 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         ->add_option("--map-sizes", options->map_sizes,
                      "shadow-maps: shadow map sides in texels (comma list, 16..8192)")
         ->capture_default_str();
+    render
+        ->add_option("--peer", options->peer,
+                     "Instead of the scenes: the RT²AR teapot scene rendered full frame by mixray "
+                     "and by this renderer (povray: Debian's POV-Ray 3.7) in the same run; trace "
+                     "times, rays/s, their ratio and the RMSE between the images")
+        ->check(CLI::IsMember({"povray"}));
     render->add_option("--shared-data", options->shared_data,
                        "Real third-party data (default: ../shared/data beside the source tree)");
     commands.push_back({render, [options] { return runBenchRender(*options); }});

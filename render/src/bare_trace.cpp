@@ -1,4 +1,4 @@
-// Bare Embree over a RayLog: rays converted up front, each method timed on fresh copies (a
+// Bare Embree over a bench::RayLog: rays converted up front, each method timed on fresh copies (a
 // traced RTCRayHit has a shortened tfar, which would flatter a second run).
 #include "bare_trace.h"
 
@@ -26,7 +26,7 @@ struct Packet16 {
     std::vector<Valid16> valid;
 };
 
-RTCRay toRay(const RayLog::Ray& r) {
+RTCRay toRay(const bench::RayLog::Ray& r) {
     RTCRay ray{};
     ray.org_x = r.origin[0];
     ray.org_y = r.origin[1];
@@ -40,7 +40,7 @@ RTCRay toRay(const RayLog::Ray& r) {
     return ray;
 }
 
-RTCRayHit toRayHit(const RayLog::Ray& r) {
+RTCRayHit toRayHit(const bench::RayLog::Ray& r) {
     RTCRayHit rh{};
     rh.ray = toRay(r);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -48,7 +48,7 @@ RTCRayHit toRayHit(const RayLog::Ray& r) {
     return rh;
 }
 
-Packet16 toPackets(const std::vector<const RayLog::Ray*>& rays) {
+Packet16 toPackets(const std::vector<const bench::RayLog::Ray*>& rays) {
     Packet16 p;
     p.rays.resize((rays.size() + 15) / 16);
     p.valid.resize(p.rays.size());
@@ -120,16 +120,16 @@ Seconds bestTime(tbb::task_arena& arena, const std::vector<T>& pristine, size_t 
 }
 
 struct KindRays {
-    std::vector<const RayLog::Ray*> scene[2];  // [0] all, [1] ghosts only
+    std::vector<const bench::RayLog::Ray*> scene[2];  // [0] all, [1] ghosts only
 };
 
 }  // namespace
 
-BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log, int threads,
-                               int repeats) {
+bench::BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const bench::RayLog& log,
+                                      int threads, int repeats) {
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
     KindRays kinds[3];
-    for (const RayLog::Ray& r : log.rays)
+    for (const bench::RayLog::Ray& r : log.rays)
         kinds[static_cast<int>(r.kind)].scene[r.ghosts_only ? 1 : 0].push_back(&r);
     const RTCScene scenes[2] = {all, ghosts};
     constexpr size_t kGrain = 256;
@@ -138,7 +138,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRayHit> rays;
-            for (const RayLog::Ray* r : k.scene[s])
+            for (const bench::RayLog::Ray* r : k.scene[s])
                 rays.push_back(toRayHit(*r));
             sum += bestTime(arena, rays, kGrain, repeats, [&](RTCRayHit* first, size_t n, size_t) {
                 RTCIntersectContext context;
@@ -155,7 +155,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRayHit> rays;
-            for (const RayLog::Ray* r : k.scene[s])
+            for (const bench::RayLog::Ray* r : k.scene[s])
                 rays.push_back(toRayHit(*r));
             sum += bestTime(arena, rays, kGrain, repeats, [&](RTCRayHit* first, size_t n, size_t) {
                 RTCIntersectContext context;
@@ -186,7 +186,7 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
         Seconds sum;
         for (int s = 0; s < 2; ++s) {
             std::vector<RTCRay> rays;
-            for (const RayLog::Ray* r : k.scene[s])
+            for (const bench::RayLog::Ray* r : k.scene[s])
                 rays.push_back(toRay(*r));
             sum += bestTime(arena, rays, kGrain, repeats, [&](RTCRay* first, size_t n, size_t) {
                 RTCIntersectContext context;
@@ -229,10 +229,10 @@ BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log,
             }
     };
 
-    BareTraceTimes times;
-    const KindRays& primary = kinds[static_cast<int>(RayLog::Kind::kPrimary)];
-    const KindRays& secondary = kinds[static_cast<int>(RayLog::Kind::kSecondary)];
-    const KindRays& shadow = kinds[static_cast<int>(RayLog::Kind::kShadow)];
+    bench::BareTraceTimes times;
+    const KindRays& primary = kinds[static_cast<int>(bench::RayLog::Kind::kPrimary)];
+    const KindRays& secondary = kinds[static_cast<int>(bench::RayLog::Kind::kSecondary)];
+    const KindRays& shadow = kinds[static_cast<int>(bench::RayLog::Kind::kShadow)];
     best(times.primary_s, times.primary_cpu_s, times.primary_method,
          {{intersect1(primary, true), "rtcIntersect1"}, {intersect16(primary), "rtcIntersect16"}});
     best(times.secondary_s, times.secondary_cpu_s, times.secondary_method,

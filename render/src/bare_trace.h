@@ -1,9 +1,10 @@
-// The benchmark's baseline: the rays of a RayLog traced with nothing but Embree calls.
+// The benchmark's baseline: the rays of a RayLog (bench_seam.h) traced with nothing but Embree
+// calls.
 #pragma once
 
 #include <embree3/rtcore.h>
 
-#include "mixray/render/renderer.h"
+#include "mixray/render/bench_seam.h"
 
 namespace mixray::render::detail {
 
@@ -13,7 +14,7 @@ namespace mixray::render::detail {
 // rtcIntersect1M / rtcOccluded1M streams, shadow rays also as 16-ray packets of consecutive
 // entries (the renderer logs a point's soft-shadow samples together). Each kind keeps its
 // fastest method.
-BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const RayLog& log, int threads,
-                               int repeats);
+bench::BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const bench::RayLog& log,
+                                      int threads, int repeats);
 
 }  // namespace mixray::render::detail

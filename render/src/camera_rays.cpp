@@ -143,8 +143,8 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
                                      lane_hit.data(), object_mask);
         for (int i = 0; i < lanes; ++i) {
             hits[lane_index[i]] = lane_hit[i];
-            logRay(log, RayLog::Kind::kPrimary, scene.all(), scene.ghosts(), origins[lane_index[i]],
-                   lane_dir[i], kInf);
+            logRay(log, bench::RayLog::Kind::kPrimary, scene.all(), scene.ghosts(),
+                   origins[lane_index[i]], lane_dir[i], kInf);
         }
         lanes = 0;
     };

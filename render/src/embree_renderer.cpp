@@ -41,6 +41,12 @@ Status EmbreeRenderer::init() {
     if (!built)
         return built.status();
     scene_ = std::move(built).value();
+    // One arena for the renderer's life: building one per frame cost its threads' start-up
+    // (and the first tasks' cold caches) on every render().
+    const int threads = options_.threads > 0 ? options_.threads : tbb::task_arena::automatic;
+    arena_.emplace(threads);
+    arena_->initialize();
+    scratch_.resize(static_cast<size_t>(arena_->max_concurrency()));
     integrator_.emplace(options_, materials_, objects_, *scene_, depth_object_);
     if (caustic_settings_) {
         caustics_.emplace(*caustic_settings_, objects_, materials_);
@@ -113,7 +119,7 @@ double EmbreeRenderer::renderShadowMaps(const Frame& f) {
                : 0.0;
 }
 
-BareTraceTimes EmbreeRenderer::traceBare(const RayLog& log, int repeats) const {
+bench::BareTraceTimes EmbreeRenderer::traceBare(const bench::RayLog& log, int repeats) const {
     return traceBareEmbree(scene_->all(), scene_->ghosts(), log, options_.threads, repeats);
 }
 
@@ -121,7 +127,8 @@ Status frameCancelled() {
     return Status(ErrorCode::kCancelled, "render: stopped on request before the frame was done");
 }
 
-Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderStats* stats) {
+Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, RenderStats* stats,
+                                   bench::RayLog* ray_log) {
     const auto start = std::chrono::steady_clock::now();
     MIXRAY_RETURN_IF_ERROR(checkInputs(in));
     if (in.stop.stop_requested())
@@ -142,7 +149,7 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     const bool use_mask = options_.screen_footprint && options_.only_virtual_footprint && !keep;
 
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
-    std::vector<RayList> tile_logs(in.ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
+    std::vector<RayList> tile_logs(ray_log != nullptr ? static_cast<size_t>(tiles) : 0);
     // Set by the first tile that sees the stop request; the tiles after it return at once. A
     // skipped tile keeps its last frame's pixels and dirty flag, so the next frame clears it.
     std::atomic<bool> stopped{false};
@@ -254,12 +261,8 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
         shadow += counters.shadow;
     };
 
-    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
-    arena.initialize();
-    if (scratch_.size() < static_cast<size_t>(arena.max_concurrency()))
-        scratch_.resize(static_cast<size_t>(arena.max_concurrency()));
     double shadow_map_seconds = 0;
-    arena.execute([&] {
+    arena_->execute([&] {
         shadow_map_seconds = renderShadowMaps(f);
         if (caustics_) {
             caustics_->update(f, *scene_, *integrator_);
@@ -300,10 +303,10 @@ Status EmbreeRenderer::render(const RenderInputs& in, RenderLayers& out, RenderS
     });
     if (stopped)
         return frameCancelled();
-    if (in.ray_log != nullptr) {
-        in.ray_log->rays.clear();
+    if (ray_log != nullptr) {
+        ray_log->rays.clear();
         for (const RayList& l : tile_logs)
-            in.ray_log->rays.insert(in.ray_log->rays.end(), l.begin(), l.end());
+            ray_log->rays.insert(ray_log->rays.end(), l.begin(), l.end());
     }
     b.exportLayers(keep, out);
     if (stats != nullptr) {

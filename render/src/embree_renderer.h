@@ -3,6 +3,8 @@
 // tile by tile in a TBB arena. Internal to mixray::render; Renderer::create() makes one.
 #pragma once
 
+#include <tbb/task_arena.h>
+
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -15,6 +17,7 @@
 #include "integrator.h"
 #include "lens_effects.h"
 #include "mixray/calibration/depth_registration.h"
+#include "mixray/render/bench_seam.h"
 
 namespace mixray::render::detail {
 
@@ -54,10 +57,16 @@ public:
     // Builds the BVH.
     Status init();
 
-    Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override;
+    Status render(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats) override {
+        return renderFrame(inputs, out, stats, nullptr);
+    }
     Status setLights(const std::vector<Light>& lights) override;
     const RenderOptions& options() const override { return options_; }
-    BareTraceTimes traceBare(const RayLog& log, int repeats) const override;
+
+    // render(), appending every ray to `log` when it is not null (bench_seam.h).
+    Status renderFrame(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats,
+                       bench::RayLog* log);
+    bench::BareTraceTimes traceBare(const bench::RayLog& log, int repeats) const;
 
 private:
     // frame_setup.cpp: the frame's inputs checked, its poses, depth, lights and rays set up.
@@ -101,7 +110,9 @@ private:
     std::optional<CausticSettings> caustic_settings_;
     std::optional<CausticMaps> caustics_;  // once the BVH is built, with caustic_settings_
     std::vector<uint8_t> tile_mask_;
-    // One per thread slot of the render arena (tbb::this_task_arena::current_thread_index()).
+    // The threads every frame runs on (RenderOptions::threads), made with the BVH.
+    std::optional<tbb::task_arena> arena_;
+    // One per thread slot of arena_ (tbb::this_task_arena::current_thread_index()).
     std::vector<TileScratch> scratch_;
 };
 

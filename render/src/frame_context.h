@@ -14,6 +14,7 @@
 
 #include "embree_scene.h"
 #include "footprint.h"
+#include "mixray/render/bench_seam.h"
 #include "mixray/render/depth_occlusion.h"
 #include "mixray/render/renderer.h"
 #include "optics.h"
@@ -52,16 +53,16 @@ struct Counters {
     uint64_t shadow = 0;
 };
 
-using RayList = std::vector<RayLog::Ray>;
+using RayList = std::vector<bench::RayLog::Ray>;
 
 struct SampleState {
     optics::Rng rng;
     Counters* counters;
-    RayList* log = nullptr;  // RenderInputs::ray_log was given
+    RayList* log = nullptr;  // renderFrame() was given a log
     bool penumbra = false;
 };
 
-inline void logRay(RayList* log, RayLog::Kind kind, RTCScene scene, RTCScene ghosts,
+inline void logRay(RayList* log, bench::RayLog::Kind kind, RTCScene scene, RTCScene ghosts,
                    const Vec3& origin, const Vec3& d, float t_far) {
     if (log != nullptr)
         log->push_back({{origin.x(), origin.y(), origin.z()},

@@ -320,7 +320,7 @@ std::optional<Vec3> DifferentialIntegrator::cameraRadianceAt(const Frame& f, con
     const Vec3 origin =
         s.p + offsetFor(s.p) * (s.n_geometric.dot(dir) > 0 ? s.n_geometric : Vec3(-s.n_geometric));
     ++st.counters->shadow;
-    logRay(st.log, RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), origin, dir,
+    logRay(st.log, bench::RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), origin, dir,
            dist * 0.999f);
     if (EmbreeScene::occluded(scene_.ghosts(), origin, dir, dist * 0.999f))
         return std::nullopt;
@@ -331,7 +331,7 @@ Pair DifferentialIntegrator::trace(const Frame& f, const Vec3& origin, const Vec
                                    Mode mode, SampleState& st) const {
     ++st.counters->secondary;
     const RTCScene scene = mode == Mode::kReal ? scene_.ghosts() : scene_.all();
-    logRay(st.log, RayLog::Kind::kSecondary, scene, scene_.ghosts(), origin, d, kInf);
+    logRay(st.log, bench::RayLog::Kind::kSecondary, scene, scene_.ghosts(), origin, d, kInf);
     const Hit hit = EmbreeScene::intersect(scene, origin, d, kInf);
     if (f.depth && options_.depth_secondary == DepthSecondaryRays::kScreenSpace) {
         // RT²AR Algorithm 2: the depth camera's surfaces, found in screen space, are real and

@@ -59,6 +59,41 @@ bool viewFits(const ImageView& image, int bytes_per_pixel) {
 
 }  // namespace
 
+double ImageDifference::farOffPercent() const {
+    return pixels > 0 ? 100.0 * static_cast<double>(pixels_far_off) / static_cast<double>(pixels)
+                      : 0.0;
+}
+
+Result<ImageDifference> compareImages(const ImageView& a, const ImageView& b, int far_codes) {
+    if (a.desc.format != PixelFormat::kRGB8 || b.desc.format != PixelFormat::kRGB8 ||
+        a.desc.width != b.desc.width || a.desc.height != b.desc.height || a.desc.width < 1 ||
+        a.desc.height < 1)
+        return Status(ErrorCode::kInvalidArgument,
+                      "compareImages: two rgb8 images of one size are needed");
+    const int w = a.desc.width, h = a.desc.height;
+    ImageDifference out;
+    out.worst_x8 = Image(ImageDesc::packed(PixelFormat::kMono8, w, h));
+    out.pixels = static_cast<uint64_t>(w) * static_cast<uint64_t>(h);
+    double sum = 0;
+    for (int y = 0; y < h; ++y) {
+        const uint8_t* ra = a.row<uint8_t>(y);
+        const uint8_t* rb = b.row<uint8_t>(y);
+        uint8_t* worst_row = out.worst_x8.bytes().data() + static_cast<size_t>(y) * w;
+        for (int x = 0; x < w; ++x) {
+            int worst = 0;
+            for (int c = 3 * x; c < 3 * x + 3; ++c) {
+                const int d = static_cast<int>(ra[c]) - static_cast<int>(rb[c]);
+                sum += d * d;
+                worst = std::max(worst, std::abs(d));
+            }
+            out.pixels_far_off += worst > far_codes ? 1 : 0;
+            worst_row[x] = static_cast<uint8_t>(std::min(255, 8 * worst));
+        }
+    }
+    out.rmse = std::sqrt(sum / (3.0 * static_cast<double>(out.pixels)));
+    return out;
+}
+
 Status writePng(const ImageView& image, const std::filesystem::path& path) {
     const std::string name = path.string();
     int type = 0;

@@ -38,11 +38,6 @@ Status RenderOptions::validate() const {
     return Status::ok();
 }
 
-uint64_t RayLog::count(Kind kind) const {
-    return static_cast<uint64_t>(
-        std::count_if(rays.begin(), rays.end(), [kind](const Ray& r) { return r.kind == kind; }));
-}
-
 RenderInputs::ShutterPoses shutterFromMotion(const Eigen::Isometry3d& T_world_cam_before,
                                              const Eigen::Isometry3d& T_world_cam,
                                              double frame_interval_s, double exposure_s) {

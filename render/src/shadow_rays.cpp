@@ -17,7 +17,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
         bool occ_m = false;
         if (want_m) {
             ++st.counters->shadow;
-            logRay(st.log, RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), origin, dir,
+            logRay(st.log, bench::RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), origin, dir,
                    length);
             occ_m = EmbreeScene::occluded(scene_.all(), origin, dir, length);
             lit_m += occ_m ? 0 : 1;
@@ -26,8 +26,8 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
             bool occ_r = false;
             if (!want_m || occ_m) {
                 ++st.counters->shadow;
-                logRay(st.log, RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), origin, dir,
-                       length);
+                logRay(st.log, bench::RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(),
+                       origin, dir, length);
                 occ_r = EmbreeScene::occluded(scene_.ghosts(), origin, dir, length);
             }
             lit_r += occ_r ? 0 : 1;
@@ -40,7 +40,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
         if (want_m) {
             for (int i = 0; i < count; ++i) {
                 ++st.counters->shadow;
-                logRay(st.log, RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), origin,
+                logRay(st.log, bench::RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), origin,
                        dirs[i], lengths[i]);
             }
             EmbreeScene::occluded16(scene_.all(), origin, dirs, lengths, nullptr, count,
@@ -55,8 +55,8 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
                 if (active[i]) {
                     any = true;
                     ++st.counters->shadow;
-                    logRay(st.log, RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), origin,
-                           dirs[i], lengths[i]);
+                    logRay(st.log, bench::RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(),
+                           origin, dirs[i], lengths[i]);
                 }
             }
             if (any)

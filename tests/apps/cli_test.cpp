@@ -427,6 +427,32 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     EXPECT_EQ(figures[4]["rays_per_frame"]["secondary"], figures[2]["rays_per_frame"]["secondary"]);
 }
 
+// The same teapot frame in mixray and in POV-Ray: both timed, and the images alike.
+TEST(Cli, BenchRenderAgainstPovray) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
+    EXPECT_EQ(mixray("bench render --peer blender").exit_code, 2);
+    CliRun json = mixray("bench render --peer povray --size 96x72 --frames 1 --threads 2 --json");
+    ASSERT_EQ(json.exit_code, 0) << json.output;
+    if (json.output.find("peer povray: skipped: cannot run povray") != std::string::npos)
+        GTEST_SKIP() << json.output;
+    const auto figures = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(figures.is_array()) << json.output;
+    ASSERT_EQ(figures.size(), 3u);  // primary only, + hard shadows, + 3 bounces
+    for (const auto& f : figures) {
+        EXPECT_EQ(f["peer"], "povray");
+        EXPECT_GE(f["mixray_rays"].get<double>(), 96 * 72);  // every pixel
+        EXPECT_GT(f["mixray_ms"].get<double>(), 0);
+        EXPECT_GT(f["povray_trace_ms"].get<double>(), 0);
+        EXPECT_GT(f["ar_frame_ms"].get<double>(), 0);
+        EXPECT_LT(f["ar_frame_rays"].get<double>(), f["mixray_rays"].get<double>());
+        EXPECT_LT(f["rmse_codes"].get<double>(), 8.0) << f.dump();
+        const std::filesystem::path images = f["images"].get<std::string>();
+        for (const char* file : {"scene.pov", "scene.png", "mixray.png", "difference_x8.png"})
+            EXPECT_TRUE(std::filesystem::exists(images / file)) << images / file;
+    }
+    EXPECT_GT(figures[2]["mixray_rays"].get<double>(), figures[1]["mixray_rays"].get<double>());
+}
+
 // Kán & Kaufmann's Table 1: each row's photon shooting and grid times where the photons are shot
 // again, none where they are reused, and the row without caustics has none at all.
 TEST(Cli, BenchRenderTimesTheCausticsPhases) {

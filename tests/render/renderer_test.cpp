@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "mixray/render/assets.h"
+#include "mixray/render/bench_seam.h"
 #include "renderer_test_util.h"
 #include "watchdog.h"
 
@@ -869,17 +870,6 @@ SceneDescription reflectiveTableScene(bool second_ghost) {
     return scene;
 }
 
-Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-    const Eigen::Vector3d forward = (target - eye).normalized();
-    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear().col(0) = right;
-    T.linear().col(1) = forward.cross(right);
-    T.linear().col(2) = forward;
-    T.translation() = eye;
-    return T;
-}
-
 // The screen footprint only skips tiles whose pixels the per-pixel test would not trace, and
 // the per-pixel test only skips pixels whose mixed and real radiance agree bit for bit, so
 // every switch gives the same bytes.
@@ -935,20 +925,19 @@ TEST(Renderer, RayLogHoldsExactlyTheRaysTheStatsCount) {
     RenderLayers plain, logged;
     RenderStats plain_stats, stats;
     ASSERT_TRUE(renderer->render(frame.inputs, plain, &plain_stats));
-    RayLog log;
+    bench::RayLog log;
     log.rays.resize(3);  // stale entries from an earlier frame are replaced
-    frame.inputs.ray_log = &log;
-    ASSERT_TRUE(renderer->render(frame.inputs, logged, &stats));
+    ASSERT_TRUE(bench::renderLoggingRays(*renderer, frame.inputs, logged, &stats, log));
     EXPECT_TRUE(sameImage(plain.composite.view(), logged.composite.view()));
     EXPECT_EQ(stats.rays(), plain_stats.rays());
     EXPECT_GT(stats.secondary_rays, 0u);
     EXPECT_GT(stats.shadow_rays, 0u);
-    EXPECT_EQ(log.count(RayLog::Kind::kPrimary), stats.primary_rays);
-    EXPECT_EQ(log.count(RayLog::Kind::kSecondary), stats.secondary_rays);
-    EXPECT_EQ(log.count(RayLog::Kind::kShadow), stats.shadow_rays);
+    EXPECT_EQ(log.count(bench::RayLog::Kind::kPrimary), stats.primary_rays);
+    EXPECT_EQ(log.count(bench::RayLog::Kind::kSecondary), stats.secondary_rays);
+    EXPECT_EQ(log.count(bench::RayLog::Kind::kShadow), stats.shadow_rays);
     EXPECT_EQ(log.rays.size(), stats.rays());
     size_t ghost_rays = 0;
-    for (const RayLog::Ray& r : log.rays) {
+    for (const bench::RayLog::Ray& r : log.rays) {
         const Eigen::Vector3f d(r.direction[0], r.direction[1], r.direction[2]);
         EXPECT_NEAR(d.norm(), 1.f, 1e-4f);
         EXPECT_GT(r.t_far, 0.f);
@@ -956,7 +945,7 @@ TEST(Renderer, RayLogHoldsExactlyTheRaysTheStatsCount) {
     }
     EXPECT_GT(ghost_rays, 0u);  // real-only rays of the differential pair
     // Bare Embree traces them all on the same BVH.
-    const BareTraceTimes bare = renderer->traceBare(log, 1);
+    const bench::BareTraceTimes bare = bench::traceBare(*renderer, log, 1);
     EXPECT_GT(bare.total(), 0.0);
     EXPECT_FALSE(bare.primary_method.empty());
     EXPECT_FALSE(bare.shadow_method.empty());

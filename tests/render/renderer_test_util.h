@@ -32,6 +32,18 @@ inline Eigen::Isometry3d lookAlongY(const Eigen::Vector3d& position) {
     return T;
 }
 
+// A camera at `eye` looking at `target`, the world's z up in the image.
+inline Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+    const Eigen::Vector3d forward = (target - eye).normalized();
+    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear().col(0) = right;
+    T.linear().col(1) = forward.cross(right);
+    T.linear().col(2) = forward;
+    T.translation() = eye;
+    return T;
+}
+
 inline Image filledImage(int w, int h, const std::function<std::array<uint8_t, 3>(int, int)>& f) {
     Image image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
     for (int y = 0; y < h; ++y)

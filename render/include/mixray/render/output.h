@@ -27,6 +27,18 @@ Status writeExr(const FloatImage& image, const std::filesystem::path& path);
 // counts or a pixel vector of the wrong size. Reentrant.
 Result<Image> toSrgb8(const FloatImage& linear);
 
+// How two rgb8 images of one frame differ, over every pixel and channel, in 8-bit codes.
+struct ImageDifference {
+    double rmse = 0;
+    uint64_t pixels_far_off = 0;  // pixels with a channel more than `far_codes` apart
+    double farOffPercent() const;
+    Image worst_x8;  // mono8: each pixel's largest channel difference times 8, clipped
+    uint64_t pixels = 0;
+};
+
+// kInvalidArgument when the two are not rgb8 images of one size. Reentrant.
+Result<ImageDifference> compareImages(const ImageView& a, const ImageView& b, int far_codes);
+
 enum class VideoCodec : uint8_t {
     kAuto,   // .mp4/.m4v/.mov: H.264 when the build has libx264, else MPEG-4 part 2; .mkv: FFV1
     kH264,   // libx264, yuv420p (widely playable); .mp4 or .mkv

@@ -72,36 +72,6 @@ struct RenderOptions {
 // values RenderOptions::embree_isa takes besides "".
 std::vector<std::string> embreeIsas();
 
-// Every ray one frame traced, in a deterministic order, so a benchmark can trace the same rays
-// with bare Embree on the same BVH. Filled only on request (RenderInputs::ray_log).
-struct RayLog {
-    enum class Kind : uint8_t { kPrimary, kSecondary, kShadow };
-    struct Ray {
-        float origin[3];
-        float direction[3];
-        float t_far;
-        Kind kind;
-        bool ghosts_only;  // traced in the scene of ghosts (real-only radiance), else all objects
-    };
-    std::vector<Ray> rays;
-
-    uint64_t count(Kind kind) const;
-};
-
-// Seconds bare Embree took to trace a RayLog on the renderer's BVH with its threads: the best
-// of the ways tried for each kind (single rays, 16-ray packets, streams), as
-// wall-clock time and as the process's CPU time (which other programs on the machine disturb
-// less).
-struct BareTraceTimes {
-    double primary_s = 0;
-    double secondary_s = 0;
-    double shadow_s = 0;
-    double primary_cpu_s = 0, secondary_cpu_s = 0, shadow_cpu_s = 0;
-    std::string primary_method, secondary_method, shadow_method;
-    double total() const { return primary_s + secondary_s + shadow_s; }
-    double totalCpu() const { return primary_cpu_s + secondary_cpu_s + shadow_cpu_s; }
-};
-
 // One frame to composite into.
 struct RenderInputs {
     ImageView camera_image;  // I_c: rgb8, sRGB-encoded, camera.width x camera.height
@@ -126,8 +96,6 @@ struct RenderInputs {
     // Poses of the anchors objects are bound to, this frame ("marker:3" -> T_world_marker).
     // "world" is implicit. Objects whose anchor is missing are not drawn this frame.
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
-    // Debug hook: when set, every ray of this frame is appended (slower; off costs nothing).
-    RayLog* ray_log = nullptr;
     // Cancels this frame: render() checks it before each tile, so a stop requested from another
     // thread (or a signal watcher) ends the frame within about one tile's time. Default: never.
     std::stop_token stop;
@@ -186,10 +154,6 @@ public:
     virtual Status setLights(const std::vector<Light>& lights) = 0;
 
     virtual const RenderOptions& options() const = 0;
-
-    // Traces `log` (from the last render()) with bare Embree on the same BVH and poses, with
-    // options().threads, `repeats` times; the fastest run per ray kind counts.
-    virtual BareTraceTimes traceBare(const RayLog& log, int repeats) const = 0;
 };
 
 }  // namespace mixray::render
