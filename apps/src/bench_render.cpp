@@ -4,11 +4,13 @@
 #include "bench_render.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -208,24 +210,81 @@ SceneDescription teapotScene(const fs::path& shared, bool sphere_light) {
 
 constexpr size_t kDragonTriangles = 1'100'000;
 
-Result<SceneDescription> dragonScene(const fs::path& shared) {
-    SceneDescription scene = teapotScene(shared, false);
-    auto loaded = loadMeshFile(shared / "06_models" / "photon_dragon_100k.obj");
-    if (!loaded)
-        return loaded.status();
-    auto mesh = std::make_shared<TriangleMesh>();
-    for (const LoadedMesh& part : *loaded) {
-        const auto base = static_cast<uint32_t>(mesh->positions.size());
-        mesh->positions.insert(mesh->positions.end(), part.mesh.positions.begin(),
-                               part.mesh.positions.end());
-        mesh->normals.insert(mesh->normals.end(), part.mesh.normals.begin(),
-                             part.mesh.normals.end());
-        for (auto t : part.mesh.triangles)
-            mesh->triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+// Writes `mesh` as a binary PLY (positions and triangles), as a scanned model comes.
+Status writePly(const TriangleMesh& mesh, const fs::path& path) {
+    std::ofstream out(path, std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\ncomment mixray bench render\nelement vertex "
+        << mesh.positions.size()
+        << "\nproperty float x\nproperty float y\nproperty float z\nelement face "
+        << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (const Eigen::Vector3f& p : mesh.positions)
+        out.write(reinterpret_cast<const char*>(p.data()), 3 * sizeof(float));
+    for (const auto& t : mesh.triangles) {
+        const uint8_t three = 3;
+        const std::array<int32_t, 3> index = {
+            static_cast<int32_t>(t[0]), static_cast<int32_t>(t[1]), static_cast<int32_t>(t[2])};
+        out.write(reinterpret_cast<const char*>(&three), 1);
+        out.write(reinterpret_cast<const char*>(index.data()), sizeof index);
     }
-    if (mesh->normals.size() != mesh->positions.size())
-        mesh->normals.clear();
-    Subdivider{*mesh}.subdivideTo(kDragonTriangles);
+    if (!out.flush())
+        return Status(ErrorCode::kIoError, path.string() + ": cannot write");
+    return Status::ok();
+}
+
+// The dragons' mesh file and how long it takes to load: assimp's import, and a load from the
+// mesh cache (MeshCacheSettings), which the renderer then gets.
+struct DragonMesh {
+    fs::path ply;
+    double import_ms = 0;  // without the mesh cache
+    double cached_ms = 0;  // from it; 0 when there is no cache
+};
+
+// Two Stanford dragons of 1.1M triangles (photon_dragon_100k.obj split to that count) beside
+// the teapot, both from one binary PLY file, as a scanned model arrives: the renderer loads it
+// once and builds its BVH once for both. The file is written into `dir` unless it is there.
+Result<SceneDescription> dragonScene(const fs::path& shared, const fs::path& dir,
+                                     DragonMesh& dragon_mesh) {
+    SceneDescription scene = teapotScene(shared, false);
+    const fs::path ply = dir / "dragon_1.1M.ply";
+    if (!fs::exists(ply)) {
+        auto loaded = loadMeshFile(shared / "06_models" / "photon_dragon_100k.obj");
+        if (!loaded)
+            return loaded.status();
+        TriangleMesh mesh;
+        for (const LoadedMesh& part : *loaded) {
+            const auto base = static_cast<uint32_t>(mesh.positions.size());
+            mesh.positions.insert(mesh.positions.end(), part.mesh.positions.begin(),
+                                  part.mesh.positions.end());
+            for (auto t : part.mesh.triangles)
+                mesh.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+        }
+        Subdivider{mesh}.subdivideTo(kDragonTriangles);
+        fs::create_directories(dir);
+        const fs::path partial = ply.string() + ".partial";
+        MIXRAY_RETURN_IF_ERROR(writePly(mesh, partial));
+        fs::rename(partial, ply);
+    }
+    dragon_mesh.ply = ply;
+    const auto timeLoad = [&](const MeshCacheSettings& cache) -> Result<double> {
+        const auto start = std::chrono::steady_clock::now();
+        auto loaded = loadMeshFile(ply, 0.01f, cache);
+        if (!loaded)
+            return loaded.status();
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count();
+    };
+    auto imported = timeLoad(MeshCacheSettings{});
+    if (!imported)
+        return imported.status();
+    dragon_mesh.import_ms = *imported;
+    const MeshCacheSettings cache = MeshCacheSettings::fromEnvironment();
+    if (!cache.dir.empty()) {
+        MIXRAY_RETURN_IF_ERROR(timeLoad(cache).status());  // makes the entry if there is none
+        auto cached = timeLoad(cache);
+        if (!cached)
+            return cached.status();
+        dragon_mesh.cached_ms = *cached;
+    }
     Material jade;
     jade.name = "dragon";
     jade.type = MaterialType::kPhong;
@@ -235,8 +294,7 @@ Result<SceneDescription> dragonScene(const fs::path& shared) {
         SceneObject dragon;
         dragon.name = "dragon" + std::to_string(i);
         dragon.shape.type = ShapeType::kMesh;
-        dragon.shape.mesh_data = mesh;
-        dragon.shape.mesh = "photon_dragon_100k.obj (subdivided)";
+        dragon.shape.mesh = ply;
         dragon.shape.scale = 0.01f;
         dragon.material = jade.name;
         dragon.T_anchor_object = pose(
@@ -544,6 +602,7 @@ struct Figures {
     double renderer_cpu_ms = 0;  // the process's CPU time
     bench::BareTraceTimes bare;
     bool log_matches_stats = false;
+    bench::CreationTimes created;  // the renderer's: its meshes loaded and its BVH built
 };
 
 Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::vector<Light>& lights,
@@ -637,6 +696,9 @@ void printFigures(const Figures& f) {
     std::printf("%s: %s, %dx%d, %d frames\n", f.scene.c_str(), f.config.c_str(), f.size.width,
                 f.size.height, f.frames);
     const double pixels = static_cast<double>(f.size.width) * f.size.height;
+    std::printf("  scene created in %.0f ms: loaded %.0f ms, BVH of %llu triangles %.0f ms\n",
+                1e3 * (f.created.load_s + f.created.bvh_s), 1e3 * f.created.load_s,
+                static_cast<unsigned long long>(f.created.triangles_built), 1e3 * f.created.bvh_s);
     std::printf("  fps %8.1f   frame %7.2f ms   pixels traced %9.0f (%4.1f %%)\n", f.fps,
                 f.frame_ms, f.pixels_traced, 100 * f.pixels_traced / pixels);
     std::printf("  rays/frame  primary %9.0f  secondary %9.0f  shadow %9.0f   %7.2f Mrays/s\n",
@@ -701,6 +763,10 @@ nlohmann::json toJson(const Figures& f) {
             {"efficiency", f.renderer_ms > 0 ? 1e3 * f.bare.total() / f.renderer_ms : 0.0},
             {"renderer_cpu_ms", f.renderer_cpu_ms},
             {"bare_cpu_ms", 1e3 * f.bare.totalCpu()},
+            {"created",
+             {{"load_ms", 1e3 * f.created.load_s},
+              {"bvh_ms", 1e3 * f.created.bvh_s},
+              {"triangles_built", f.created.triangles_built}}},
             {"efficiency_cpu",
              f.renderer_cpu_ms > 0 ? 1e3 * f.bare.totalCpu() / f.renderer_cpu_ms : 0.0}};
 }
@@ -950,6 +1016,15 @@ nlohmann::json peerJson(const PeerFigures& f, const fs::path& work_dir) {
             {"images", work_dir.string()}};
 }
 
+// A fresh folder under the system's temporary folder, for files the bench writes.
+Result<fs::path> makeWorkDir(const std::string& prefix) {
+    std::string dir_template = (fs::temp_directory_path() / (prefix + "-XXXXXX")).string();
+    if (mkdtemp(dir_template.data()) == nullptr)
+        return Status(ErrorCode::kIoError,
+                      "cannot make a folder under " + fs::temp_directory_path().string());
+    return fs::path(dir_template);
+}
+
 int runBenchPeer(const BenchRenderOptions& options, const std::vector<Size>& sizes,
                  const fs::path& shared) {
     const fs::path teapot = shared / "06_models" / "newell_teapot.obj";
@@ -960,11 +1035,10 @@ int runBenchPeer(const BenchRenderOptions& options, const std::vector<Size>& siz
             teapot.c_str());
         return kExitOk;
     }
-    std::string dir_template = (fs::temp_directory_path() / "mixray-bench-povray-XXXXXX").string();
-    if (mkdtemp(dir_template.data()) == nullptr)
-        return fail("bench render", {ErrorCode::kIoError, "cannot make a folder under " +
-                                                              fs::temp_directory_path().string()});
-    const fs::path work_dir = dir_template;
+    const auto made = makeWorkDir("mixray-bench-povray");
+    if (!made)
+        return fail("bench render", made.status());
+    const fs::path work_dir = *made;
     RenderOptions base;
     base.threads = options.threads;
     base.soft_shadows = SoftShadowMethod::kHard;
@@ -1054,12 +1128,49 @@ int runBenchRender(BenchRenderOptions options) {
                 std::printf("%s: skipped: %s\n", name.c_str(), why.c_str());
             continue;
         }
-        Result<SceneDescription> scene =
-            name == "dragons" ? dragonScene(shared)
-                              : Result<SceneDescription>(
-                                    teapotScene(shared, name == "soft" || name == "shadow-maps"));
+        // dragons: their mesh file is kept beside the mesh cache, so that the cache (keyed by
+        // the file's path, size and time) serves the next run; without a cache, in a folder
+        // removed when the scene is done.
+        std::optional<fs::path> scratch;
+        struct RemoveScratch {
+            const std::optional<fs::path>& dir;
+            ~RemoveScratch() {
+                std::error_code ignored;
+                if (dir)
+                    fs::remove_all(*dir, ignored);
+            }
+        } remove_scratch{scratch};
+        DragonMesh dragon_mesh;
+        Result<SceneDescription> scene = Status::ok();
+        if (name == "dragons") {
+            fs::path dir = MeshCacheSettings::fromEnvironment().dir;
+            if (dir.empty()) {
+                auto made = makeWorkDir("mixray-bench-dragons");
+                if (!made)
+                    return fail("bench render", made.status());
+                dir = scratch.emplace(*made);
+            } else {
+                dir = dir.parent_path() / "bench";
+            }
+            scene = dragonScene(shared, dir, dragon_mesh);
+        } else {
+            scene = teapotScene(shared, name == "soft" || name == "shadow-maps");
+        }
         if (!scene)
             return fail("bench render", scene.status());
+        if (name == "dragons") {
+            if (options.json)
+                results.push_back({{"scene", name},
+                                   {"mesh_file", dragon_mesh.ply.string()},
+                                   {"assimp_import_ms", dragon_mesh.import_ms},
+                                   {"mesh_cache_load_ms", dragon_mesh.cached_ms}});
+            else
+                std::printf(
+                    "dragons: %s: assimp imports it in %.0f ms; from the mesh cache it loads in "
+                    "%.0f ms%s\n",
+                    dragon_mesh.ply.c_str(), dragon_mesh.import_ms, dragon_mesh.cached_ms,
+                    dragon_mesh.cached_ms > 0 ? "" : " (no cache: MIXRAY_MESH_CACHE is off)");
+        }
         std::vector<Config> configs;
         for (const std::string& isa : *isas) {
             for (Config config : configsFor(name, options.threads, map_sizes)) {
@@ -1098,6 +1209,7 @@ int runBenchRender(BenchRenderOptions options) {
                                         options.repeats);
                 if (!figures)
                     return fail("bench render", figures.status());
+                figures->created = bench::creationTimes(**renderer);
                 if (name == "shadow-maps") {
                     const auto key = std::pair{size.width, size.height};
                     if (!references.contains(key))

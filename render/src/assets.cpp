@@ -5,14 +5,22 @@
 #include <assimp/mesh.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/version.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <assimp/Exporter.hpp>
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 namespace mixray::render {
@@ -239,7 +247,85 @@ TriangleMesh makeSphere(float radius, int segments) {
 
 }  // namespace
 
+MeshCacheSettings MeshCacheSettings::fromEnvironment() {
+    MeshCacheSettings settings;
+    const char* chosen = std::getenv("MIXRAY_MESH_CACHE");
+    if (chosen != nullptr && *chosen != '\0') {
+        if (std::string_view(chosen) != "off")
+            settings.dir = chosen;
+        return settings;
+    }
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg == '/')
+        settings.dir = std::filesystem::path(xdg) / "mixray" / "meshes";
+    else if (const char* home = std::getenv("HOME"); home != nullptr && *home == '/')
+        settings.dir = std::filesystem::path(home) / ".cache" / "mixray" / "meshes";
+    return settings;
+}
+
+namespace {
+
+// The import's flags: the cache holds a scene imported with them, and its entries change name
+// when they do.
+constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                  aiProcess_GenSmoothNormals | aiProcess_PreTransformVertices |
+                                  aiProcess_SortByPType | aiProcess_FlipUVs |
+                                  aiProcess_ValidateDataStructure;
+
+// The cache entry of `path` as it is now (its size and modification time, the import's flags
+// and assimp's version in the name), or none when the file is small or there is no cache.
+std::optional<std::filesystem::path> meshCacheEntry(const std::filesystem::path& path,
+                                                    const MeshCacheSettings& cache) {
+    std::error_code ec;
+    if (cache.dir.empty())
+        return std::nullopt;
+    // Only formats that hold the whole mesh in one file: an OBJ's .mtl or a glTF's buffers
+    // could change without the key seeing it.
+    std::string extension = path.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (extension != ".ply" && extension != ".stl" && extension != ".glb")
+        return std::nullopt;
+    const uintmax_t bytes = std::filesystem::file_size(path, ec);
+    if (ec || bytes < cache.min_file_bytes)
+        return std::nullopt;
+    const auto modified = std::filesystem::last_write_time(path, ec);
+    if (ec)
+        return std::nullopt;
+    const std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+    const std::string key =
+        absolute.string() + '|' + std::to_string(bytes) + '|' +
+        std::to_string(modified.time_since_epoch().count()) + '|' + std::to_string(kImportFlags) +
+        '|' + std::to_string(aiGetVersionMajor()) + '.' + std::to_string(aiGetVersionMinor()) +
+        '.' + std::to_string(aiGetVersionRevision());
+    uint64_t hash = 1469598103934665603ull;  // FNV-1a: stable across runs and builds
+    for (unsigned char c : key)
+        hash = (hash ^ c) * 1099511628211ull;
+    char name[32];
+    std::snprintf(name, sizeof name, "-%016llx.assbin", static_cast<unsigned long long>(hash));
+    return cache.dir / (path.stem().string() + name);
+}
+
+// Writes the imported scene as the cache entry: to a temporary name, then renamed, so that a
+// reader never sees half an entry.
+void writeMeshCacheEntry(const aiScene& scene, const std::filesystem::path& entry) {
+    std::error_code ec;
+    std::filesystem::create_directories(entry.parent_path(), ec);
+    const std::filesystem::path partial =
+        entry.string() + ".partial-" + std::to_string(static_cast<long>(getpid()));
+    Assimp::Exporter exporter;
+    if (exporter.Export(&scene, "assbin", partial.string()) == aiReturn_SUCCESS)
+        std::filesystem::rename(partial, entry, ec);
+    std::filesystem::remove(partial, ec);
+}
+
+}  // namespace
+
 Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, float scale) {
+    return loadMeshFile(path, scale, MeshCacheSettings::fromEnvironment());
+}
+
+Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, float scale,
+                                             const MeshCacheSettings& cache) {
     if (!std::isfinite(scale) || scale <= 0) {
         return Result<std::vector<LoadedMesh>>(
             ErrorCode::kInvalidArgument,
@@ -256,19 +342,36 @@ Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, 
     }
     try {
         Assimp::Importer importer;
-        // Points and lines have no surface to trace.
-        importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
-                                    aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-        // FlipUVs turns assimp's bottom-left uv origin into the top-left one textures use.
-        const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                               aiProcess_GenSmoothNormals | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType | aiProcess_FlipUVs |
-                               aiProcess_ValidateDataStructure;
-        const aiScene* scene = importer.ReadFile(path.string(), flags);
-        if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) {
-            return Result<std::vector<LoadedMesh>>(
-                ErrorCode::kCorruptData,
-                path.string() + ": cannot read mesh: " + importer.GetErrorString());
+        const auto complete = [](const aiScene* scene) {
+            return scene != nullptr && !(scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) &&
+                   scene->mRootNode != nullptr;
+        };
+        const std::optional<std::filesystem::path> entry = meshCacheEntry(path, cache);
+        const aiScene* scene = nullptr;
+        if (entry && std::filesystem::exists(*entry, ec)) {
+            // Imported and post-processed already: only checked. An entry that does not read
+            // is imported again from the file.
+            try {
+                scene = importer.ReadFile(entry->string(), aiProcess_ValidateDataStructure);
+            } catch (const std::exception&) {
+                scene = nullptr;
+            }
+            if (!complete(scene))
+                scene = nullptr;
+        }
+        if (scene == nullptr) {
+            // Points and lines have no surface to trace.
+            importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                                        aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+            // FlipUVs turns assimp's bottom-left uv origin into the top-left one textures use.
+            scene = importer.ReadFile(path.string(), kImportFlags);
+            if (!complete(scene)) {
+                return Result<std::vector<LoadedMesh>>(
+                    ErrorCode::kCorruptData,
+                    path.string() + ": cannot read mesh: " + importer.GetErrorString());
+            }
+            if (entry)
+                writeMeshCacheEntry(*scene, *entry);
         }
         const std::filesystem::path dir = path.parent_path();
         std::vector<LoadedMesh> meshes;

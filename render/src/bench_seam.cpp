@@ -27,6 +27,10 @@ Status renderLoggingRays(Renderer& renderer, const RenderInputs& inputs, RenderL
     return embreeRenderer(renderer).renderFrame(inputs, out, stats, &log);
 }
 
+CreationTimes creationTimes(const Renderer& renderer) {
+    return embreeRenderer(renderer).creationTimes();
+}
+
 BareTraceTimes traceBare(const Renderer& renderer, const RayLog& log, int repeats) {
     return embreeRenderer(renderer).traceBare(log, repeats);
 }

@@ -37,10 +37,14 @@ EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> 
 }
 
 Status EmbreeRenderer::init() {
+    const auto start = std::chrono::steady_clock::now();
     auto built = EmbreeScene::build(objects_, options_.embree_isa);
     if (!built)
         return built.status();
     scene_ = std::move(built).value();
+    creation_times_.bvh_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    creation_times_.triangles_built = scene_->trianglesBuilt();
     // One arena for the renderer's life: building one per frame cost its threads' start-up
     // (and the first tasks' cold caches) on every render().
     const int threads = options_.threads > 0 ? options_.threads : tbb::task_arena::automatic;

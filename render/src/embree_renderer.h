@@ -67,6 +67,9 @@ public:
     Status renderFrame(const RenderInputs& inputs, RenderLayers& out, RenderStats* stats,
                        bench::RayLog* log);
     bench::BareTraceTimes traceBare(const bench::RayLog& log, int repeats) const;
+    // The loading's seconds come from Renderer::create(), the BVH's from init().
+    void setLoadSeconds(double seconds) { creation_times_.load_s = seconds; }
+    const bench::CreationTimes& creationTimes() const { return creation_times_; }
 
 private:
     // frame_setup.cpp: the frame's inputs checked, its poses, depth, lights and rays set up.
@@ -96,6 +99,7 @@ private:
     std::filesystem::path scene_source_;  // the scene file: light files resolve against it
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
     std::unique_ptr<EmbreeScene> scene_;
+    bench::CreationTimes creation_times_;
     std::optional<DifferentialIntegrator> integrator_;  // once the BVH is built
     ThinLens lens_;  // the scene camera's aperture; radius 0: a pinhole
     RayCache rays_;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <map>
 
 #include "mixray/render/renderer.h"
 
@@ -109,6 +110,9 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>&
     scene->all_ = rtcNewScene(scene->device_);
     scene->ghosts_ = rtcNewScene(scene->device_);
 
+    // Objects sharing their meshes (one file or one mesh in memory at one scale) share one
+    // prototype: its BVH is built once and instanced at each object's pose.
+    std::map<const std::vector<TriangleMesh>*, RTCScene> built;
     for (size_t i = 0; i < objects.size(); ++i) {
         ObjectData& object = objects[i];
         RTCScene prototype = nullptr;
@@ -120,17 +124,23 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<ObjectData>&
             }
             scene->depth_mesh_ = std::make_unique<DepthMeshGeometry>(scene->device_);
             prototype = scene->depth_mesh_->scene();
+        } else if (const auto it = built.find(object.meshes.get());
+                   object.shape != ShapeType::kSphere && it != built.end()) {
+            prototype = it->second;
         } else {
             prototype = rtcNewScene(scene->device_);
             scene->prototypes_.push_back(prototype);
+            if (object.shape != ShapeType::kSphere)
+                built[object.meshes.get()] = prototype;
             if (object.shape == ShapeType::kSphere) {
                 RTCGeometry g = sphereGeometry(scene->device_, object.sphere_radius);
                 rtcCommitGeometry(g);
                 rtcAttachGeometryByID(prototype, g, 0);
                 rtcReleaseGeometry(g);
             } else {
-                for (size_t m = 0; m < object.meshes.size(); ++m) {
-                    RTCGeometry g = triangleGeometry(scene->device_, object.meshes[m]);
+                for (size_t m = 0; m < object.meshes->size(); ++m) {
+                    RTCGeometry g = triangleGeometry(scene->device_, (*object.meshes)[m]);
+                    scene->triangles_built_ += (*object.meshes)[m].triangles.size();
                     rtcCommitGeometry(g);
                     rtcAttachGeometryByID(prototype, g, static_cast<unsigned>(m));
                     rtcReleaseGeometry(g);

@@ -39,8 +39,12 @@ struct ObjectData {
     int material = 0;
     std::string anchor;
     Eigen::Isometry3f T_anchor_object = Eigen::Isometry3f::Identity();
-    std::vector<TriangleMesh> meshes;  // kSphere: none (traced exactly)
-    // The depth camera's surface (DepthSecondaryRays::kMesh): meshes[0] is rebuilt every frame
+    // The triangles in the object's frame, scaled; kSphere: none (traced exactly). Shared by the
+    // objects that use one mesh file or one mesh in memory at one scale: loaded once, and
+    // their BVH built once and instanced (EmbreeScene).
+    std::shared_ptr<std::vector<TriangleMesh>> meshes =
+        std::make_shared<std::vector<TriangleMesh>>();
+    // The depth camera's surface (DepthSecondaryRays::kMesh): (*meshes)[0] is rebuilt every frame
     // in the camera frame and the object is posed at T_world_cam; a ghost.
     bool depth_surface = false;
     Eigen::Vector3f bound_centre = Eigen::Vector3f::Zero();  // bounding sphere, object frame
@@ -51,11 +55,24 @@ struct ObjectData {
     Eigen::Vector3f t_world_object = Eigen::Vector3f::Zero();
 };
 
+// Meshes one scene has loaded, by where they came from (a resolved file or a mesh in memory)
+// and their scale, with what they were loaded with.
+struct LoadedGeometry {
+    std::shared_ptr<std::vector<TriangleMesh>> meshes;
+    std::optional<MeshMaterialHint> hint;
+    Eigen::Vector3f bound_centre = Eigen::Vector3f::Zero();
+    float bound_radius = 0;
+};
+using MeshCache = std::map<std::pair<std::string, float>, LoadedGeometry>;
+
 // A scene object's geometry loaded into an ObjectData (name, role, pose, meshes scaled and
 // bounded; the material left to the caller): mesh files resolved against the scene file's
-// folder. `hint`, when given, gets the mesh file's own material. Errors name the object.
+// folder. `hint`, when given, gets the mesh file's own material. With a `cache`, a mesh file
+// or in-memory mesh another object already loaded at the same scale is shared, not loaded
+// again. Errors name the object.
 Result<ObjectData> loadObjectGeometry(const SceneDescription& scene, const SceneObject& object,
-                                      std::optional<MeshMaterialHint>* hint = nullptr);
+                                      std::optional<MeshMaterialHint>* hint = nullptr,
+                                      MeshCache* cache = nullptr);
 
 class ShadowMap;
 
@@ -115,6 +132,8 @@ public:
 
     RTCScene all() const { return all_; }
     RTCScene ghosts() const { return ghosts_; }
+    // Triangles whose BVH build() built: a mesh instanced by several objects counts once.
+    uint64_t trianglesBuilt() const { return triangles_built_; }
 
     static Hit intersect(RTCScene scene, const Eigen::Vector3f& origin,
                          const Eigen::Vector3f& direction, float t_far, unsigned mask = kAnyMask);
@@ -143,6 +162,7 @@ private:
     RTCScene all_ = nullptr;
     RTCScene ghosts_ = nullptr;
     std::vector<RTCScene> prototypes_;
+    uint64_t triangles_built_ = 0;
     std::vector<RTCGeometry> instances_all_;
     std::vector<RTCGeometry> instances_ghost_;  // nullptr for virtual objects
     std::unique_ptr<DepthMeshGeometry> depth_mesh_;

@@ -347,7 +347,7 @@ void EmbreeRenderer::updateDepthMesh(Frame& f) {
     if (!depth_object_)
         return;
     ObjectData& object = objects_[*depth_object_];
-    TriangleMesh& mesh = object.meshes.front();
+    TriangleMesh& mesh = object.meshes->front();
     if (f.depth) {
         mesher_.build(*f.depth, DepthMeshOptions{}, mesh);
     } else {

@@ -54,7 +54,7 @@ Surface DifferentialIntegrator::surfaceAt(const Hit& hit, const Vec3& origin, co
                 std::acos(std::clamp(n_obj.z(), -1.f, 1.f)) / optics::kPi};
         return s;
     }
-    const TriangleMesh& mesh = object.meshes[hit.mesh];
+    const TriangleMesh& mesh = (*object.meshes)[hit.mesh];
     const auto& tri = mesh.triangles[hit.prim];
     const float w = 1.f - hit.u - hit.v;
     const Vec3& a = mesh.positions[tri[0]];

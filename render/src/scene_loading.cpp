@@ -1,6 +1,8 @@
 // Renderer::create(): a scene description loaded (meshes, textures, environment maps) into the
 // renderer's materials, objects and lights, and the BVH built.
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <map>
 
 #include "embree_renderer.h"
@@ -29,18 +31,19 @@ Result<Texture> loadTexture(const SceneDescription& scene, const std::filesystem
     return texture;
 }
 
-void boundMeshes(ObjectData& object) {
+void boundMeshes(detail::LoadedGeometry& geometry) {
     Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
-    for (const TriangleMesh& mesh : object.meshes)
+    for (const TriangleMesh& mesh : *geometry.meshes)
         for (const Vec3& p : mesh.positions) {
             lo = lo.cwiseMin(p);
             hi = hi.cwiseMax(p);
         }
-    object.bound_centre = 0.5f * (lo + hi);
-    object.bound_radius = 0;
-    for (const TriangleMesh& mesh : object.meshes)
+    geometry.bound_centre = 0.5f * (lo + hi);
+    geometry.bound_radius = 0;
+    for (const TriangleMesh& mesh : *geometry.meshes)
         for (const Vec3& p : mesh.positions)
-            object.bound_radius = std::max(object.bound_radius, (p - object.bound_centre).norm());
+            geometry.bound_radius =
+                std::max(geometry.bound_radius, (p - geometry.bound_centre).norm());
 }
 
 }  // namespace
@@ -87,6 +90,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
                                                    const RenderOptions& options) {
     MIXRAY_RETURN_IF_ERROR(options.validate());
     MIXRAY_RETURN_IF_ERROR(scene.validate());
+    const auto start = std::chrono::steady_clock::now();
 
     std::vector<MaterialData> materials;
     std::map<std::string, int> material_index;
@@ -110,10 +114,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
     }
 
     std::vector<ObjectData> objects;
+    detail::MeshCache meshes;
     for (const SceneObject& obj : scene.objects) {
         const std::string where = "object '" + obj.name + "' (" + obj.where.toString() + ")";
         std::optional<MeshMaterialHint> hint;
-        auto loaded = detail::loadObjectGeometry(scene, obj, &hint);
+        auto loaded = detail::loadObjectGeometry(scene, obj, &hint, &meshes);
         if (!loaded)
             return loaded.status();
         ObjectData data = std::move(loaded).value();
@@ -155,7 +160,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         data.role = ObjectRole::kGhost;
         data.shape = ShapeType::kMesh;
         data.depth_surface = true;
-        data.meshes.emplace_back();
+        data.meshes->emplace_back();
         data.material = static_cast<int>(materials.size());
         materials.push_back(std::move(surface));
         depth_object = objects.size();
@@ -168,6 +173,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
         detail::SceneEffects{scene.lens_effects,
                              scene.camera ? scene.camera->aperture : std::nullopt,
                              scene.camera_matching, scene.caustics});
+    renderer->setLoadSeconds(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     MIXRAY_RETURN_IF_ERROR(renderer->init());
     return std::unique_ptr<Renderer>(std::move(renderer));
 }
@@ -175,7 +182,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const SceneDescription& scene
 namespace detail {
 
 Result<ObjectData> loadObjectGeometry(const SceneDescription& scene, const SceneObject& obj,
-                                      std::optional<MeshMaterialHint>* hint) {
+                                      std::optional<MeshMaterialHint>* hint, MeshCache* cache) {
     const std::string where = "object '" + obj.name + "' (" + obj.where.toString() + ")";
     ObjectData data;
     data.name = obj.name;
@@ -188,24 +195,52 @@ Result<ObjectData> loadObjectGeometry(const SceneDescription& scene, const Scene
         data.bound_radius = obj.shape.radius;
         return data;
     }
+    // What the geometry came from: a mesh in memory, a file, or the shape itself.
+    std::optional<std::pair<std::string, float>> key;
     if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
-        data.meshes.push_back(*obj.shape.mesh_data);
-        for (Vec3& p : data.meshes.back().positions)
-            p *= obj.shape.scale;
+        char address[32];
+        std::snprintf(address, sizeof address, "memory:%p",
+                      static_cast<const void*>(obj.shape.mesh_data.get()));
+        key.emplace(address, obj.shape.scale);
     } else if (obj.shape.type == ShapeType::kMesh) {
-        auto loaded = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
-        if (!loaded)
-            return loaded.status().withContext(where);
-        for (LoadedMesh& mesh : loaded.value()) {
-            if (hint && !*hint)
-                *hint = mesh.material;
-            data.meshes.push_back(std::move(mesh.mesh));
-        }
-    } else {
-        data.meshes.push_back(makeShapeMesh(obj.shape));
+        key.emplace("file:" + resolve(scene, obj.shape.mesh).string(), obj.shape.scale);
     }
-    boundMeshes(data);
-    if (std::all_of(data.meshes.begin(), data.meshes.end(),
+    LoadedGeometry* shared = nullptr;
+    if (cache != nullptr && key)
+        if (const auto it = cache->find(*key); it != cache->end())
+            shared = &it->second;
+    LoadedGeometry loaded;
+    if (shared == nullptr) {
+        loaded.meshes = std::make_shared<std::vector<TriangleMesh>>();
+        if (obj.shape.type == ShapeType::kMesh && obj.shape.mesh_data != nullptr) {
+            loaded.meshes->push_back(*obj.shape.mesh_data);
+            for (Vec3& p : loaded.meshes->back().positions)
+                p *= obj.shape.scale;
+        } else if (obj.shape.type == ShapeType::kMesh) {
+            auto from_file = loadMeshFile(resolve(scene, obj.shape.mesh), obj.shape.scale);
+            if (!from_file)
+                return from_file.status().withContext(where);
+            for (LoadedMesh& mesh : from_file.value()) {
+                if (!loaded.hint)
+                    loaded.hint = mesh.material;
+                loaded.meshes->push_back(std::move(mesh.mesh));
+            }
+        } else {
+            loaded.meshes->push_back(makeShapeMesh(obj.shape));
+        }
+        boundMeshes(loaded);
+        if (cache != nullptr && key)
+            shared = &(*cache)[*key];
+        if (shared != nullptr)
+            *shared = loaded;
+    }
+    const LoadedGeometry& geometry = shared != nullptr ? *shared : loaded;
+    if (hint && !*hint)
+        *hint = geometry.hint;
+    data.meshes = geometry.meshes;
+    data.bound_centre = geometry.bound_centre;
+    data.bound_radius = geometry.bound_radius;
+    if (std::all_of(data.meshes->begin(), data.meshes->end(),
                     [](const TriangleMesh& m) { return m.empty(); }))
         return Status(ErrorCode::kCorruptData, where + ": shape has no triangles");
     return data;

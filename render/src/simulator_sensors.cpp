@@ -75,7 +75,7 @@ SimGeometry::SurfaceHit SimGeometry::intersect(const Vector3f& origin, const Vec
     if (o.shape == ShapeType::kSphere) {
         s.n = (s.p - o.t_world_object).normalized();
     } else {
-        const TriangleMesh& mesh = o.meshes[hit.mesh];
+        const TriangleMesh& mesh = (*o.meshes)[hit.mesh];
         const auto& tri = mesh.triangles[hit.prim];
         const Vector3f a = mesh.positions[tri[0]], b = mesh.positions[tri[1]],
                        c = mesh.positions[tri[2]];

@@ -148,6 +148,65 @@ TEST(LoadMeshFileTest, StanfordBunnyObjHasPublishedCounts) {
     EXPECT_LT(extent.maxCoeff(), 0.3f);
 }
 
+// A big mesh's import is kept in the mesh cache: the next load reads it from there and gives
+// the same triangles; a changed file is imported again; a broken entry is passed by.
+TEST(LoadMeshFileTest, TheMeshCacheGivesTheSameMeshAndFollowsTheFile) {
+    const fs::path source = modelsDir() / "opencv_viz_bunny_res3.ply";
+    MIXRAY_REQUIRE_SHARED_DATA(source);
+    const fs::path dir = test::tempDir();
+    const fs::path path = dir / "bunny.ply";
+    fs::copy_file(source, path);
+    MeshCacheSettings cache;
+    cache.dir = dir / "cache";
+    cache.min_file_bytes = 0;
+    const auto entries = [&] {
+        std::vector<fs::path> found;
+        if (fs::exists(cache.dir))
+            for (const auto& e : fs::directory_iterator(cache.dir))
+                found.push_back(e.path());
+        return found;
+    };
+    auto imported = loadMeshFile(path, 2.f, cache);
+    ASSERT_TRUE(imported.isOk()) << imported.status().toString();
+    ASSERT_EQ(entries().size(), 1u);
+    EXPECT_EQ(entries()[0].extension(), ".assbin");
+    auto cached = loadMeshFile(path, 2.f, cache);
+    ASSERT_TRUE(cached.isOk()) << cached.status().toString();
+    ASSERT_EQ(cached->size(), imported->size());
+    for (size_t m = 0; m < imported->size(); ++m) {
+        EXPECT_EQ((*cached)[m].mesh.triangles, (*imported)[m].mesh.triangles);
+        EXPECT_EQ((*cached)[m].mesh.positions, (*imported)[m].mesh.positions);
+        EXPECT_EQ((*cached)[m].mesh.normals, (*imported)[m].mesh.normals);
+    }
+    // A broken entry: imported from the file again, and the entry written anew.
+    test::writeText(entries()[0], "not assbin");
+    auto repaired = loadMeshFile(path, 2.f, cache);
+    ASSERT_TRUE(repaired.isOk()) << repaired.status().toString();
+    EXPECT_EQ(triangleCount(*repaired), triangleCount(*imported));
+    EXPECT_GT(fs::file_size(entries()[0]), 1000u);
+    // The file changes: a second entry, with the new file's triangles.
+    test::writeText(path,
+                    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty "
+                    "float y\nproperty float z\nelement face 1\nproperty list uchar int "
+                    "vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    auto changed = loadMeshFile(path, 2.f, cache);
+    ASSERT_TRUE(changed.isOk()) << changed.status().toString();
+    EXPECT_EQ(triangleCount(*changed), 1u);
+    EXPECT_EQ(entries().size(), 2u);
+    // Small files are not cached, nor files of formats that refer to others (an OBJ's .mtl),
+    // nor anything with the cache off.
+    const fs::path other = dir / "other.ply";
+    fs::copy_file(source, other);
+    MeshCacheSettings big_only = cache;
+    big_only.min_file_bytes = fs::file_size(other) + 1;
+    ASSERT_TRUE(loadMeshFile(other, 1.f, big_only).isOk());
+    ASSERT_TRUE(loadMeshFile(other, 1.f, MeshCacheSettings{}).isOk());
+    const fs::path obj = dir / "teapot.obj";
+    test::writeText(obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    ASSERT_TRUE(loadMeshFile(obj, 1.f, cache).isOk());
+    EXPECT_EQ(entries().size(), 2u);
+}
+
 TEST(LoadMeshFileTest, ViZBunnyPlyHasPublishedCountsAndScales) {
     const fs::path path = modelsDir() / "opencv_viz_bunny_res3.ply";
     MIXRAY_REQUIRE_SHARED_DATA(path);

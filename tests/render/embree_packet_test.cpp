@@ -57,7 +57,7 @@ ShadowSetup tabletop() {
     ObjectData b;
     b.name = "box";
     b.shape = ShapeType::kBox;
-    b.meshes.push_back(makeShapeMesh(box));
+    b.meshes->push_back(makeShapeMesh(box));
     b.t_world_object = {0.35f, 0.1f, 0.15f};
     b.R_world_object = Eigen::AngleAxisf(0.4f, Vector3f::UnitZ()).toRotationMatrix();
     s.objects.push_back(std::move(b));

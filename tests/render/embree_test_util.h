@@ -18,7 +18,7 @@ inline ObjectData floorObject(float side) {
     floor.name = "floor";
     floor.role = ObjectRole::kGhost;
     floor.shape = ShapeType::kPlane;
-    floor.meshes.push_back(makeShapeMesh(plane));
+    floor.meshes->push_back(makeShapeMesh(plane));
     return floor;
 }
 

@@ -11,6 +11,7 @@
 #include "mixray/render/assets.h"
 #include "mixray/render/bench_seam.h"
 #include "renderer_test_util.h"
+#include "test_data.h"
 #include "watchdog.h"
 
 namespace mixray::render::test {
@@ -913,6 +914,61 @@ TEST(Renderer, ScreenFootprintSkipsTilesButNotOnePixelChanges) {
                 EXPECT_EQ(stats[0].pixels_traced, stats[1].pixels_traced) << what;
                 EXPECT_LT(stats[1].pixels_traced, stats[2].pixels_traced) << what;
             }
+}
+
+// Objects that use one mesh (in memory, or one file) at one scale share its triangles and its
+// BVH, instanced at each pose; at another scale it is another mesh. Each instance is drawn.
+TEST(Renderer, AMeshSeveralObjectsUseIsBuiltOnce) {
+    auto box = std::make_shared<TriangleMesh>(makeShapeMesh([] {
+        Shape shape;
+        shape.type = ShapeType::kBox;
+        shape.size = {0.1f, 0.1f, 0.1f};
+        return shape;
+    }()));
+    SceneDescription scene;
+    scene.materials["grey"] = material(MaterialType::kDiffuse, "grey");
+    for (int i = 0; i < 3; ++i) {
+        SceneObject o = object("box" + std::to_string(i), ObjectRole::kVirtual, ShapeType::kMesh,
+                               "grey", {-0.2 + 0.2 * i, 0, 0.05});
+        o.shape.mesh_data = box;
+        o.shape.scale = i < 2 ? 1.f : 0.5f;  // the third is another mesh
+        scene.objects.push_back(o);
+    }
+    scene.lights.push_back(pointLight({0.3, -0.5, 1.0}, 2));
+    RenderOptions options;
+    options.keep_layers = true;  // the mask shows where each box is
+    auto renderer = makeRenderer(scene, options);
+    ASSERT_TRUE(renderer);
+    const bench::CreationTimes created = bench::creationTimes(*renderer);
+    EXPECT_EQ(created.triangles_built, 2 * box->triangles.size());
+    EXPECT_GT(created.bvh_s, 0.0);
+    EXPECT_GE(created.load_s, 0.0);
+
+    // Two objects of one mesh file: loaded once, built once.
+    const std::filesystem::path obj = ::mixray::test::tempDir() / "quad.obj";
+    ::mixray::test::writeText(obj,
+                              "v 0 0 0\nv 0.1 0 0\nv 0.1 0.1 0\nv 0 0.1 0\nf 1 2 3\nf 1 3 4\n");
+    SceneDescription from_file = scene;
+    for (SceneObject& o : from_file.objects) {
+        o.shape.mesh_data = nullptr;
+        o.shape.mesh = obj;
+        o.shape.scale = 1;
+    }
+    auto file_renderer = makeRenderer(from_file, options);
+    ASSERT_TRUE(file_renderer);
+    EXPECT_EQ(bench::creationTimes(*file_renderer).triangles_built, 2u);
+
+    Frame frame = makeFrame(lookAt({0, -1.0, 0.4}, {0, 0, 0.05}), noiseImage(), 160);
+    RenderLayers out;
+    ASSERT_TRUE(renderer->render(frame.inputs, out));
+    // Each box covers pixels around its own projection.
+    for (int i = 0; i < 3; ++i) {
+        const auto px = frame.inputs.camera.project(frame.inputs.T_world_cam.inverse() *
+                                                    Eigen::Vector3d(-0.2 + 0.2 * i, 0, 0.04));
+        ASSERT_TRUE(px);
+        const int x = static_cast<int>(px->x()), y = static_cast<int>(px->y());
+        EXPECT_EQ(out.mask.pixels[static_cast<size_t>(y) * out.mask.width + x], 1.f) << i;
+    }
 }
 
 TEST(Renderer, RayLogHoldsExactlyTheRaysTheStatsCount) {

@@ -39,11 +39,29 @@ struct LoadedMesh {
     MeshMaterialHint material;
 };
 
+// Where loadMeshFile() keeps big meshes as assimp imported them, in assimp's own binary format
+// (assbin), so that the next load skips the import's post-processing: joining a scanned
+// model's identical vertices is most of its import (2.4 s of 2.7 s for a 1.1M-triangle PLY;
+// the assbin reads in 0.3 s). Only formats that hold a whole mesh in one file (PLY, STL, GLB)
+// are kept, each entry for one file at one size and modification time; a cache that cannot be
+// written or read is passed by, never an error.
+struct MeshCacheSettings {
+    std::filesystem::path dir;            // empty: no cache
+    uintmax_t min_file_bytes = 8u << 20;  // smaller files import fast enough
+
+    // MIXRAY_MESH_CACHE: a folder, or "off"; unset: $XDG_CACHE_HOME/mixray/meshes, else
+    // ~/.cache/mixray/meshes.
+    static MeshCacheSettings fromEnvironment();
+};
+
 // Loads every mesh of an OBJ, PLY or glTF 2.0 file (assimp), triangulated, with the file's
 // node transforms applied and `scale` multiplied in. Vertex normals are computed when the file
 // has none. kNotFound for a missing file; kCorruptData naming the file for one assimp cannot
-// read or that holds no triangles.
+// read or that holds no triangles. Big files go through the mesh cache of
+// MeshCacheSettings::fromEnvironment().
 Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, float scale = 1);
+Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, float scale,
+                                             const MeshCacheSettings& cache);
 
 // The mesh of an analytic shape (box, plane, disk, and a sphere tessellated with `segments`
 // around — the Renderer traces kSphere exactly and uses this only for shadow maps and

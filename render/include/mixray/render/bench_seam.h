@@ -42,6 +42,14 @@ struct BareTraceTimes {
     double totalCpu() const { return primary_cpu_s + secondary_cpu_s + shadow_cpu_s; }
 };
 
+// How long Renderer::create() took, in its two parts, and what it built.
+struct CreationTimes {
+    double load_s = 0;  // meshes (assimp), textures and environment maps read and prepared
+    double bvh_s = 0;   // Embree's BVHs built
+    uint64_t triangles_built = 0;  // a mesh several objects instance counts once
+};
+CreationTimes creationTimes(const Renderer& renderer);
+
 // Renderer::render(), appending every ray of the frame to `log` (cleared first). Slower than
 // render(); the image and stats are the same.
 Status renderLoggingRays(Renderer& renderer, const RenderInputs& inputs, RenderLayers& out,
