@@ -253,12 +253,15 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                     b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
                 b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
                 b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
-                b.tile_dirty[static_cast<size_t>(tile)] = 1;
                 if (keep) {
                     b.mixed[pixel] = msum / static_cast<float>(spp);
                     b.real[pixel] = rsum / static_cast<float>(spp);
                 }
             }
+        // Once per tile, not per pixel: neighbouring tiles' flags share a cache line, which
+        // the threads would take from each other at every pixel.
+        if (tile_traced > 0)
+            b.tile_dirty[static_cast<size_t>(tile)] = 1;
         traced += tile_traced;
         primary += tile_primary;
         secondary += counters.secondary;
