@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <fstream>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -305,6 +306,15 @@ std::optional<std::filesystem::path> meshCacheEntry(const std::filesystem::path&
     return cache.dir / (path.stem().string() + name);
 }
 
+// Whether `entry` starts as assimp's binary dumps do. Assimp 5.2 leaks the file it opened when
+// it rejects a file with another header, so such an entry is not given to it.
+bool hasAssbinHeader(const std::filesystem::path& entry) {
+    static constexpr std::string_view kMagic = "ASSIMP.binary-dump.";
+    std::ifstream file(entry, std::ios::binary);
+    std::string head(kMagic.size(), '\0');
+    return file.read(head.data(), static_cast<std::streamsize>(head.size())) && head == kMagic;
+}
+
 // Writes the imported scene as the cache entry: to a temporary name, then renamed, so that a
 // reader never sees half an entry.
 void writeMeshCacheEntry(const aiScene& scene, const std::filesystem::path& entry) {
@@ -348,7 +358,7 @@ Result<std::vector<LoadedMesh>> loadMeshFile(const std::filesystem::path& path, 
         };
         const std::optional<std::filesystem::path> entry = meshCacheEntry(path, cache);
         const aiScene* scene = nullptr;
-        if (entry && std::filesystem::exists(*entry, ec)) {
+        if (entry && hasAssbinHeader(*entry)) {
             // Imported and post-processed already: only checked. An entry that does not read
             // is imported again from the file.
             try {

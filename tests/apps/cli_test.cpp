@@ -451,6 +451,10 @@ TEST(Cli, BenchRenderAgainstPovray) {
             EXPECT_TRUE(std::filesystem::exists(images / file)) << images / file;
     }
     EXPECT_GT(figures[2]["mixray_rays"].get<double>(), figures[1]["mixray_rays"].get<double>());
+    // The bench leaves its files for a person to look at; the test does not.
+    std::error_code ignored;
+    std::filesystem::remove_all(
+        std::filesystem::path(figures[0]["images"].get<std::string>()).parent_path(), ignored);
 }
 
 // Kán & Kaufmann's Table 1: each row's photon shooting and grid times where the photons are shot
