@@ -1141,21 +1141,19 @@ int runBenchRender(BenchRenderOptions options) {
             }
         } remove_scratch{scratch};
         DragonMesh dragon_mesh;
-        Result<SceneDescription> scene = Status::ok();
-        if (name == "dragons") {
-            fs::path dir = MeshCacheSettings::fromEnvironment().dir;
-            if (dir.empty()) {
-                auto made = makeWorkDir("mixray-bench-dragons");
-                if (!made)
-                    return fail("bench render", made.status());
-                dir = scratch.emplace(*made);
-            } else {
-                dir = dir.parent_path() / "bench";
-            }
-            scene = dragonScene(shared, dir, dragon_mesh);
-        } else {
-            scene = teapotScene(shared, name == "soft" || name == "shadow-maps");
+        fs::path dragon_dir = MeshCacheSettings::fromEnvironment().dir;
+        if (name == "dragons" && dragon_dir.empty()) {
+            auto made = makeWorkDir("mixray-bench-dragons");
+            if (!made)
+                return fail("bench render", made.status());
+            dragon_dir = scratch.emplace(*made);
+        } else if (name == "dragons") {
+            dragon_dir = dragon_dir.parent_path() / "bench";
         }
+        Result<SceneDescription> scene =
+            name == "dragons" ? dragonScene(shared, dragon_dir, dragon_mesh)
+                              : Result<SceneDescription>(
+                                    teapotScene(shared, name == "soft" || name == "shadow-maps"));
         if (!scene)
             return fail("bench render", scene.status());
         if (name == "dragons") {
@@ -1164,12 +1162,15 @@ int runBenchRender(BenchRenderOptions options) {
                                    {"mesh_file", dragon_mesh.ply.string()},
                                    {"assimp_import_ms", dragon_mesh.import_ms},
                                    {"mesh_cache_load_ms", dragon_mesh.cached_ms}});
-            else
-                std::printf(
-                    "dragons: %s: assimp imports it in %.0f ms; from the mesh cache it loads in "
-                    "%.0f ms%s\n",
-                    dragon_mesh.ply.c_str(), dragon_mesh.import_ms, dragon_mesh.cached_ms,
-                    dragon_mesh.cached_ms > 0 ? "" : " (no cache: MIXRAY_MESH_CACHE is off)");
+            else {
+                const std::string cached =
+                    dragon_mesh.cached_ms > 0
+                        ? "from the mesh cache it loads in " +
+                              std::to_string(std::lround(dragon_mesh.cached_ms)) + " ms"
+                        : "no mesh cache (MIXRAY_MESH_CACHE is off)";
+                std::printf("dragons: %s: assimp imports it in %.0f ms; %s\n",
+                            dragon_mesh.ply.c_str(), dragon_mesh.import_ms, cached.c_str());
+            }
         }
         std::vector<Config> configs;
         for (const std::string& isa : *isas) {
