@@ -172,40 +172,53 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
         const int x1 = std::min(w, x0 + ts), y1 = std::min(h, y0 + ts);
         TileScratch& scratch =
             scratch_[static_cast<size_t>(tbb::this_task_arena::current_thread_index())];
-        scratch.surfaces.resize(static_cast<size_t>(spp));
-        scratch.have_surface.resize(static_cast<size_t>(spp));
+        // The tile in stages over all its samples: the primary hits, each checked against the
+        // depth map; then every hit's surface in one batch (surfacesAt() overlaps their fetches
+        // from memory); then, pixel by pixel, the footprint test and shading.
         primaryHits(*scene_, rays_, f, x0, y0, x1, y1, scratch.hits, scratch.origins, scratch.dirs,
                     log);
-        Counters counters;
-        uint64_t tile_traced = 0, tile_primary = 0;
+        const int tile_w = x1 - x0;
+        const size_t samples = scratch.hits.size();
+        Hit* const hits_all = scratch.hits.data();
+        const Vec3* const dirs_all = scratch.dirs.data();
+        const Vec3* const origins_all = scratch.origins.data();
+        scratch.live.assign(samples, 0);
+        uint64_t tile_primary = 0;
         for (int y = y0; y < y1; ++y)
             for (int x = x0; x < x1; ++x) {
                 const size_t pixel = static_cast<size_t>(y) * w + x;
-                Hit* hits = scratch.hits.data() +
-                            (static_cast<size_t>(y - y0) * (x1 - x0) + (x - x0)) * spp;
-                const Vec3* dirs = scratch.dirs.data() + (hits - scratch.hits.data());
-                const Vec3* origins = scratch.origins.data() + (hits - scratch.hits.data());
+                const size_t first = (static_cast<size_t>(y - y0) * tile_w + (x - x0)) * spp;
                 const std::optional<float> depth_limit =
                     f.depth ? rays_.rayDistanceAt(*f.depth, x, y) : std::nullopt;
-                // Whether virtual content can touch this pixel.
-                bool influenced = false;
-                std::fill(scratch.have_surface.begin(), scratch.have_surface.end(), 0);
                 for (int k = 0; k < spp; ++k) {
                     if (!rays_.directions[pixel * spp + k].allFinite())
                         continue;
+                    const size_t i = first + static_cast<size_t>(k);
+                    scratch.live[i] = 1;
                     ++tile_primary;
-                    hits[k] =
-                        integrator.finishPrimaryHit(f, hits[k], origins[k], dirs[k], depth_limit);
-                    if (!hits[k].valid || influenced)
+                    hits_all[i] = integrator.finishPrimaryHit(f, hits_all[i], origins_all[i],
+                                                              dirs_all[i], depth_limit);
+                }
+            }
+        scratch.surfaces.resize(samples);
+        integrator.surfacesAt(hits_all, origins_all, dirs_all, samples, scratch.surfaces.data());
+        Counters counters;
+        uint64_t tile_traced = 0;
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
+                const size_t pixel = static_cast<size_t>(y) * w + x;
+                const size_t first = (static_cast<size_t>(y - y0) * tile_w + (x - x0)) * spp;
+                Hit* hits = hits_all + first;
+                const Vec3* dirs = dirs_all + first;
+                const Vec3* origins = origins_all + first;
+                const Surface* surfaces = scratch.surfaces.data() + first;
+                // The footprint test: whether virtual content can touch this pixel.
+                bool influenced = false;
+                for (int k = 0; k < spp && !influenced; ++k) {
+                    if (!hits[k].valid)
                         continue;
-                    if (objects_[hits[k].object].role == ObjectRole::kVirtual) {
-                        influenced = true;
-                        continue;
-                    }
-                    const Surface& s = scratch.surfaces[static_cast<size_t>(k)] =
-                        integrator.surfaceAt(hits[k], origins[k], dirs[k]);
-                    scratch.have_surface[static_cast<size_t>(k)] = 1;
-                    influenced = integrator.ghostInfluenced(f, s, dirs[k]);
+                    influenced = objects_[hits[k].object].role == ObjectRole::kVirtual ||
+                                 integrator.ghostInfluenced(f, surfaces[k], dirs[k]);
                 }
                 if (!influenced && !keep && options_.only_virtual_footprint)
                     continue;
@@ -221,12 +234,10 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                     Pair p;
                     bool is_virtual = false;
                     if (!hits[k].valid) {
-                        if (rays_.directions[pixel * spp + k].allFinite())
+                        if (scratch.live[first + static_cast<size_t>(k)])
                             p.m = p.r = integrator.environment(f, dirs[k]);
                     } else {
-                        const Surface s = scratch.have_surface[static_cast<size_t>(k)]
-                                              ? scratch.surfaces[static_cast<size_t>(k)]
-                                              : integrator.surfaceAt(hits[k], origins[k], dirs[k]);
+                        const Surface& s = surfaces[k];
                         is_virtual = s.object->role == ObjectRole::kVirtual;
                         if (is_virtual) {
                             p.m = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;

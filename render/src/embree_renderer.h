@@ -43,8 +43,8 @@ struct TileScratch {
     std::vector<Hit> hits;
     std::vector<Vec3> origins;
     std::vector<Vec3> dirs;
-    std::vector<Surface> surfaces;  // one pixel's samples, from the footprint test to shading
-    std::vector<uint8_t> have_surface;
+    std::vector<Surface> surfaces;  // at the tile's valid hits, from the footprint test to shading
+    std::vector<uint8_t> live;      // the sample's primary ray exists (finite direction)
 };
 
 class EmbreeRenderer final : public Renderer {

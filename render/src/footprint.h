@@ -19,8 +19,10 @@ namespace mixray::render::detail {
 // a point to a spherical light of radius R fan out by R over their length. A ray (length
 // infinite) keeps tol_a. Exact: the distance minus the tolerance is convex in t, so its
 // stationary point, clamped, is the minimum.
-inline bool nearTaperedSegment(const Eigen::Vector3f& c, const Eigen::Vector3f& a,
-                               const Eigen::Vector3f& dir, float length, float tol_a, float tol_b) {
+[[gnu::always_inline]] inline bool nearTaperedSegment(const Eigen::Vector3f& c,
+                                                      const Eigen::Vector3f& a,
+                                                      const Eigen::Vector3f& dir, float length,
+                                                      float tol_a, float tol_b) {
     const Eigen::Vector3f q = c - a;
     const float along = q.dot(dir);
     if (!std::isfinite(length))

@@ -41,10 +41,10 @@ struct Pair {
     Vec3 r = Vec3::Zero();
 };
 
-inline Pair scaled(const Pair& p, const Vec3& w) {
+[[gnu::always_inline]] inline Pair scaled(const Pair& p, const Vec3& w) {
     return {p.m.cwiseProduct(w), p.r.cwiseProduct(w)};
 }
-inline Pair sum(const Pair& a, const Pair& b) {
+[[gnu::always_inline]] inline Pair sum(const Pair& a, const Pair& b) {
     return {a.m + b.m, a.r + b.r};
 }
 
@@ -106,19 +106,20 @@ inline uint64_t hashIndex(uint64_t seed, uint64_t a, uint64_t b) {
 }
 
 // Distance from `c` to the segment a + s·(b - a), s in [0, s_max] (s_max = inf: a ray).
-inline float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir, float length) {
+[[gnu::always_inline]] inline float distanceToSegment(const Vec3& c, const Vec3& a, const Vec3& dir,
+                                                      float length) {
     const float s = std::clamp((c - a).dot(dir), 0.f, length);
     return (a + s * dir - c).norm();
 }
 
 // R·v spelled out: GCC at -O2 leaves Eigen's fixed-size product as an out-of-line call, which
 // showed up in profiles of the per-hit code.
-inline Vec3 rotate(const Eigen::Matrix3f& R, const Vec3& v) {
+[[gnu::always_inline]] inline Vec3 rotate(const Eigen::Matrix3f& R, const Vec3& v) {
     return R.col(0) * v.x() + R.col(1) * v.y() + R.col(2) * v.z();
 }
 
 // How far a ray leaving a surface at `p` starts from it.
-inline float offsetFor(const Vec3& p) {
+[[gnu::always_inline]] inline float offsetFor(const Vec3& p) {
     return 1e-4f * (1.f + p.cwiseAbs().maxCoeff());
 }
 

@@ -80,6 +80,34 @@ Surface DifferentialIntegrator::surfaceAt(const Hit& hit, const Vec3& origin, co
     return s;
 }
 
+void DifferentialIntegrator::surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs,
+                                        size_t count, Surface* out) const {
+    const auto meshOf = [&](const Hit& hit) -> const TriangleMesh* {
+        const ObjectData& object = objects_[hit.object];
+        return hit.valid && object.shape != ShapeType::kSphere ? &(*object.meshes)[hit.mesh]
+                                                               : nullptr;
+    };
+    // First the triangles' vertex indices, then the vertices they name: on a 1.1M-triangle mesh
+    // each is a miss to memory, which the computing loop below would wait for hit by hit.
+    for (size_t i = 0; i < count; ++i)
+        if (const TriangleMesh* mesh = meshOf(hits[i]))
+            __builtin_prefetch(&mesh->triangles[hits[i].prim]);
+    for (size_t i = 0; i < count; ++i) {
+        const TriangleMesh* mesh = meshOf(hits[i]);
+        if (mesh == nullptr)
+            continue;
+        const bool normals = mesh->normals.size() == mesh->positions.size();
+        for (const uint32_t v : mesh->triangles[hits[i].prim]) {
+            __builtin_prefetch(&mesh->positions[v]);
+            if (normals)
+                __builtin_prefetch(&mesh->normals[v]);
+        }
+    }
+    for (size_t i = 0; i < count; ++i)
+        if (hits[i].valid)
+            out[i] = surfaceAt(hits[i], origins[i], dirs[i]);
+}
+
 Vec3 DifferentialIntegrator::environment(const Frame& f, const Vec3& d) const {
     Vec3 sum = Vec3::Zero();
     for (const LightData* light : f.environments)

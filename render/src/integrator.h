@@ -48,6 +48,11 @@ public:
     Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& origin, const Vec3& d,
                          std::optional<float> depth_limit) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
+    // surfaceAt() for `count` hits at once (invalid ones skipped): the same surfaces, with the
+    // meshes' triangles, positions and normals fetched from memory for all of them before any is
+    // computed, so that their cache misses overlap instead of queueing one hit after another.
+    void surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs, size_t count,
+                    Surface* out) const;
     // The environment lights' radiance along `d`.
     Vec3 environment(const Frame& f, const Vec3& d) const;
     // Conservative: can virtual objects change the shading of this real point seen along `d`?

@@ -16,7 +16,8 @@ namespace mixray::render::optics {
 inline constexpr float kPi = 3.14159265358979323846f;
 
 // Mirror direction of `d` (travelling towards the surface) about the unit normal `n`.
-inline Eigen::Vector3f reflect(const Eigen::Vector3f& d, const Eigen::Vector3f& n) {
+[[gnu::always_inline]] inline Eigen::Vector3f reflect(const Eigen::Vector3f& d,
+                                                      const Eigen::Vector3f& n) {
     return d - 2.f * d.dot(n) * n;
 }
 
