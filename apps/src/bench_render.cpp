@@ -521,6 +521,10 @@ std::vector<Config> configsFor(const std::string& scene, int threads,
         out.push_back({scene, "soft shadows, 20 samples uniform, 3 bounces", uniform});
         out.push_back({scene, "soft shadows, 20 samples adaptive, 3 bounces", adaptive});
     } else {
+        RenderOptions shadows = base;
+        shadows.max_depth = 0;
+        out.push_back(
+            {scene, "2 dragons (1.1M triangles each) + teapot, primary + shadows", shadows});
         out.push_back(
             {scene, "2 dragons (1.1M triangles each) + teapot, shadows + 3 bounces", base});
     }
@@ -692,6 +696,24 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
     return fig;
 }
 
+const char* rayKindName(bench::RayLog::Kind kind) {
+    switch (kind) {
+        case bench::RayLog::Kind::kPrimary:
+            return "primary";
+        case bench::RayLog::Kind::kSecondary:
+            return "secondary";
+        case bench::RayLog::Kind::kShadow:
+            return "shadow";
+    }
+    return "?";
+}
+
+std::string formatMs(double seconds) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.2f ms", 1e3 * seconds);
+    return text;
+}
+
 void printFigures(const Figures& f) {
     std::printf("%s: %s, %dx%d, %d frames\n", f.scene.c_str(), f.config.c_str(), f.size.width,
                 f.size.height, f.frames);
@@ -721,12 +743,35 @@ void printFigures(const Figures& f) {
         f.bare.shadow_method.c_str(), 1e3 * f.bare.shadow_s, f.renderer_ms,
         f.renderer_ms > 0 ? 100 * bare_ms / f.renderer_ms : 0.0,
         f.log_matches_stats ? "" : "  (ray log does not match the stats!)");
+    // Every way bare Embree traced each kind: what batching the renderer's rays could gain.
+    std::string ways;
+    for (const auto kind : {bench::RayLog::Kind::kPrimary, bench::RayLog::Kind::kSecondary,
+                            bench::RayLog::Kind::kShadow}) {
+        std::string line;
+        for (const bench::BareTraceTimes::Method& m : f.bare.tried)
+            if (m.kind == kind && m.wall_s > 0)
+                line += (line.empty() ? "" : ", ") + m.name + " " + formatMs(m.wall_s);
+        if (!line.empty())
+            ways += std::string(ways.empty() ? "" : "; ") + rayKindName(kind) + " " + line;
+    }
+    if (!ways.empty())
+        std::printf("  bare Embree, each way: %s\n", ways.c_str());
     const double bare_cpu_ms = 1e3 * f.bare.totalCpu();
     std::printf(
         "  same rays, CPU time: bare Embree %7.2f ms vs renderer %7.2f ms: efficiency "
         "%5.1f %%\n",
         bare_cpu_ms, f.renderer_cpu_ms,
         f.renderer_cpu_ms > 0 ? 100 * bare_cpu_ms / f.renderer_cpu_ms : 0.0);
+}
+
+nlohmann::json triedJson(const bench::BareTraceTimes& bare) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const bench::BareTraceTimes::Method& m : bare.tried)
+        out.push_back({{"kind", rayKindName(m.kind)},
+                       {"method", m.name},
+                       {"wall_ms", 1e3 * m.wall_s},
+                       {"cpu_ms", 1e3 * m.cpu_s}});
+    return out;
 }
 
 nlohmann::json toJson(const Figures& f) {
@@ -756,6 +801,7 @@ nlohmann::json toJson(const Figures& f) {
               {"secondary", 1e3 * f.bare.secondary_s},
               {"shadow", 1e3 * f.bare.shadow_s},
               {"total", 1e3 * f.bare.total()}}},
+            {"bare_tried", triedJson(f.bare)},
             {"bare_methods",
              {{"primary", f.bare.primary_method},
               {"secondary", f.bare.secondary_method},

@@ -218,27 +218,32 @@ bench::BareTraceTimes traceBareEmbree(RTCScene all, RTCScene ghosts, const bench
         }
         return sum;
     };
-    const auto best = [](double& seconds, double& cpu_seconds, std::string& method,
-                         std::initializer_list<std::pair<Seconds, const char*>> tries) {
+    bench::BareTraceTimes times;
+    const auto best = [&](bench::RayLog::Kind kind, double& seconds, double& cpu_seconds,
+                          std::string& method,
+                          std::initializer_list<std::pair<Seconds, const char*>> tries) {
         seconds = std::numeric_limits<double>::infinity();
-        for (const auto& [s, name] : tries)
+        for (const auto& [s, name] : tries) {
+            times.tried.push_back({.kind = kind, .name = name, .wall_s = s.wall, .cpu_s = s.cpu});
             if (s.wall < seconds) {
                 seconds = s.wall;
                 cpu_seconds = s.cpu;
                 method = name;
             }
+        }
     };
 
-    bench::BareTraceTimes times;
     const KindRays& primary = kinds[static_cast<int>(bench::RayLog::Kind::kPrimary)];
     const KindRays& secondary = kinds[static_cast<int>(bench::RayLog::Kind::kSecondary)];
     const KindRays& shadow = kinds[static_cast<int>(bench::RayLog::Kind::kShadow)];
-    best(times.primary_s, times.primary_cpu_s, times.primary_method,
+    best(bench::RayLog::Kind::kPrimary, times.primary_s, times.primary_cpu_s, times.primary_method,
          {{intersect1(primary, true), "rtcIntersect1"}, {intersect16(primary), "rtcIntersect16"}});
-    best(times.secondary_s, times.secondary_cpu_s, times.secondary_method,
+    best(bench::RayLog::Kind::kSecondary, times.secondary_s, times.secondary_cpu_s,
+         times.secondary_method,
          {{intersect1(secondary, false), "rtcIntersect1"},
-          {intersect1M(secondary), "rtcIntersect1M"}});
-    best(times.shadow_s, times.shadow_cpu_s, times.shadow_method,
+          {intersect1M(secondary), "rtcIntersect1M"},
+          {intersect16(secondary), "rtcIntersect16"}});
+    best(bench::RayLog::Kind::kShadow, times.shadow_s, times.shadow_cpu_s, times.shadow_method,
          {{occluded(shadow, false), "rtcOccluded1"},
           {occluded(shadow, true), "rtcOccluded1M"},
           {occluded16(shadow), "rtcOccluded16"}});

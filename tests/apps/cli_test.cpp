@@ -402,7 +402,9 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
           "teapot: + shadows + 3 bounces, 64x48",
           "teapot: + shadows + 3 bounces + bloom and glare, 64x48",
           "teapot: + shadows + 3 bounces + camera noise matched, 64x48", "fps ", "pixels traced",
-          "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency"}) {
+          "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency",
+          "bare Embree, each way: primary rtcIntersect1 ", ", rtcIntersect16 ",
+          "; shadow rtcOccluded1 "}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
     EXPECT_EQ(run.output.find("does not match"), std::string::npos) << run.output;
@@ -418,6 +420,7 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
         EXPECT_GT(f["fps"].get<double>(), 0);
         EXPECT_GT(f["rays_per_frame"]["primary"].get<double>(), 0);
         EXPECT_GT(f["bare_ms"]["total"].get<double>(), 0);
+        EXPECT_GE(f["bare_tried"].size(), 2u);  // primaries as single rays and as packets
     }
     EXPECT_EQ(figures[0]["rays_per_frame"]["shadow"].get<double>(), 0);  // primary only
     EXPECT_GT(figures[2]["rays_per_frame"]["secondary"].get<double>(), 0);

@@ -1005,6 +1005,24 @@ TEST(Renderer, RayLogHoldsExactlyTheRaysTheStatsCount) {
     EXPECT_GT(bare.total(), 0.0);
     EXPECT_FALSE(bare.primary_method.empty());
     EXPECT_FALSE(bare.shadow_method.empty());
+    // Every way tried is reported, and the one named for each kind is the fastest of them.
+    const auto fastest = [&](bench::RayLog::Kind kind, size_t ways, double seconds,
+                             const std::string& method) {
+        size_t seen = 0;
+        for (const bench::BareTraceTimes::Method& m : bare.tried) {
+            if (m.kind != kind)
+                continue;
+            ++seen;
+            EXPECT_GE(m.wall_s, seconds) << m.name;
+            if (m.name == method) {
+                EXPECT_EQ(m.wall_s, seconds) << m.name;
+            }
+        }
+        EXPECT_EQ(seen, ways);
+    };
+    fastest(bench::RayLog::Kind::kPrimary, 2, bare.primary_s, bare.primary_method);
+    fastest(bench::RayLog::Kind::kSecondary, 3, bare.secondary_s, bare.secondary_method);
+    fastest(bench::RayLog::Kind::kShadow, 3, bare.shadow_s, bare.shadow_method);
 }
 
 TEST(Renderer, ShadowsCanBeSwitchedOff) {
