@@ -397,14 +397,13 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
     MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
     CliRun run = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes teapot");
     ASSERT_EQ(run.exit_code, 0) << run.output;
-    for (const char* line :
-         {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
-          "teapot: + shadows + 3 bounces, 64x48",
-          "teapot: + shadows + 3 bounces + bloom and glare, 64x48",
-          "teapot: + shadows + 3 bounces + camera noise matched, 64x48", "fps ", "pixels traced",
-          "rays/frame  primary", "Mrays/s", "bare Embree", "efficiency",
-          "bare Embree, each way: primary rtcIntersect1 ", ", rtcIntersect16 ",
-          "; shadow rtcOccluded1 "}) {
+    for (const char* line : {"teapot: primary only, 64x48", "teapot: + hard shadows, 64x48",
+                             "teapot: + shadows + 3 bounces, 64x48",
+                             "teapot: + shadows + 3 bounces + bloom and glare, 64x48",
+                             "teapot: + shadows + 3 bounces + camera noise matched, 64x48", "fps ",
+                             "pixels traced", "rays/frame  primary", "Mrays/s", "bare Embree",
+                             "efficiency", "bare Embree, each way: primary rtcIntersect1 ",
+                             ", rtcIntersect16 ", "; shadow rtcOccluded1 "}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
     EXPECT_EQ(run.output.find("does not match"), std::string::npos) << run.output;
