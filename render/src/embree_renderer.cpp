@@ -149,7 +149,9 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
     const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
     const int tiles = tiles_x * tiles_y;
     Film& b = film_;
-    b.beginFrame(w, h, ts, keep);
+    const bool filter_penumbra =
+        options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter;
+    b.beginFrame(w, h, ts, keep, filter_penumbra);
     const bool use_mask = options_.screen_footprint && options_.only_virtual_footprint && !keep;
 
     std::atomic<uint64_t> traced{0}, primary{0}, secondary{0}, shadow{0};
@@ -227,10 +229,14 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                 int n_virtual = 0;
                 Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
                      rsum = Vec3::Zero();
-                bool penumbra = false;
+                PrimaryDirect light;  // over the pixel's samples, for the penumbra filter
+                Vec3 dv_dm = Vec3::Zero(), dd_dm = Vec3::Zero(), dd_dr = Vec3::Zero();
                 for (int k = 0; k < spp; ++k) {
+                    PrimaryDirect sample_light;
                     SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters,
                                    log};
+                    if (filter_penumbra)
+                        st.primary_direct = &sample_light;
                     Pair p;
                     bool is_virtual = false;
                     if (!hits[k].valid) {
@@ -248,12 +254,18 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                             p = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kBoth, st);
                         }
                     }
-                    penumbra |= st.penumbra;
+                    light.unshadowed += sample_light.unshadowed;
+                    light.visible_m += sample_light.visible_m;
+                    light.visible_r += sample_light.visible_r;
+                    light.penumbra |= sample_light.penumbra;
                     if (is_virtual) {
                         ++n_virtual;
                         vsum += p.m;
+                        dv_dm += sample_light.dm_dvisible_m;
                     } else {
                         dsum += p.m - p.r;
+                        dd_dm += sample_light.dm_dvisible_m;
+                        dd_dr += sample_light.dm_dvisible_r - sample_light.dr_dvisible_r;
                     }
                     msum += p.m;
                     rsum += p.r;
@@ -263,7 +275,22 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                 if (n_virtual < spp)
                     b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
                 b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
-                b.flags[pixel] = kTraced | ((penumbra && influenced) ? kPenumbra : 0);
+                b.flags[pixel] = kTraced;
+                // Only pixels virtual content can touch take part in the filter, so that tracing
+                // the others (only_virtual_footprint off) leaves the image as it is.
+                if (filter_penumbra && influenced && light.unshadowed > 0) {
+                    b.flags[pixel] |= kLit | (light.penumbra ? kPenumbra : 0);
+                    b.visible_m[pixel] = light.visibleFractionM();
+                    b.visible_r[pixel] = light.visibleFractionR();
+                    // Only the penumbra's own pixels move: only they need the derivatives.
+                    if (light.penumbra && n_virtual > 0)
+                        b.dvirtual_dvisible_m[pixel] = dv_dm / static_cast<float>(n_virtual);
+                    if (light.penumbra && n_virtual < spp) {
+                        const auto n_real = static_cast<float>(spp - n_virtual);
+                        b.ddifference_dvisible_m[pixel] = dd_dm / n_real;
+                        b.ddifference_dvisible_r[pixel] = dd_dr / n_real;
+                    }
+                }
                 if (keep) {
                     b.mixed[pixel] = msum / static_cast<float>(spp);
                     b.real[pixel] = rsum / static_cast<float>(spp);
@@ -307,7 +334,7 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
         if (!(out.composite.desc() == ImageDesc::packed(PixelFormat::kRGB8, w, h)))
             out.composite = Image(ImageDesc::packed(PixelFormat::kRGB8, w, h));
         const MutableImageView dst = out.composite.mutableView();
-        if (options_.soft_shadows == SoftShadowMethod::kAdaptive && options_.shadow_mean_filter)
+        if (filter_penumbra)
             b.meanFilterPenumbra();
         if (lens_effects_)
             lens_effects_->apply(b);

@@ -6,7 +6,7 @@
 
 namespace mixray::render::detail {
 
-void Film::beginFrame(int w, int h, int ts, bool keep_layers) {
+void Film::beginFrame(int w, int h, int ts, bool keep_layers, bool filter_penumbra) {
     const size_t count = static_cast<size_t>(w) * h;
     if (width != w || height != h || tile_size != ts) {
         tile_size = ts;
@@ -25,6 +25,14 @@ void Film::beginFrame(int w, int h, int ts, bool keep_layers) {
     if (keep_layers) {
         mixed.assign(count, Vec3::Zero());
         real.assign(count, Vec3::Zero());
+    }
+    // Read only where a pixel's kLit flag says this frame wrote them.
+    if (filter_penumbra && visible_m.size() != count) {
+        visible_m.resize(count);
+        visible_r.resize(count);
+        dvirtual_dvisible_m.resize(count);
+        ddifference_dvisible_m.resize(count);
+        ddifference_dvisible_r.resize(count);
     }
 }
 
@@ -47,44 +55,47 @@ void Film::clearTile(int tile) {
 // mean reads unfiltered neighbours.
 void Film::meanFilterPenumbra() {
     const int w = width, h = height, ts = tile_size;
-    Film& b = *this;
     struct Filtered {
         size_t pixel;
         Vec3 virtual_radiance, difference;
     };
     std::vector<Filtered> filtered;
-    const std::vector<Vec3>& vr = b.virtual_radiance;
-    const std::vector<Vec3>& diff = b.difference;
-    for (size_t t = 0; t < b.tile_dirty.size(); ++t) {
-        if (!b.tile_dirty[t])
+    for (size_t t = 0; t < tile_dirty.size(); ++t) {
+        if (!tile_dirty[t])
             continue;
         const int x0 = static_cast<int>(t % tiles_x) * ts, y0 = static_cast<int>(t / tiles_x) * ts;
         for (int y = y0; y < std::min(h, y0 + ts); ++y)
             for (int x = x0; x < std::min(w, x0 + ts); ++x) {
                 const size_t i = static_cast<size_t>(y) * w + x;
-                if (!(b.flags[i] & kPenumbra))
+                if (!(flags[i] & kPenumbra))
                     continue;
-                Vec3 sv = Vec3::Zero(), sd = Vec3::Zero();
-                int nv = 0, nd = 0;
+                float sum_v = 0, sum_dm = 0, sum_dr = 0;
+                int n_v = 0, n_d = 0;
                 for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
                     for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx) {
                         const size_t j = static_cast<size_t>(yy) * w + xx;
-                        if (b.mask[j] > 0)
-                            sv += vr[j], ++nv;
-                        if (b.mask[j] < 1)
-                            sd += diff[j], ++nd;
+                        if (!(flags[j] & kLit))
+                            continue;
+                        if (mask[j] > 0)
+                            sum_v += visible_m[j], ++n_v;
+                        if (mask[j] < 1)
+                            sum_dm += visible_m[j], sum_dr += visible_r[j], ++n_d;
                     }
-                Filtered out{i, vr[i], diff[i]};
-                if (b.mask[i] > 0 && nv > 0)
-                    out.virtual_radiance = sv / static_cast<float>(nv);
-                if (b.mask[i] < 1 && nd > 0)
-                    out.difference = sd / static_cast<float>(nd);
+                Filtered out{i, virtual_radiance[i], difference[i]};
+                if (mask[i] > 0 && n_v > 0)
+                    out.virtual_radiance +=
+                        dvirtual_dvisible_m[i] * (sum_v / static_cast<float>(n_v) - visible_m[i]);
+                if (mask[i] < 1 && n_d > 0)
+                    out.difference += ddifference_dvisible_m[i] *
+                                          (sum_dm / static_cast<float>(n_d) - visible_m[i]) +
+                                      ddifference_dvisible_r[i] *
+                                          (sum_dr / static_cast<float>(n_d) - visible_r[i]);
                 filtered.push_back(out);
             }
     }
     for (const Filtered& p : filtered) {
-        b.virtual_radiance[p.pixel] = p.virtual_radiance;
-        b.difference[p.pixel] = p.difference;
+        virtual_radiance[p.pixel] = p.virtual_radiance;
+        difference[p.pixel] = p.difference;
     }
 }
 

@@ -20,14 +20,19 @@ struct PixelBox {
 };
 
 constexpr uint8_t kTraced = 1;
-constexpr uint8_t kPenumbra = 2;
+constexpr uint8_t kPenumbra = 2;  // the penumbra filter smooths this pixel's light visibility
+constexpr uint8_t kLit = 4;       // the primary hits get direct light: visible_m/r hold its share
 
 struct Film {
     std::vector<Vec3> virtual_radiance;  // mean I_m over samples that hit virtual objects
     std::vector<Vec3> difference;        // mean I_m - I_r over the other samples
     std::vector<float> mask;             // M
-    std::vector<uint8_t> flags;          // kTraced | kPenumbra
-    std::vector<Vec3> mixed, real;       // keep_layers
+    std::vector<uint8_t> flags;          // kTraced | kPenumbra | kLit
+    // The penumbra filter's (kLit pixels): the visible fraction of the primary hits' direct light
+    // in the mixed and in the real scene, and how the layers above change with each.
+    std::vector<float> visible_m, visible_r;
+    std::vector<Vec3> dvirtual_dvisible_m, ddifference_dvisible_m, ddifference_dvisible_r;
+    std::vector<Vec3> mixed, real;  // keep_layers
     std::vector<uint8_t> tile_dirty;
     int width = 0, height = 0;
     int tile_size = 16, tiles_x = 0;
@@ -36,12 +41,14 @@ struct Film {
     PixelBox glow_box;
 
     // For frames of w x h in tiles of `tile_size`: keeps what it holds when nothing changed;
-    // `keep_layers` zeroes the I_m and I_r layers.
-    void beginFrame(int w, int h, int tile_size, bool keep_layers);
+    // `keep_layers` zeroes the I_m and I_r layers; `filter_penumbra` sizes the filter's.
+    void beginFrame(int w, int h, int tile_size, bool keep_layers, bool filter_penumbra);
     // Zeroes a tile the last frame wrote to.
     void clearTile(int tile);
-    // RT²AR's post-process: a 3x3 mean over penumbra pixels, each layer averaged only over
-    // neighbours that carry it (virtual radiance where M > 0, the difference where M < 1).
+    // RT²AR's post-process: a 3x3 mean over penumbra pixels, of the visible fraction of their
+    // direct light (not of their radiance, which would blur textures and reflections), each
+    // layer's over the lit neighbours that carry it (virtual radiance where M > 0, the
+    // difference where M < 1); each layer then moves by its derivative times the change.
     void meanFilterPenumbra();
     // Row y of the composite over `camera` (rgb8 sRGB; `srgb_lut` decodes it), plus the glow,
     // into `dst`, with `grain` (may be null) on what is virtual; tiles neither dirty nor glowing

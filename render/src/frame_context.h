@@ -55,11 +55,29 @@ struct Counters {
 
 using RayList = std::vector<bench::RayLog::Ray>;
 
+// What RT²AR's penumbra filter (Film::meanFilterPenumbra) needs of a sample's primary hit: the
+// visible fraction of its direct light in the mixed and in the real scene, and how much the
+// sample's I_m and I_r change with each. The filter averages the visibility, not the radiance,
+// so that textures, highlights and reflections stay sharp where the shadow is smoothed.
+struct PrimaryDirect {
+    float unshadowed = 0;                // the lights' direct light, unoccluded (summed channels)
+    float visible_m = 0, visible_r = 0;  // the same, times each light's visibility
+    Vec3 dm_dvisible_m = Vec3::Zero();   // ∂I_m / ∂(visible fraction in the mixed scene)
+    Vec3 dm_dvisible_r = Vec3::Zero();   // ∂I_m / ∂(visible fraction in the real scene)
+    Vec3 dr_dvisible_r = Vec3::Zero();   // ∂I_r / ∂(visible fraction in the real scene)
+    bool penumbra = false;               // an adaptive test found the light partly hidden
+
+    float visibleFractionM() const { return unshadowed > 0 ? visible_m / unshadowed : 0.f; }
+    float visibleFractionR() const { return unshadowed > 0 ? visible_r / unshadowed : 0.f; }
+};
+
 struct SampleState {
     optics::Rng rng;
     Counters* counters;
     RayList* log = nullptr;  // renderFrame() was given a log
-    bool penumbra = false;
+    bool penumbra = false;   // set by an adaptive shadow test whose rays disagreed
+    // Where the next shade() records its primary hit's direct light (taken by that call).
+    PrimaryDirect* primary_direct = nullptr;
 };
 
 inline void logRay(RayList* log, bench::RayLog::Kind kind, RTCScene scene, RTCScene ghosts,

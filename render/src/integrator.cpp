@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "caustics.h"
 #include "shadow_map.h"
@@ -119,7 +120,8 @@ Vec3 DifferentialIntegrator::environment(const Frame& f, const Vec3& d) const {
 // Direct light from point, spherical and directional lights: Lambert plus, for Phong, a
 // normalised Blinn-Phong lobe; each light's shadow rays in the scenes the mode asks for.
 Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
-                                    const Vec3& albedo, Mode mode, SampleState& st) const {
+                                    const Vec3& albedo, Mode mode, SampleState& st,
+                                    PrimaryDirect* record) const {
     Pair out;
     const Material& mat = s.material->material;
     // The geometric normal on the side the ray came from, where light can arrive.
@@ -153,6 +155,7 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
         std::optional<Pair> from_map;
         if (light->shadow_map && options_.shadows)
             from_map = light->shadow_map->visibility(s.p, n_facing, mode);
+        st.penumbra = false;
         Pair visible =
             from_map ? *from_map : shadows_.visibility(*light, origin, wi, dist, mode, st);
         // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
@@ -162,6 +165,16 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
         }
         out.m += unshadowed.cwiseProduct(visible.m);
         out.r += unshadowed.cwiseProduct(visible.r);
+        if (record != nullptr) {
+            // Shadow rays give every channel one visible fraction.
+            const float weight = unshadowed.sum();
+            record->unshadowed += weight;
+            record->visible_m += weight * visible.m.x();
+            record->visible_r += weight * visible.r.x();
+            record->dm_dvisible_m += unshadowed;
+            record->dr_dvisible_r += unshadowed;
+            record->penumbra |= st.penumbra;
+        }
     }
     if (f.caustics) {
         // Caustic irradiance from the photon maps, reflected diffusely.
@@ -175,6 +188,8 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
 
 Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d,
                                    int depth, Mode mode, SampleState& st) const {
+    // Only this call's own direct light is the primary hit's: not what its bounces see.
+    PrimaryDirect* const record = std::exchange(st.primary_direct, nullptr);
     const Material& mat = s.material->material;
     const bool entering = s.n_geometric.dot(d) < 0;
     const Vec3 n_geo = entering ? s.n_geometric : Vec3(-s.n_geometric);
@@ -197,11 +212,17 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
             Vec3 albedo = mat.albedo;
             if (!s.material->albedo_texture.empty())
                 albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
-            Pair local = s.material->albedo_from_camera ? cameraAlbedoDirect(f, s, n, d, st)
-                                                        : direct(f, s, n, d, albedo, mode, st);
+            Pair local = s.material->albedo_from_camera
+                             ? cameraAlbedoDirect(f, s, n, d, st, record)
+                             : direct(f, s, n, d, albedo, mode, st, record);
             const float rho = std::clamp(mat.reflectance * map, 0.f, 1.f);
             if (rho <= 0)
                 return local;
+            if (record != nullptr) {
+                record->dm_dvisible_m *= 1 - rho;
+                record->dm_dvisible_r *= 1 - rho;
+                record->dr_dvisible_r *= 1 - rho;
+            }
             return sum(scaled(local, Vec3::Constant(1 - rho)),
                        scaled(reflected(), Vec3::Constant(rho)));
         }
@@ -266,16 +287,29 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
 // of the lighting with and without the virtual objects, however the real lights are modelled.
 // Where the model gives no light, nothing virtual can change it: both are the camera pixel.
 Pair DifferentialIntegrator::cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n,
-                                                const Vec3& d, SampleState& st) const {
+                                                const Vec3& d, SampleState& st,
+                                                PrimaryDirect* record) const {
     const int w = f.inputs->camera.width, h = f.inputs->camera.height;
     const std::optional<Vec3> camera = cameraTexel(f, s.uv.x() * w - 0.5, s.uv.y() * h - 0.5);
     if (!camera)
         return {};
-    const Pair irradiance = direct(f, s, n, d, Vec3::Ones(), Mode::kBoth, st);
+    PrimaryDirect light;
+    const Pair irradiance =
+        direct(f, s, n, d, Vec3::Ones(), Mode::kBoth, st, record != nullptr ? &light : nullptr);
     Pair out{*camera, *camera};
     for (int c = 0; c < 3; ++c)
         if (irradiance.r[c] > 0 && irradiance.m[c] != irradiance.r[c])
             out.m[c] = (*camera)[c] * irradiance.m[c] / irradiance.r[c];
+    // I_m = camera · v_m / v_r for visible fractions v_m, v_r of one light; I_r is the camera.
+    const float v_m = light.visibleFractionM(), v_r = light.visibleFractionR();
+    if (record != nullptr && v_r > 0) {
+        record->unshadowed += light.unshadowed;
+        record->visible_m += light.visible_m;
+        record->visible_r += light.visible_r;
+        record->dm_dvisible_m += *camera / v_r;
+        record->dm_dvisible_r -= *camera * (v_m / (v_r * v_r));
+        record->penumbra |= light.penumbra;
+    }
     return out;
 }
 

@@ -61,10 +61,12 @@ public:
     bool depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const;
 
 private:
+    // `record`, when not null, receives the light's visibility (the primary hit's, for the
+    // penumbra filter).
     Pair direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d, const Vec3& albedo,
-                Mode mode, SampleState& st) const;
+                Mode mode, SampleState& st, PrimaryDirect* record) const;
     Pair cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
-                            SampleState& st) const;
+                            SampleState& st, PrimaryDirect* record) const;
     std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s, SampleState& st) const;
 
     const RenderOptions& options_;

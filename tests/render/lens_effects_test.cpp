@@ -53,7 +53,7 @@ TEST(LensEffects, GlareStreakWeightsArePowersOfTheAttenuationAlongOneDiagonal) {
 // A film w x h with one bright virtual square: `radiance` over [x0, x0 + n) x [y0, y0 + n).
 Film brightSquare(int w, int h, int x0, int y0, int n, float radiance) {
     Film film;
-    film.beginFrame(w, h, 16, false);
+    film.beginFrame(w, h, 16, false, false);
     for (int y = y0; y < y0 + n; ++y)
         for (int x = x0; x < x0 + n; ++x) {
             const size_t i = static_cast<size_t>(y) * w + x;

@@ -25,6 +25,7 @@ enum class SoftShadowMethod : uint8_t {
     kUniform,   // `shadow_samples` rays spread over each spherical light
     kAdaptive,  // RT²AR: 5 rays (centre + 4 extremes of the visible hemisphere); all
                 // `shadow_samples` only where they disagree (the penumbra), then a mean filter
+                // of the primary hits' light visibility there
 };
 
 enum class DepthSecondaryRays : uint8_t {
@@ -40,7 +41,7 @@ struct RenderOptions {
     int samples_per_pixel = 1;  // stratified jittered supersampling; a square number
     SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
     int shadow_samples = 20;         // rays per spherical light for kUniform / penumbra pixels
-    bool shadow_mean_filter = true;  // smooth adaptive penumbrae (RT²AR)
+    bool shadow_mean_filter = true;  // smooth adaptive penumbrae: RT²AR's 3x3 mean, of visibility
     DepthSecondaryRays depth_secondary = DepthSecondaryRays::kScreenSpace;
     // A ghost (modelled real surface) and the depth map describe the same surface where they
     // agree to this fraction of the distance (Kinect noise and disparity steps): the ghost is
