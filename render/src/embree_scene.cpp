@@ -293,15 +293,36 @@ void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f* origins,
     }
 }
 
-void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
-                             const Eigen::Vector3f* directions, const float* t_far,
-                             const bool* active, int count, bool* occluded) {
+namespace {
+
+// RTCRayN of width N for rtcOccludedN.
+template <int N>
+struct OcclusionPacket;
+template <>
+struct OcclusionPacket<8> {
+    using Ray = RTCRay8;
+    static void occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* ray) {
+        rtcOccluded8(valid, scene, context, ray);
+    }
+};
+template <>
+struct OcclusionPacket<16> {
+    using Ray = RTCRay16;
+    static void occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* ray) {
+        rtcOccluded16(valid, scene, context, ray);
+    }
+};
+
+template <int N>
+void occludedPacket(RTCScene scene, const Eigen::Vector3f& origin,
+                    const Eigen::Vector3f* directions, const float* t_far, const bool* active,
+                    int count, bool* occluded) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = kOcclusionPacketFlags;
-    alignas(64) int valid[16];
-    alignas(64) RTCRay16 ray;
-    for (int i = 0; i < 16; ++i) {
+    alignas(64) int valid[N];
+    alignas(64) typename OcclusionPacket<N>::Ray ray;
+    for (int i = 0; i < N; ++i) {
         const bool on = i < count && (active == nullptr || active[i]);
         valid[i] = on ? -1 : 0;
         const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
@@ -318,9 +339,23 @@ void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
         ray.id[i] = static_cast<unsigned>(i);
         ray.flags[i] = 0;
     }
-    rtcOccluded16(valid, scene, &context, &ray);
+    OcclusionPacket<N>::occluded(valid, scene, &context, &ray);
     for (int i = 0; i < count; ++i)
         occluded[i] = valid[i] != 0 && ray.tfar[i] < 0;
+}
+
+}  // namespace
+
+void EmbreeScene::occluded8(RTCScene scene, const Eigen::Vector3f& origin,
+                            const Eigen::Vector3f* directions, const float* t_far,
+                            const bool* active, int count, bool* occluded) {
+    occludedPacket<8>(scene, origin, directions, t_far, active, count, occluded);
+}
+
+void EmbreeScene::occluded16(RTCScene scene, const Eigen::Vector3f& origin,
+                             const Eigen::Vector3f* directions, const float* t_far,
+                             const bool* active, int count, bool* occluded) {
+    occludedPacket<16>(scene, origin, directions, t_far, active, count, occluded);
 }
 
 }  // namespace mixray::render::detail

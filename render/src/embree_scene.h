@@ -153,6 +153,10 @@ public:
     static void occluded16(RTCScene scene, const Eigen::Vector3f& origin,
                            const Eigen::Vector3f* directions, const float* t_far,
                            const bool* active, int count, bool* occluded);
+    // The same for up to 8 rays.
+    static void occluded8(RTCScene scene, const Eigen::Vector3f& origin,
+                          const Eigen::Vector3f* directions, const float* t_far, const bool* active,
+                          int count, bool* occluded);
 
 private:
     EmbreeScene() = default;

@@ -36,6 +36,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
     // Up to 16 shadow rays towards points on the light: one packet per scene.
     const auto testPacket = [&](const Vec3* dirs, const float* lengths, int count, int& lit_m,
                                 int& lit_r) {
+        const auto occludedN = count <= 8 ? &EmbreeScene::occluded8 : &EmbreeScene::occluded16;
         std::array<bool, 16> occ_m{}, active{}, occ_r{};
         if (want_m) {
             for (int i = 0; i < count; ++i) {
@@ -43,8 +44,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
                 logRay(st.log, bench::RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), origin,
                        dirs[i], lengths[i]);
             }
-            EmbreeScene::occluded16(scene_.all(), origin, dirs, lengths, nullptr, count,
-                                    occ_m.data());
+            occludedN(scene_.all(), origin, dirs, lengths, nullptr, count, occ_m.data());
             for (int i = 0; i < count; ++i)
                 lit_m += occ_m[i] ? 0 : 1;
         }
@@ -60,8 +60,8 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
                 }
             }
             if (any)
-                EmbreeScene::occluded16(scene_.ghosts(), origin, dirs, lengths, active.data(),
-                                        count, occ_r.data());
+                occludedN(scene_.ghosts(), origin, dirs, lengths, active.data(), count,
+                          occ_r.data());
             for (int i = 0; i < count; ++i)
                 lit_r += occ_r[i] ? 0 : 1;
         }
@@ -83,7 +83,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
     const float radius = light.light.radius;
     std::array<Vec3, 16> dirs;
     std::array<float, 16> lengths;
-    const auto aim = [&](int lane, const Vec3& target) {
+    const auto aim = [&](int lane, const Vec3& target) __attribute__((always_inline)) {
         const Vec3 delta = target - origin;
         const float length = delta.norm();
         dirs[static_cast<size_t>(lane)] = delta / length;
@@ -94,9 +94,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
                                             centre + radius * v, centre - radius * v};
         for (int i = 0; i < 5; ++i)
             aim(i, points[static_cast<size_t>(i)]);
-        // Five rays fill a third of a packet: measured slower than single rays.
-        for (int i = 0; i < 5; ++i)
-            test(dirs[static_cast<size_t>(i)], lengths[static_cast<size_t>(i)], lit_m, lit_r);
+        testPacket(dirs.data(), lengths.data(), 5, lit_m, lit_r);
         const bool agree_m = !want_m || lit_m == 0 || lit_m == 5;
         const bool agree_r = !want_r || lit_r == 0 || lit_r == 5;
         if (agree_m && agree_r)
@@ -112,7 +110,7 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
             const Vec2 q = optics::discSample(k0 + i, n, st.rng.uniform(), rotation);
             aim(i, centre + radius * (q.x() * u + q.y() * v));
         }
-        if (count >= 8) {
+        if (count >= 4) {
             testPacket(dirs.data(), lengths.data(), count, lit_m, lit_r);
         } else {
             for (int i = 0; i < count; ++i)
