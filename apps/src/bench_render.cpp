@@ -601,7 +601,9 @@ struct Figures {
     double caustic_photons = 0;                         // per frame, stored
     Image composite;  // the logged frame's, for image differences between rows
     Image camera;     // the logged frame's camera image
-    std::optional<double> rmse_vs_reference;  // shadow-maps, soft: against the first row, 0..255
+    // shadow-maps, soft: against the first row of the same size.
+    std::optional<double> rmse_vs_reference;        // of the composite, 0..255
+    std::optional<double> speedup_vs_reference;     // its frame time over this row's
     double primary = 0, secondary = 0, shadow = 0;  // rays per frame
     double mrays_per_s = 0;
     // The logged frame: its rays on the renderer and on bare Embree.
@@ -735,9 +737,11 @@ void printFigures(const Figures& f) {
                     f.frame_ms - f.caustic_shoot_ms - f.caustic_build_ms, f.caustic_photons);
     if (f.shadow_map_ms > 0)
         std::printf("  shadow maps %7.2f ms of the frame\n", f.shadow_map_ms);
-    if (f.rmse_vs_reference)
-        std::printf("  composite RMSE vs the reference %.2f codes (%.2f %% of full scale)\n",
-                    *f.rmse_vs_reference, 100 * *f.rmse_vs_reference / 255);
+    if (f.rmse_vs_reference && f.speedup_vs_reference)
+        std::printf(
+            "  vs the reference: %.2fx its fps; composite RMSE %.2f codes (%.2f %% of full "
+            "scale)\n",
+            *f.speedup_vs_reference, *f.rmse_vs_reference, 100 * *f.rmse_vs_reference / 255);
     const double bare_ms = 1e3 * f.bare.total();
     std::printf(
         "  same %llu rays, bare Embree %7.2f ms (primary %s %.2f, secondary %s %.2f, shadow %s "
@@ -794,6 +798,8 @@ nlohmann::json toJson(const Figures& f) {
               {"photons_stored", f.caustic_photons}}},
             {"rmse_vs_reference",
              f.rmse_vs_reference ? nlohmann::json(*f.rmse_vs_reference) : nlohmann::json()},
+            {"speedup_vs_reference",
+             f.speedup_vs_reference ? nlohmann::json(*f.speedup_vs_reference) : nlohmann::json()},
             {"rays_per_frame",
              {{"primary", f.primary}, {"secondary", f.secondary}, {"shadow", f.shadow}}},
             {"mrays_per_s", f.mrays_per_s},
@@ -1231,8 +1237,9 @@ int runBenchRender(BenchRenderOptions options) {
                 configs.push_back(std::move(config));
             }
         }
-        // shadow-maps: each size's first row's composite, which the others are compared with.
-        std::map<std::pair<int, int>, Image> references;
+        // shadow-maps, soft: each size's first row's composite and frame time, which the others
+        // are compared with.
+        std::map<std::pair<int, int>, std::pair<Image, double>> references;
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
             if (name == "caustics") {
@@ -1263,11 +1270,14 @@ int runBenchRender(BenchRenderOptions options) {
                 figures->created = bench::creationTimes(**renderer);
                 if (name == "shadow-maps" || name == "soft") {
                     const auto key = std::pair{size.width, size.height};
-                    if (!references.contains(key))
-                        references[key] = figures->composite;
-                    else
+                    if (!references.contains(key)) {
+                        references[key] = {figures->composite, figures->frame_ms};
+                    } else {
+                        const auto& [composite, frame_ms] = references[key];
                         figures->rmse_vs_reference =
-                            rmse(figures->composite, references[key], figures->camera);
+                            rmse(figures->composite, composite, figures->camera);
+                        figures->speedup_vs_reference = frame_ms / figures->frame_ms;
+                    }
                 }
                 if (options.json) {
                     results.push_back(toJson(*figures));
