@@ -75,7 +75,6 @@ struct SampleState {
     optics::Rng rng;
     Counters* counters;
     RayList* log = nullptr;  // renderFrame() was given a log
-    bool penumbra = false;   // set by an adaptive shadow test whose rays disagreed
     // Where the next shade() records its primary hit's direct light (taken by that call).
     PrimaryDirect* primary_direct = nullptr;
 };

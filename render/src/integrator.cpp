@@ -155,9 +155,10 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
         std::optional<Pair> from_map;
         if (light->shadow_map && options_.shadows)
             from_map = light->shadow_map->visibility(s.p, n_facing, mode);
-        st.penumbra = false;
-        Pair visible =
-            from_map ? *from_map : shadows_.visibility(*light, origin, wi, dist, mode, st);
+        bool penumbra = false;
+        Pair visible = from_map ? *from_map
+                                : shadows_.visibility(*light, origin, wi, dist, mode, st,
+                                                      record != nullptr ? &penumbra : nullptr);
         // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
         if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
             shadows_.depthMapOccludes(f, origin, wi, dist)) {
@@ -173,7 +174,7 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
             record->visible_r += weight * visible.r.x();
             record->dm_dvisible_m += unshadowed;
             record->dr_dvisible_r += unshadowed;
-            record->penumbra |= st.penumbra;
+            record->penumbra |= penumbra;
         }
     }
     if (f.caustics) {

@@ -16,8 +16,9 @@ public:
     // Fractions of `light`'s visible area seen from `origin` (towards `to_light`, `dist` away;
     // infinite for directional lights) in the mixed and the real scene, as `mode` asks. Both
     // use the same sample points, so they agree bit for bit where no virtual object interferes.
+    // `penumbra` (may be null) is set when RT²AR's adaptive test rays disagreed.
     Pair visibility(const LightData& light, const Vec3& origin, const Vec3& to_light, float dist,
-                    Mode mode, SampleState& st) const;
+                    Mode mode, SampleState& st, bool* penumbra = nullptr) const;
 
     // DepthSecondaryRays::kScreenSpace: whether the depth map's surface lies between `origin`
     // and a light `dist` away along `wi`.
