@@ -115,38 +115,31 @@ bool updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
 // The primary hits of the tile [x0, x1) x [y0, y1) in 16-ray packets of 4x4-pixel blocks,
 // logged in that order.
 void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f, int x0, int y0,
-                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& origins,
-                 std::vector<Vec3>& dirs, RayList* log) {
+                 int x1, int y1, PrimarySamples& out, RayList* log) {
     const int spp = rays.samples;
     const int w = f.inputs->camera.width, tw = x1 - x0;
     const size_t n = static_cast<size_t>(tw) * (y1 - y0) * spp;
-    hits.assign(n, Hit{});
-    dirs.resize(n);
-    origins.assign(n, f.t_world_cam);
+    out.hits.resize(n);
+    out.dirs.resize(n);
+    out.origins.resize(n);
+    out.live.resize(n);
+    Hit* const hits = out.hits.data();
+    Vec3* const dirs = out.dirs.data();
+    Vec3* const origins = out.origins.data();
+    uint8_t* const live = out.live.data();
     const bool lens = !rays.lens_points.empty();
     const bool moving = f.shutter && !rays.times.empty();
-    std::array<size_t, 16> lane_index;
-    std::array<Vec3, 16> lane_origin;
-    std::array<Vec3, 16> lane_dir;
-    std::array<Hit, 16> lane_hit;
     // The depth mesh is resolved per pixel in finishPrimaryHit().
     const unsigned object_mask = f.depth_mesh ? detail::kObjectMask : detail::kAnyMask;
-    int lanes = 0;
+    IntersectPacket16 packet;
     const auto flush = [&] {
-        if (lanes == 0)
-            return;
-        if (lens || moving)
-            EmbreeScene::intersect16(scene.all(), lane_origin.data(), lane_dir.data(), lanes,
-                                     lane_hit.data(), object_mask);
-        else
-            EmbreeScene::intersect16(scene.all(), f.t_world_cam, lane_dir.data(), lanes,
-                                     lane_hit.data(), object_mask);
-        for (int i = 0; i < lanes; ++i) {
-            hits[lane_index[i]] = lane_hit[i];
-            logRay(log, bench::RayLog::Kind::kPrimary, scene.all(), scene.ghosts(),
-                   origins[lane_index[i]], lane_dir[i], kInf);
-        }
-        lanes = 0;
+        if (log != nullptr)
+            for (int i = 0; i < packet.size(); ++i) {
+                const uint32_t slot = packet.slot(i);
+                logRay(log, bench::RayLog::Kind::kPrimary, scene.all(), scene.ghosts(),
+                       origins[slot], dirs[slot], kInf);
+            }
+        packet.trace(scene.all(), object_mask, hits);
     };
     for (int by = y0; by < y1; by += 4)
         for (int bx = x0; bx < x1; bx += 4) {
@@ -156,38 +149,45 @@ void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f,
                         const size_t i = (static_cast<size_t>(y - y0) * tw + (x - x0)) * spp + k;
                         const size_t sample = (static_cast<size_t>(y) * w + x) * spp + k;
                         const Vec3& dir_cam = rays.directions[sample];
-                        if (!dir_cam.allFinite())
+                        live[i] = dir_cam.allFinite();
+                        if (!live[i]) {
+                            hits[i] = Hit{};
+                            origins[i] = f.t_world_cam;
+                            dirs[i] = dir_cam;
                             continue;
+                        }
                         // The ray in the camera frame: from the centre of projection, or, through
                         // a lens, from the aperture point through where the pinhole ray meets the
                         // plane of focus (a ray at or beyond 90° keeps the pinhole's).
-                        Vec3 start = Vec3::Zero(), dir = dir_cam;
-                        if (lens && dir_cam.z() > 0) {
-                            const Vec2& a = rays.lens_points[sample];
-                            start = Vec3(a.x(), a.y(), 0);
-                            dir =
-                                (dir_cam * (rays.lens.focus_m / dir_cam.z()) - start).normalized();
-                        }
-                        if (moving) {
-                            // The camera where it was at the sample's time in the exposure.
-                            const float tau = rays.times[sample];
-                            // nlerp: over one exposure the turn is small, and there nlerp
-                            // is slerp within 1e-6, without trigonometry per sample.
-                            const Eigen::Quaternionf q(((1 - tau) * f.shutter->q_open.coeffs() +
-                                                        tau * f.shutter->q_close.coeffs())
-                                                           .normalized());
-                            origins[i] = q * start + (1 - tau) * f.shutter->t_open +
-                                         tau * f.shutter->t_close;
-                            dirs[i] = q * dir;
-                        } else {
-                            if (lens)
+                        if (moving || lens) {
+                            Vec3 start = Vec3::Zero(), dir = dir_cam;
+                            if (lens && dir_cam.z() > 0) {
+                                const Vec2& a = rays.lens_points[sample];
+                                start = Vec3(a.x(), a.y(), 0);
+                                dir = (dir_cam * (rays.lens.focus_m / dir_cam.z()) - start)
+                                          .normalized();
+                            }
+                            if (moving) {
+                                // The camera where it was at the sample's time in the exposure.
+                                const float tau = rays.times[sample];
+                                // nlerp: over one exposure the turn is small, and there nlerp
+                                // is slerp within 1e-6, without trigonometry per sample.
+                                const Eigen::Quaternionf q(((1 - tau) * f.shutter->q_open.coeffs() +
+                                                            tau * f.shutter->q_close.coeffs())
+                                                               .normalized());
+                                origins[i] = q * start + (1 - tau) * f.shutter->t_open +
+                                             tau * f.shutter->t_close;
+                                dirs[i] = q * dir;
+                            } else {
                                 origins[i] = rotate(f.R_world_cam, start) + f.t_world_cam;
-                            dirs[i] = rotate(f.R_world_cam, dir);
+                                dirs[i] = rotate(f.R_world_cam, dir);
+                            }
+                        } else {
+                            origins[i] = f.t_world_cam;
+                            dirs[i] = rotate(f.R_world_cam, dir_cam);
                         }
-                        lane_origin[lanes] = origins[i];
-                        lane_index[lanes] = i;
-                        lane_dir[lanes] = dirs[i];
-                        if (++lanes == 16)
+                        packet.add(origins[i], dirs[i], static_cast<uint32_t>(i));
+                        if (packet.full())
                             flush();
                     }
             flush();

@@ -74,13 +74,20 @@ bool updateRayCache(RayCache& rays, const calibration::CameraModel& camera, int 
                     int tile_size, const ThinLens& lens = {}, bool timed = false,
                     const std::stop_token& stop = {});
 
+// A tile's primary samples, ((y - y0) * (x1 - x0) + (x - x0)) * samples + s: reused by the
+// thread that traces them, so the tile loop never allocates.
+struct PrimarySamples {
+    std::vector<Hit> hits;      // the nearest hit among the scene's objects; invalid when not live
+    std::vector<Vec3> origins;  // world
+    std::vector<Vec3> dirs;     // world, unit
+    std::vector<uint8_t> live;  // the sample has a ray (RayCache::directions is finite)
+};
+
 // The primary hits, world origins and world directions of the samples of the tile
-// [x0, x1) x [y0, y1) of frame `f`, in `hits`, `origins` and `dirs`
-// ((y - y0) * (x1 - x0) + (x - x0)) * samples + s). Without a lens every origin is the camera's;
+// [x0, x1) x [y0, y1) of frame `f`, into `out`. Without a lens every origin is the camera's;
 // with f.shutter each sample's pose is interpolated at its time.
 void primaryHits(const EmbreeScene& scene, const RayCache& rays, const Frame& f, int x0, int y0,
-                 int x1, int y1, std::vector<Hit>& hits, std::vector<Vec3>& origins,
-                 std::vector<Vec3>& dirs, RayList* log);
+                 int x1, int y1, PrimarySamples& out, RayList* log);
 
 // Grows `mask` (tiles_x wide, 1 where a tile may hold virtual content) by `radius_px` pixels of
 // tiles `tile_size` wide: with a lens, content spreads that far from where a pinhole shows it.

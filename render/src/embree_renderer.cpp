@@ -177,31 +177,31 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
         // The tile in stages over all its samples: the primary hits, each checked against the
         // depth map; then every hit's surface in one batch (surfacesAt() overlaps their fetches
         // from memory); then, pixel by pixel, the footprint test and shading.
-        primaryHits(*scene_, rays_, f, x0, y0, x1, y1, scratch.hits, scratch.origins, scratch.dirs,
-                    log);
+        PrimarySamples& primaries = scratch.primaries;
+        primaryHits(*scene_, rays_, f, x0, y0, x1, y1, primaries, log);
         const int tile_w = x1 - x0;
-        const size_t samples = scratch.hits.size();
-        Hit* const hits_all = scratch.hits.data();
-        const Vec3* const dirs_all = scratch.dirs.data();
-        const Vec3* const origins_all = scratch.origins.data();
-        scratch.live.assign(samples, 0);
+        const size_t samples = primaries.hits.size();
+        Hit* const hits_all = primaries.hits.data();
+        const Vec3* const dirs_all = primaries.dirs.data();
+        const Vec3* const origins_all = primaries.origins.data();
+        const uint8_t* const live = primaries.live.data();
         uint64_t tile_primary = 0;
-        for (int y = y0; y < y1; ++y)
-            for (int x = x0; x < x1; ++x) {
-                const size_t pixel = static_cast<size_t>(y) * w + x;
-                const size_t first = (static_cast<size_t>(y - y0) * tile_w + (x - x0)) * spp;
-                const std::optional<float> depth_limit =
-                    f.depth ? rays_.rayDistanceAt(*f.depth, x, y) : std::nullopt;
-                for (int k = 0; k < spp; ++k) {
-                    if (!rays_.directions[pixel * spp + k].allFinite())
-                        continue;
-                    const size_t i = first + static_cast<size_t>(k);
-                    scratch.live[i] = 1;
-                    ++tile_primary;
-                    hits_all[i] = integrator.finishPrimaryHit(f, hits_all[i], origins_all[i],
-                                                              dirs_all[i], depth_limit);
+        for (size_t i = 0; i < samples; ++i)
+            tile_primary += live[i];
+        // Without depth a primary hit stands as Embree found it (finishPrimaryHit() is the
+        // identity there: no depth limit, no depth mesh).
+        if (f.depth)
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x) {
+                    const size_t first = (static_cast<size_t>(y - y0) * tile_w + (x - x0)) * spp;
+                    const std::optional<float> depth_limit = rays_.rayDistanceAt(*f.depth, x, y);
+                    for (int k = 0; k < spp; ++k) {
+                        const size_t i = first + static_cast<size_t>(k);
+                        if (live[i])
+                            hits_all[i] = integrator.finishPrimaryHit(
+                                f, hits_all[i], origins_all[i], dirs_all[i], depth_limit);
+                    }
                 }
-            }
         scratch.surfaces.resize(samples);
         integrator.surfacesAt(hits_all, origins_all, dirs_all, samples, scratch.surfaces.data());
         Counters counters;
@@ -240,7 +240,7 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                     Pair p;
                     bool is_virtual = false;
                     if (!hits[k].valid) {
-                        if (scratch.live[first + static_cast<size_t>(k)])
+                        if (live[first + static_cast<size_t>(k)])
                             p.m = p.r = integrator.environment(f, dirs[k]);
                     } else {
                         const Surface& s = surfaces[k];

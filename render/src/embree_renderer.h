@@ -38,13 +38,10 @@ struct SceneEffects {
     std::optional<CausticSettings> caustics;
 };
 
-// A tile's primary hits, origins and directions: reused by the thread, so the loop never allocates.
+// A tile's primary samples and their surfaces: reused by the thread, so the loop never allocates.
 struct TileScratch {
-    std::vector<Hit> hits;
-    std::vector<Vec3> origins;
-    std::vector<Vec3> dirs;
+    PrimarySamples primaries;
     std::vector<Surface> surfaces;  // at the tile's valid hits, from the footprint test to shading
-    std::vector<uint8_t> live;      // the sample's primary ray exists (finite direction)
 };
 
 class EmbreeRenderer final : public Renderer {

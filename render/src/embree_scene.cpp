@@ -251,46 +251,52 @@ void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f& origin,
 void EmbreeScene::intersect16(RTCScene scene, const Eigen::Vector3f* origins,
                               const Eigen::Vector3f* directions, int count, Hit* hits,
                               unsigned mask) {
+    IntersectPacket16 packet;
+    for (int i = 0; i < count; ++i)
+        packet.add(origins[i], directions[i], static_cast<uint32_t>(i));
+    packet.trace(scene, mask, hits);
+}
+
+void IntersectPacket16::trace(RTCScene scene, unsigned mask, Hit* hits) {
+    if (lanes_ == 0)
+        return;
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    alignas(64) int valid[16];
-    alignas(64) RTCRayHit16 rh;
     for (int i = 0; i < 16; ++i) {
-        const bool on = i < count;
-        valid[i] = on ? -1 : 0;
-        const Eigen::Vector3f d = on ? directions[i] : Eigen::Vector3f::UnitZ();
-        const Eigen::Vector3f o = on ? origins[i] : origins[0];
-        rh.ray.org_x[i] = o.x();
-        rh.ray.org_y[i] = o.y();
-        rh.ray.org_z[i] = o.z();
-        rh.ray.dir_x[i] = d.x();
-        rh.ray.dir_y[i] = d.y();
-        rh.ray.dir_z[i] = d.z();
-        rh.ray.tnear[i] = 0;
-        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-        rh.ray.time[i] = 0;
-        rh.ray.mask[i] = mask;
-        rh.ray.id[i] = static_cast<unsigned>(i);
-        rh.ray.flags[i] = 0;
-        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        valid_[i] = i < lanes_ ? -1 : 0;
+        rh_.ray.tnear[i] = 0;
+        rh_.ray.tfar[i] = std::numeric_limits<float>::infinity();
+        rh_.ray.time[i] = 0;
+        rh_.ray.mask[i] = mask;
+        rh_.ray.id[i] = static_cast<unsigned>(i);
+        rh_.ray.flags[i] = 0;
+        rh_.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh_.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
-    rtcIntersect16(valid, scene, &context, &rh);
-    for (int i = 0; i < count; ++i) {
-        Hit& hit = hits[i];
+    // Lanes not added are not traced (Embree reads only active rays); given a ray anyway, so
+    // nothing uninitialised is ever loaded.
+    for (int i = lanes_; i < 16; ++i) {
+        rh_.ray.org_x[i] = rh_.ray.org_y[i] = rh_.ray.org_z[i] = 0;
+        rh_.ray.dir_x[i] = rh_.ray.dir_y[i] = 0;
+        rh_.ray.dir_z[i] = 1;
+    }
+    rtcIntersect16(valid_, scene, &context, &rh_);
+    for (int i = 0; i < lanes_; ++i) {
+        Hit& hit = hits[slot_[i]];
         hit = Hit{};
-        if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ||
-            rh.hit.instID[0][i] == RTC_INVALID_GEOMETRY_ID)
+        if (rh_.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ||
+            rh_.hit.instID[0][i] == RTC_INVALID_GEOMETRY_ID)
             continue;
         hit.valid = true;
-        hit.t = rh.ray.tfar[i];
-        hit.object = rh.hit.instID[0][i];
-        hit.mesh = rh.hit.geomID[i];
-        hit.prim = rh.hit.primID[i];
-        hit.u = rh.hit.u[i];
-        hit.v = rh.hit.v[i];
+        hit.t = rh_.ray.tfar[i];
+        hit.object = rh_.hit.instID[0][i];
+        hit.mesh = rh_.hit.geomID[i];
+        hit.prim = rh_.hit.primID[i];
+        hit.u = rh_.hit.u[i];
+        hit.v = rh_.hit.v[i];
     }
+    lanes_ = 0;
 }
 
 namespace {

@@ -112,6 +112,36 @@ struct Hit {
     float u = 0, v = 0;
 };
 
+// Up to 16 rays gathered lane by lane into one rtcIntersect16 packet where they are made, each
+// with the slot its hit goes to, so that nothing is copied between the rays and Embree's packet.
+// Thread-bound: each thread keeps its own.
+class IntersectPacket16 {
+public:
+    int size() const { return lanes_; }
+    bool full() const { return lanes_ == 16; }
+    uint32_t slot(int lane) const { return slot_[lane]; }
+    [[gnu::always_inline]] void add(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                    uint32_t slot) {
+        const int i = lanes_++;
+        rh_.ray.org_x[i] = origin.x();
+        rh_.ray.org_y[i] = origin.y();
+        rh_.ray.org_z[i] = origin.z();
+        rh_.ray.dir_x[i] = direction.x();
+        rh_.ray.dir_y[i] = direction.y();
+        rh_.ray.dir_z[i] = direction.z();
+        slot_[i] = slot;
+    }
+    // The nearest hits of the rays added, in [0, inf), as one coherent packet (camera rays),
+    // through objects that `mask` sees: each ray's hit into hits[its slot]. Empties the packet.
+    void trace(RTCScene scene, unsigned mask, Hit* hits);
+
+private:
+    alignas(64) RTCRayHit16 rh_;
+    alignas(64) int valid_[16];
+    uint32_t slot_[16];
+    int lanes_ = 0;
+};
+
 // Owns the Embree device and scenes. Thread-safety: intersect/occluded are reentrant once
 // setPoses() returned; setPoses() must not run concurrently with them.
 class EmbreeScene {

@@ -81,15 +81,41 @@ Surface DifferentialIntegrator::surfaceAt(const Hit& hit, const Vec3& origin, co
     return s;
 }
 
+bool DifferentialIntegrator::outgrowsCache(const std::vector<ObjectData>& objects,
+                                           std::optional<size_t> depth_object) {
+    if (depth_object)
+        return true;
+    // Half of a core's L2 on the machines measured (docs/benchmarks.md): the teapot's 154 KB
+    // stays cached, the 1.1M-triangle dragon's 40 MB does not.
+    constexpr size_t kCachedBytes = 256 * 1024;
+    for (const ObjectData& object : objects) {
+        size_t bytes = 0;
+        for (const TriangleMesh& mesh : *object.meshes)
+            bytes += mesh.triangles.size() * sizeof(mesh.triangles[0]) +
+                     mesh.positions.size() * sizeof(Vec3) + mesh.normals.size() * sizeof(Vec3);
+        if (bytes > kCachedBytes)
+            return true;
+    }
+    return false;
+}
+
 void DifferentialIntegrator::surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs,
                                         size_t count, Surface* out) const {
+    if (prefetch_meshes_)
+        prefetchMeshData(hits, count);
+    for (size_t i = 0; i < count; ++i)
+        if (hits[i].valid)
+            out[i] = surfaceAt(hits[i], origins[i], dirs[i]);
+}
+
+void DifferentialIntegrator::prefetchMeshData(const Hit* hits, size_t count) const {
     const auto meshOf = [&](const Hit& hit) -> const TriangleMesh* {
         const ObjectData& object = objects_[hit.object];
         return hit.valid && object.shape != ShapeType::kSphere ? &(*object.meshes)[hit.mesh]
                                                                : nullptr;
     };
     // First the triangles' vertex indices, then the vertices they name: on a 1.1M-triangle mesh
-    // each is a miss to memory, which the computing loop below would wait for hit by hit.
+    // each is a miss to memory, which the computing loop would wait for hit by hit.
     for (size_t i = 0; i < count; ++i)
         if (const TriangleMesh* mesh = meshOf(hits[i]))
             __builtin_prefetch(&mesh->triangles[hits[i].prim]);
@@ -104,9 +130,6 @@ void DifferentialIntegrator::surfacesAt(const Hit* hits, const Vec3* origins, co
                 __builtin_prefetch(&mesh->normals[v]);
         }
     }
-    for (size_t i = 0; i < count; ++i)
-        if (hits[i].valid)
-            out[i] = surfaceAt(hits[i], origins[i], dirs[i]);
 }
 
 Vec3 DifferentialIntegrator::environment(const Frame& f, const Vec3& d) const {

@@ -34,6 +34,7 @@ public:
           objects_(objects),
           scene_(scene),
           depth_object_(depth_object),
+          prefetch_meshes_(outgrowsCache(objects, depth_object)),
           shadows_(options, scene) {}
 
     // The radiance pair a ray from `origin` along `d` brings back, `depth` bounces deep.
@@ -48,9 +49,9 @@ public:
     Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& origin, const Vec3& d,
                          std::optional<float> depth_limit) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
-    // surfaceAt() for `count` hits at once (invalid ones skipped): the same surfaces, with the
-    // meshes' triangles, positions and normals fetched from memory for all of them before any is
-    // computed, so that their cache misses overlap instead of queueing one hit after another.
+    // surfaceAt() for `count` hits at once (invalid ones skipped): the same surfaces. Where meshes
+    // outgrow the cache, their triangles, positions and normals are fetched from memory for all
+    // hits before any is computed, so that the misses overlap instead of queueing one by one.
     void surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs, size_t count,
                     Surface* out) const;
     // The environment lights' radiance along `d`.
@@ -73,7 +74,16 @@ private:
     const std::vector<MaterialData>& materials_;
     const std::vector<ObjectData>& objects_;
     const EmbreeScene& scene_;
+    // Whether any object's mesh data is big enough (or, the depth surface, rebuilt every frame)
+    // that its hits miss the cache, where surfacesAt() prefetches; small meshes stay cached and
+    // the prefetch passes would only cost instructions.
+    static bool outgrowsCache(const std::vector<ObjectData>& objects,
+                              std::optional<size_t> depth_object);
+    // The triangles, positions and normals the valid hits name, prefetched.
+    void prefetchMeshData(const Hit* hits, size_t count) const;
+
     std::optional<size_t> depth_object_;  // index in objects_ of the depth surface (kMesh)
+    bool prefetch_meshes_;
     ShadowRays shadows_;
 };
 
