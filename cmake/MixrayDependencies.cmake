@@ -69,6 +69,8 @@ find_package(Ceres 2.1 QUIET)
 mixray_require(Ceres_FOUND "Ceres Solver 2.1" libceres-dev)
 find_package(embree 3 QUIET)
 mixray_require(embree_FOUND "Embree 3" libembree-dev)
+# Highway: the renderer's SIMD batches, one build per instruction set, picked at run time.
+mixray_pkg(HWY libhwy libhwy-dev)
 find_path(MRCAL_INCLUDE_DIR mrcal.h PATH_SUFFIXES mrcal)
 find_library(MRCAL_LIBRARY mrcal)
 mixray_require(MRCAL_LIBRARY "mrcal 2.2" libmrcal-dev)

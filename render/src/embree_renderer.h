@@ -42,6 +42,7 @@ struct SceneEffects {
 struct TileScratch {
     PrimarySamples primaries;
     std::vector<Surface> surfaces;  // at the tile's valid hits, from the footprint test to shading
+    SurfaceScratch surface_sort;
 };
 
 class EmbreeRenderer final : public Renderer {

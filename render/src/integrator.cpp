@@ -7,6 +7,7 @@
 
 #include "caustics.h"
 #include "shadow_map.h"
+#include "surface_batch.h"
 
 namespace mixray::render::detail {
 namespace {
@@ -101,11 +102,71 @@ bool DifferentialIntegrator::outgrowsCache(const std::vector<ObjectData>& object
 
 void DifferentialIntegrator::surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs,
                                         size_t count, Surface* out) const {
+    SurfaceScratch scratch;
+    surfacesAt(hits, origins, dirs, count, out, scratch);
+}
+
+void DifferentialIntegrator::surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs,
+                                        size_t count, Surface* out, SurfaceScratch& scratch) const {
     if (prefetch_meshes_)
         prefetchMeshData(hits, count);
+    // Hits on triangle meshes go to meshSurfaces() one mesh of one object at a time, in SIMD
+    // lanes; a tile shows a few. Exact spheres, and meshes past the first kMaxGroups, one by one.
+    struct Group {
+        unsigned object = 0, mesh = 0;
+        uint32_t count = 0, start = 0;
+    };
+    constexpr uint8_t kMaxGroups = 16, kNoGroup = 0xFF;
+    std::array<Group, kMaxGroups> groups;
+    uint8_t n_groups = 0, last = kNoGroup;
+    scratch.group.resize(count);
+    for (size_t i = 0; i < count; ++i) {
+        uint8_t& group = scratch.group[i];
+        group = kNoGroup;
+        const Hit& hit = hits[i];
+        if (!hit.valid)
+            continue;
+        if (objects_[hit.object].shape == ShapeType::kSphere) {
+            out[i] = surfaceAt(hit, origins[i], dirs[i]);
+            continue;
+        }
+        const auto same = [&](uint8_t g) {
+            return groups[g].object == hit.object && groups[g].mesh == hit.mesh;
+        };
+        if (last == kNoGroup || !same(last)) {
+            last = kNoGroup;
+            for (uint8_t g = 0; g < n_groups; ++g)
+                if (same(g))
+                    last = g;
+            if (last == kNoGroup && n_groups < kMaxGroups) {
+                last = n_groups++;
+                groups[last] = {hit.object, hit.mesh};
+            }
+        }
+        if (last == kNoGroup) {
+            out[i] = surfaceAt(hit, origins[i], dirs[i]);
+            continue;
+        }
+        group = last;
+        ++groups[last].count;
+    }
+    uint32_t start = 0;
+    for (uint8_t g = 0; g < n_groups; ++g) {
+        groups[g].start = start;
+        start += groups[g].count;
+        groups[g].count = 0;
+    }
+    scratch.order.resize(start);
     for (size_t i = 0; i < count; ++i)
-        if (hits[i].valid)
-            out[i] = surfaceAt(hits[i], origins[i], dirs[i]);
+        if (const uint8_t g = scratch.group[i]; g != kNoGroup)
+            scratch.order[groups[g].start + groups[g].count++] = static_cast<uint32_t>(i);
+    for (uint8_t g = 0; g < n_groups; ++g) {
+        const ObjectData& object = objects_[groups[g].object];
+        meshSurfaces({&object, &materials_[static_cast<size_t>(object.material)],
+                      &(*object.meshes)[groups[g].mesh], hits, origins, dirs,
+                      scratch.order.data() + groups[g].start, groups[g].count},
+                     out);
+    }
 }
 
 void DifferentialIntegrator::prefetchMeshData(const Hit* hits, size_t count) const {

@@ -22,6 +22,13 @@ struct Surface {
     const MaterialData* material = nullptr;
 };
 
+// What surfacesAt() sorts the hits of a batch by mesh in: kept by the thread, so that a tile
+// allocates nothing.
+struct SurfaceScratch {
+    std::vector<uint8_t> group;
+    std::vector<uint32_t> order;
+};
+
 // Const, so reentrant over tiles. Keeps every argument by reference: they must outlive it; the
 // objects' poses change between frames, not during one.
 class DifferentialIntegrator {
@@ -49,9 +56,14 @@ public:
     Hit finishPrimaryHit(const Frame& f, const Hit& hit, const Vec3& origin, const Vec3& d,
                          std::optional<float> depth_limit) const;
     Surface surfaceAt(const Hit& hit, const Vec3& origin, const Vec3& d) const;
-    // surfaceAt() for `count` hits at once (invalid ones skipped): the same surfaces. Where meshes
-    // outgrow the cache, their triangles, positions and normals are fetched from memory for all
-    // hits before any is computed, so that the misses overlap instead of queueing one by one.
+    // surfaceAt() for `count` hits at once (invalid ones skipped): the same surfaces, bit for
+    // bit, those on triangle meshes computed in SIMD lanes a mesh at a time (surface_batch.h).
+    // Where meshes outgrow the cache, their triangles, positions and normals are fetched from
+    // memory for all hits before any is computed, so that the misses overlap instead of
+    // queueing one by one.
+    void surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs, size_t count,
+                    Surface* out, SurfaceScratch& scratch) const;
+    // The same with scratch of its own.
     void surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs, size_t count,
                     Surface* out) const;
     // The environment lights' radiance along `d`.
