@@ -175,8 +175,8 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
         TileScratch& scratch =
             scratch_[static_cast<size_t>(tbb::this_task_arena::current_thread_index())];
         // The tile in stages over all its samples: the primary hits, each checked against the
-        // depth map; then every hit's surface in one batch (surfacesAt() overlaps their fetches
-        // from memory); then, pixel by pixel, the footprint test and shading.
+        // depth map; then every hit's surface in one batch (SIMD lanes, their fetches from
+        // memory overlapped); then the footprint test, the shading and the film (shadeTile()).
         PrimarySamples& primaries = scratch.primaries;
         primaryHits(*scene_, rays_, f, x0, y0, x1, y1, primaries, log);
         const int tile_w = x1 - x0;
@@ -203,99 +203,11 @@ Status EmbreeRenderer::renderFrame(const RenderInputs& in, RenderLayers& out, Re
                     }
                 }
         scratch.surfaces.resize(samples);
-        integrator.surfacesAt(hits_all, origins_all, dirs_all, samples, scratch.surfaces.data());
+        integrator.surfacesAt(hits_all, origins_all, dirs_all, samples, scratch.surfaces.data(),
+                              scratch.surface_sort);
         Counters counters;
-        uint64_t tile_traced = 0;
-        for (int y = y0; y < y1; ++y)
-            for (int x = x0; x < x1; ++x) {
-                const size_t pixel = static_cast<size_t>(y) * w + x;
-                const size_t first = (static_cast<size_t>(y - y0) * tile_w + (x - x0)) * spp;
-                Hit* hits = hits_all + first;
-                const Vec3* dirs = dirs_all + first;
-                const Vec3* origins = origins_all + first;
-                const Surface* surfaces = scratch.surfaces.data() + first;
-                // The footprint test: whether virtual content can touch this pixel.
-                bool influenced = false;
-                for (int k = 0; k < spp && !influenced; ++k) {
-                    if (!hits[k].valid)
-                        continue;
-                    influenced = objects_[hits[k].object].role == ObjectRole::kVirtual ||
-                                 integrator.ghostInfluenced(f, surfaces[k], dirs[k]);
-                }
-                if (!influenced && !keep && options_.only_virtual_footprint)
-                    continue;
-                // Shade.
-                ++tile_traced;
-                int n_virtual = 0;
-                Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(),
-                     rsum = Vec3::Zero();
-                PrimaryDirect light;  // over the pixel's samples, for the penumbra filter
-                Vec3 dv_dm = Vec3::Zero(), dd_dm = Vec3::Zero(), dd_dr = Vec3::Zero();
-                for (int k = 0; k < spp; ++k) {
-                    PrimaryDirect sample_light;
-                    SampleState st{optics::Rng(hashIndex(options_.seed, pixel, k + 1)), &counters,
-                                   log};
-                    if (filter_penumbra)
-                        st.primary_direct = &sample_light;
-                    Pair p;
-                    bool is_virtual = false;
-                    if (!hits[k].valid) {
-                        if (live[first + static_cast<size_t>(k)])
-                            p.m = p.r = integrator.environment(f, dirs[k]);
-                    } else {
-                        const Surface& s = surfaces[k];
-                        is_virtual = s.object->role == ObjectRole::kVirtual;
-                        if (is_virtual) {
-                            p.m = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kMixed, st).m;
-                            if (keep)
-                                p.r =
-                                    integrator.trace(f, origins[k], dirs[k], 0, Mode::kReal, st).r;
-                        } else {
-                            p = integrator.shade(f, s, hits[k], dirs[k], 0, Mode::kBoth, st);
-                        }
-                    }
-                    light.unshadowed += sample_light.unshadowed;
-                    light.visible_m += sample_light.visible_m;
-                    light.visible_r += sample_light.visible_r;
-                    light.penumbra |= sample_light.penumbra;
-                    if (is_virtual) {
-                        ++n_virtual;
-                        vsum += p.m;
-                        dv_dm += sample_light.dm_dvisible_m;
-                    } else {
-                        dsum += p.m - p.r;
-                        dd_dm += sample_light.dm_dvisible_m;
-                        dd_dr += sample_light.dm_dvisible_r - sample_light.dr_dvisible_r;
-                    }
-                    msum += p.m;
-                    rsum += p.r;
-                }
-                if (n_virtual > 0)
-                    b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
-                if (n_virtual < spp)
-                    b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
-                b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
-                b.flags[pixel] = kTraced;
-                // Only pixels virtual content can touch take part in the filter, so that tracing
-                // the others (only_virtual_footprint off) leaves the image as it is.
-                if (filter_penumbra && influenced && light.unshadowed > 0) {
-                    b.flags[pixel] |= kLit | (light.penumbra ? kPenumbra : 0);
-                    b.visible_m[pixel] = light.visibleFractionM();
-                    b.visible_r[pixel] = light.visibleFractionR();
-                    // Only the penumbra's own pixels move: only they need the derivatives.
-                    if (light.penumbra && n_virtual > 0)
-                        b.dvirtual_dvisible_m[pixel] = dv_dm / static_cast<float>(n_virtual);
-                    if (light.penumbra && n_virtual < spp) {
-                        const auto n_real = static_cast<float>(spp - n_virtual);
-                        b.ddifference_dvisible_m[pixel] = dd_dm / n_real;
-                        b.ddifference_dvisible_r[pixel] = dd_dr / n_real;
-                    }
-                }
-                if (keep) {
-                    b.mixed[pixel] = msum / static_cast<float>(spp);
-                    b.real[pixel] = rsum / static_cast<float>(spp);
-                }
-            }
+        const uint64_t tile_traced =
+            shadeTile(f, {x0, y0, x1, y1}, filter_penumbra, scratch, counters, log);
         // Once per tile, not per pixel: neighbouring tiles' flags share a cache line, which
         // the threads would take from each other at every pixel.
         if (tile_traced > 0)

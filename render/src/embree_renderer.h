@@ -38,11 +38,33 @@ struct SceneEffects {
     std::optional<CausticSettings> caustics;
 };
 
+// A pixel of a tile that shadeTile() shades: its index in the frame, its first sample in the
+// tile's arrays, and whether virtual content can touch it (the footprint test).
+struct ShadedPixel {
+    size_t index = 0;
+    size_t first = 0;
+    bool influenced = false;
+};
+
+// shadeTile()'s samples: each shaded pixel's spp in a row, their state, primary direct light
+// (for the penumbra filter), radiance and kind; the batch of diffuse and Phong hits' direct light
+// and where each of its entries goes (sample, tile sample).
+struct TileShading {
+    std::vector<ShadedPixel> pixels;
+    std::vector<SampleState> states;
+    std::vector<PrimaryDirect> light;
+    std::vector<Pair> radiance;
+    std::vector<uint8_t> is_virtual;
+    DirectBatch batch;
+    std::vector<std::pair<size_t, size_t>> batched;
+};
+
 // A tile's primary samples and their surfaces: reused by the thread, so the loop never allocates.
 struct TileScratch {
     PrimarySamples primaries;
     std::vector<Surface> surfaces;  // at the tile's valid hits, from the footprint test to shading
     SurfaceScratch surface_sort;
+    TileShading shading;
 };
 
 class EmbreeRenderer final : public Renderer {
@@ -83,6 +105,10 @@ private:
     // pinhole image shows it.
     float nearestInfluencedDepth(const Frame& f) const;
     float spreadRadiusPx(const Frame& f, float nearest_m) const;
+    // tile_shading.cpp: the footprint test, shading and film of the tile `box`, whose primary
+    // samples and surfaces `scratch` holds; the pixels it shaded.
+    uint64_t shadeTile(const Frame& f, const PixelBox& box, bool filter_penumbra,
+                       TileScratch& scratch, Counters& counters, RayList* log);
     // The lights' shadow maps for this frame (Light::shadow_map), inside the render arena; the
     // seconds they took, 0 when no light asks for one.
     double renderShadowMaps(const Frame& f);

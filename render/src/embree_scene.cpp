@@ -299,6 +299,37 @@ void IntersectPacket16::trace(RTCScene scene, unsigned mask, Hit* hits) {
     lanes_ = 0;
 }
 
+int OcclusionPacket16::traceRays(RTCScene scene) {
+    const int lanes = lanes_;
+    if (lanes == 0)
+        return 0;
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = kOcclusionPacketFlags;
+    for (int i = 0; i < 16; ++i) {
+        valid_[i] = i < lanes ? -1 : 0;
+        ray_.tnear[i] = 0;
+        ray_.time[i] = 0;
+        ray_.mask[i] = kAnyMask;
+        ray_.id[i] = static_cast<unsigned>(i);
+        ray_.flags[i] = 0;
+    }
+    // Lanes not added are not traced; given a ray anyway, so nothing uninitialised is loaded.
+    for (int i = lanes; i < 16; ++i) {
+        ray_.org_x[i] = ray_.org_y[i] = ray_.org_z[i] = 0;
+        ray_.dir_x[i] = ray_.dir_y[i] = 0;
+        ray_.dir_z[i] = 1;
+        ray_.tfar[i] = 0;
+    }
+    rtcOccluded16(valid_, scene, &context, &ray_);
+    for (int i = 0; i < lanes; ++i) {
+        answer_slot_[i] = slot_[i];
+        answer_[i] = ray_.tfar[i] < 0;
+    }
+    lanes_ = 0;
+    return lanes;
+}
+
 namespace {
 
 // RTCRayN of width N for rtcOccludedN.

@@ -142,6 +142,46 @@ private:
     int lanes_ = 0;
 };
 
+// Up to 16 occlusion rays, each from its own origin, gathered lane by lane into one
+// rtcOccluded16 packet (traced incoherently: kOcclusionPacketFlags), each with the slot its
+// answer goes to. Thread-bound: each thread keeps its own.
+class OcclusionPacket16 {
+public:
+    int size() const { return lanes_; }
+    bool full() const { return lanes_ == 16; }
+    [[gnu::always_inline]] void add(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                    float t_far, uint32_t slot) {
+        const int i = lanes_++;
+        ray_.org_x[i] = origin.x();
+        ray_.org_y[i] = origin.y();
+        ray_.org_z[i] = origin.z();
+        ray_.dir_x[i] = direction.x();
+        ray_.dir_y[i] = direction.y();
+        ray_.dir_z[i] = direction.z();
+        ray_.tfar[i] = t_far;
+        slot_[i] = slot;
+    }
+    // Traces the rays added through `scene` and calls on_ray(slot, occluded) for each, in the
+    // order they were added; empties the packet first, so on_ray may add to it again.
+    template <class OnRay>
+    void trace(RTCScene scene, OnRay&& on_ray) {
+        const int lanes = traceRays(scene);
+        for (int i = 0; i < lanes; ++i)
+            on_ray(answer_slot_[i], answer_[i]);
+    }
+
+private:
+    // Traces the packet, moves its answers to answer_ and empties it; the lanes it had.
+    int traceRays(RTCScene scene);
+
+    alignas(64) RTCRay16 ray_;
+    alignas(64) int valid_[16];
+    uint32_t slot_[16];
+    int lanes_ = 0;
+    uint32_t answer_slot_[16];
+    bool answer_[16];
+};
+
 // Owns the Embree device and scenes. Thread-safety: intersect/occluded are reentrant once
 // setPoses() returned; setPoses() must not run concurrently with them.
 class EmbreeScene {

@@ -201,74 +201,189 @@ Vec3 DifferentialIntegrator::environment(const Frame& f, const Vec3& d) const {
     return sum;
 }
 
+LightPath DifferentialIntegrator::lightPath(const LightData& light, const Surface& s, const Vec3& n,
+                                            const Vec3& d, const Vec3& diffuse) {
+    LightPath path;
+    Vec3 irradiance;
+    if (light.light.type == LightType::kDirectional) {
+        path.wi = -light.direction_world;
+        irradiance = light.light.intensity;
+    } else {
+        const Vec3 delta = light.position_world - s.p;
+        path.dist = delta.norm();
+        if (path.dist <= 0)
+            return path;
+        path.wi = delta / path.dist;
+        irradiance = light.light.intensity / (path.dist * path.dist);
+    }
+    const float cos_theta = n.dot(path.wi);
+    if (cos_theta <= 0)
+        return path;
+    const Material& mat = s.material->material;
+    Vec3 brdf = diffuse;
+    if (mat.type == MaterialType::kPhong) {
+        const Vec3 h = (path.wi - d).normalized();
+        const float lobe = std::pow(std::max(0.f, n.dot(h)), mat.shininess);
+        brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
+    }
+    path.unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
+    path.lit = true;
+    return path;
+}
+
+// How much of `light` the point sees, from its shadow map where it has one that covers the point,
+// else by shadow rays; real surfaces the depth map holds shadow virtual ones (in kMesh they are
+// in the BVH). `traced`, when given, is what the rays found (a hard test traced elsewhere).
+Pair DifferentialIntegrator::lightVisibility(const Frame& f, const LightData& light,
+                                             const Surface& s, const Vec3& origin,
+                                             const Vec3& n_facing, const LightPath& path, Mode mode,
+                                             SampleState& st, bool* penumbra,
+                                             const Pair* traced) const {
+    std::optional<Pair> from_map;
+    if (light.shadow_map && options_.shadows)
+        from_map = light.shadow_map->visibility(s.p, n_facing, mode);
+    Pair visible = from_map ? *from_map
+                   : traced
+                       ? *traced
+                       : shadows_.visibility(light, origin, path.wi, path.dist, mode, st, penumbra);
+    if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
+        shadows_.depthMapOccludes(f, origin, path.wi, path.dist)) {
+        visible = {};
+    }
+    return visible;
+}
+
+void DifferentialIntegrator::addLight(const LightPath& path, const Pair& visible, bool penumbra,
+                                      Pair& out, PrimaryDirect* record) {
+    out.m += path.unshadowed.cwiseProduct(visible.m);
+    out.r += path.unshadowed.cwiseProduct(visible.r);
+    if (record != nullptr) {
+        // Shadow rays give every channel one visible fraction.
+        const float weight = path.unshadowed.sum();
+        record->unshadowed += weight;
+        record->visible_m += weight * visible.m.x();
+        record->visible_r += weight * visible.r.x();
+        record->dm_dvisible_m += path.unshadowed;
+        record->dr_dvisible_r += path.unshadowed;
+        record->penumbra |= penumbra;
+    }
+}
+
+void DifferentialIntegrator::addCaustics(const Frame& f, const Surface& s, const Vec3& n_facing,
+                                         const Vec3& diffuse, Mode mode, Pair& out) {
+    // Caustic irradiance from the photon maps, reflected diffusely.
+    const Pair e = f.caustics->irradiance(s.p, n_facing, mode);
+    out.m += diffuse.cwiseProduct(e.m);
+    out.r += diffuse.cwiseProduct(e.r);
+}
+
 // Direct light from point, spherical and directional lights: Lambert plus, for Phong, a
 // normalised Blinn-Phong lobe; each light's shadow rays in the scenes the mode asks for.
 Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
                                     const Vec3& albedo, Mode mode, SampleState& st,
                                     PrimaryDirect* record) const {
     Pair out;
-    const Material& mat = s.material->material;
-    // The geometric normal on the side the ray came from, where light can arrive.
-    const Vec3 n_facing = s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric);
+    const Vec3 n_facing = facingNormal(s, d);
     const Vec3 origin = s.p + offsetFor(s.p) * n_facing;
+    const Vec3 diffuse = albedo / optics::kPi;
     for (const LightData* light : f.lights) {
-        Vec3 wi;
-        float dist = kInf;
-        Vec3 irradiance;
-        if (light->light.type == LightType::kDirectional) {
-            wi = -light->direction_world;
-            irradiance = light->light.intensity;
-        } else {
-            const Vec3 delta = light->position_world - s.p;
-            dist = delta.norm();
-            if (dist <= 0)
-                continue;
-            wi = delta / dist;
-            irradiance = light->light.intensity / (dist * dist);
-        }
-        const float cos_theta = n.dot(wi);
-        if (cos_theta <= 0)
+        const LightPath path = lightPath(*light, s, n, d, diffuse);
+        if (!path.lit)
             continue;
-        Vec3 brdf = albedo / optics::kPi;
-        if (mat.type == MaterialType::kPhong) {
-            const Vec3 h = (wi - d).normalized();
-            const float lobe = std::pow(std::max(0.f, n.dot(h)), mat.shininess);
-            brdf += mat.specular * ((mat.shininess + 8) / (8 * optics::kPi)) * lobe;
-        }
-        const Vec3 unshadowed = brdf.cwiseProduct(irradiance) * cos_theta;
-        std::optional<Pair> from_map;
-        if (light->shadow_map && options_.shadows)
-            from_map = light->shadow_map->visibility(s.p, n_facing, mode);
         bool penumbra = false;
-        Pair visible = from_map ? *from_map
-                                : shadows_.visibility(*light, origin, wi, dist, mode, st,
-                                                      record != nullptr ? &penumbra : nullptr);
-        // Real surfaces the depth map holds shadow virtual ones (in kMesh they are in the BVH).
-        if (s.object->role == ObjectRole::kVirtual && visible.m.maxCoeff() > 0 &&
-            shadows_.depthMapOccludes(f, origin, wi, dist)) {
-            visible = {};
-        }
-        out.m += unshadowed.cwiseProduct(visible.m);
-        out.r += unshadowed.cwiseProduct(visible.r);
-        if (record != nullptr) {
-            // Shadow rays give every channel one visible fraction.
-            const float weight = unshadowed.sum();
-            record->unshadowed += weight;
-            record->visible_m += weight * visible.m.x();
-            record->visible_r += weight * visible.r.x();
-            record->dm_dvisible_m += unshadowed;
-            record->dr_dvisible_r += unshadowed;
-            record->penumbra |= penumbra;
-        }
+        const Pair visible = lightVisibility(f, *light, s, origin, n_facing, path, mode, st,
+                                             record != nullptr ? &penumbra : nullptr);
+        addLight(path, visible, penumbra, out, record);
     }
-    if (f.caustics) {
-        // Caustic irradiance from the photon maps, reflected diffusely.
-        const Pair e = f.caustics->irradiance(s.p, n_facing, mode);
-        const Vec3 brdf = albedo / optics::kPi;
-        out.m += brdf.cwiseProduct(e.m);
-        out.r += brdf.cwiseProduct(e.r);
-    }
+    if (f.caustics)
+        addCaustics(f, s, n_facing, diffuse, mode, out);
     return out;
+}
+
+void DifferentialIntegrator::directBatch(const Frame& f, DirectBatch& batch, Counters& counters,
+                                         RayList* log) const {
+    const size_t count = batch.entries.size();
+    batch.paths.resize(count);
+    batch.visible.resize(count);
+    batch.penumbra.resize(count);
+    batch.queries.resize(count);
+    batch.queried.resize(count);
+    batch.answers.resize(count);
+    for (DirectBatch::Entry& e : batch.entries) {
+        e.out = {};
+        e.n_facing = facingNormal(*e.s, e.d);
+        e.origin = e.s->p + offsetFor(e.s->p) * e.n_facing;
+        e.diffuse = e.albedo / optics::kPi;
+    }
+    for (const LightData* light : f.lights) {
+        // Each point's way to the light; then what blocks it: hard tests of all points traced
+        // together as packets, the rest (shadow maps, soft shadows) point by point.
+        size_t queries = 0;
+        for (size_t i = 0; i < count; ++i) {
+            DirectBatch::Entry& e = batch.entries[i];
+            const LightPath& path = batch.paths[i] = lightPath(*light, *e.s, e.n, e.d, e.diffuse);
+            batch.penumbra[i] = 0;
+            if (!path.lit)
+                continue;
+            if (options_.shadows && !light->shadow_map && shadows_.hard(*light, path.dist)) {
+                batch.queries[queries] = shadows_.hardQuery(e.origin, path.wi, path.dist, e.mode);
+                batch.queried[queries++] = static_cast<uint32_t>(i);
+            }
+        }
+        shadows_.hardVisibilities(batch.queries.data(), queries, counters, log,
+                                  batch.answers.data());
+        for (size_t q = 0; q < queries; ++q)
+            batch.penumbra[batch.queried[q]] = 2;  // marks "traced": the answer is answers[q]
+        for (size_t i = 0, q = 0; i < count; ++i) {
+            const LightPath& path = batch.paths[i];
+            if (!path.lit)
+                continue;
+            DirectBatch::Entry& e = batch.entries[i];
+            const Pair* traced = nullptr;
+            if (batch.penumbra[i] == 2) {
+                traced = &batch.answers[q++];
+                batch.penumbra[i] = 0;
+            }
+            bool penumbra = false;
+            const Pair visible =
+                lightVisibility(f, *light, *e.s, e.origin, e.n_facing, path, e.mode, *e.st,
+                                e.record != nullptr ? &penumbra : nullptr, traced);
+            addLight(path, visible, penumbra, e.out, e.record);
+        }
+    }
+    if (f.caustics)
+        for (DirectBatch::Entry& e : batch.entries)
+            addCaustics(f, *e.s, e.n_facing, e.diffuse, e.mode, e.out);
+}
+
+Vec3 DifferentialIntegrator::albedoAt(const Surface& s) {
+    Vec3 albedo = s.material->material.albedo;
+    if (!s.material->albedo_texture.empty())
+        albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
+    return albedo;
+}
+
+Pair DifferentialIntegrator::withReflection(const Frame& f, const Surface& s, const Vec3& d,
+                                            int depth, Mode mode, SampleState& st,
+                                            const Pair& local, PrimaryDirect* record) const {
+    const float rho = std::clamp(s.material->material.reflectance * reflectanceMapAt(s), 0.f, 1.f);
+    if (rho <= 0)
+        return local;
+    if (record != nullptr) {
+        record->dm_dvisible_m *= 1 - rho;
+        record->dm_dvisible_r *= 1 - rho;
+        record->dr_dvisible_r *= 1 - rho;
+    }
+    return sum(scaled(local, Vec3::Constant(1 - rho)),
+               scaled(reflected(f, s, d, depth, mode, st), Vec3::Constant(rho)));
+}
+
+Pair DifferentialIntegrator::reflected(const Frame& f, const Surface& s, const Vec3& d, int depth,
+                                       Mode mode, SampleState& st) const {
+    if (depth >= options_.max_depth)
+        return {};
+    const HitSide side = sideOf(s, d);
+    return trace(f, side.above, optics::reflect(d, side.n).normalized(), depth + 1, mode, st);
 }
 
 Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d,
@@ -276,52 +391,33 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
     // Only this call's own direct light is the primary hit's: not what its bounces see.
     PrimaryDirect* const record = std::exchange(st.primary_direct, nullptr);
     const Material& mat = s.material->material;
-    const bool entering = s.n_geometric.dot(d) < 0;
-    const Vec3 n_geo = entering ? s.n_geometric : Vec3(-s.n_geometric);
-    const Vec3 n = entering ? s.n_shading : Vec3(-s.n_shading);
-    const float eps = offsetFor(s.p);
-    const Vec3 above = s.p + eps * n_geo;
-    const Vec3 below = s.p - eps * n_geo;
+    const HitSide side = sideOf(s, d);
+    const bool entering = side.entering;
+    const Vec3& n = side.n;
+    const Vec3 below = s.p - offsetFor(s.p) * side.n_geo;
     const bool can_bounce = depth < options_.max_depth;
-    const auto reflected = [&]() {
-        return can_bounce ? trace(f, above, optics::reflect(d, n).normalized(), depth + 1, mode, st)
-                          : Pair{};
-    };
-    float map = 1;
-    if (!s.material->reflectance_map.empty())
-        map = s.material->reflectance_map.sample(s.uv).mean();
+    const auto reflectedRay = [&]() { return reflected(f, s, d, depth, mode, st); };
+    const float map = reflectanceMapAt(s);
 
     switch (mat.type) {
         case MaterialType::kDiffuse:
         case MaterialType::kPhong: {
-            Vec3 albedo = mat.albedo;
-            if (!s.material->albedo_texture.empty())
-                albedo = albedo.cwiseProduct(s.material->albedo_texture.sample(s.uv));
-            Pair local = s.material->albedo_from_camera
-                             ? cameraAlbedoDirect(f, s, n, d, st, record)
-                             : direct(f, s, n, d, albedo, mode, st, record);
-            const float rho = std::clamp(mat.reflectance * map, 0.f, 1.f);
-            if (rho <= 0)
-                return local;
-            if (record != nullptr) {
-                record->dm_dvisible_m *= 1 - rho;
-                record->dm_dvisible_r *= 1 - rho;
-                record->dr_dvisible_r *= 1 - rho;
-            }
-            return sum(scaled(local, Vec3::Constant(1 - rho)),
-                       scaled(reflected(), Vec3::Constant(rho)));
+            const Pair local = s.material->albedo_from_camera
+                                   ? cameraAlbedoDirect(f, s, n, d, st, record)
+                                   : direct(f, s, n, d, albedoAt(s), mode, st, record);
+            return withReflection(f, s, d, depth, mode, st, local, record);
         }
         case MaterialType::kMirror: {
             const float rho =
                 std::clamp((mat.reflectance > 0 ? mat.reflectance : 1.f) * map, 0.f, 1.f);
-            return scaled(reflected(), Vec3::Constant(rho));
+            return scaled(reflectedRay(), Vec3::Constant(rho));
         }
         case MaterialType::kMetal: {
             const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
             Vec3 fresnel;
             for (int c = 0; c < 3; ++c)
                 fresnel[c] = optics::schlick(mat.f0[c], cos_i);
-            return scaled(reflected(), fresnel);
+            return scaled(reflectedRay(), fresnel);
         }
         case MaterialType::kGlass: {
             const float cos_i = std::clamp(-d.dot(n), 0.f, 1.f);
@@ -346,7 +442,7 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
             Pair result;
             if (can_bounce) {
                 if (reflectance.maxCoeff() > 0)
-                    result = scaled(reflected(), reflectance);
+                    result = scaled(reflectedRay(), reflectance);
                 for (int c = 0; c < channels; ++c) {
                     if (!refracted[c])
                         continue;

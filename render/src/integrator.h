@@ -22,6 +22,61 @@ struct Surface {
     const MaterialData* material = nullptr;
 };
 
+// Which side of a surface a ray along `d` sees, and the points just off it that rays leave from.
+struct HitSide {
+    bool entering = false;  // the ray meets the outside (d · n_geometric < 0)
+    Vec3 n_geo;             // the geometric normal on the ray's side
+    Vec3 n;                 // the shading normal on the same side
+    Vec3 above;             // s.p moved off the surface along n_geo, where reflected rays start
+};
+
+[[gnu::always_inline]] inline Vec3 facingNormal(const Surface& s, const Vec3& d) {
+    return s.n_geometric.dot(d) < 0 ? s.n_geometric : Vec3(-s.n_geometric);
+}
+
+[[gnu::always_inline]] inline HitSide sideOf(const Surface& s, const Vec3& d) {
+    HitSide side;
+    side.entering = s.n_geometric.dot(d) < 0;
+    side.n_geo = side.entering ? s.n_geometric : Vec3(-s.n_geometric);
+    side.n = side.entering ? s.n_shading : Vec3(-s.n_shading);
+    side.above = s.p + offsetFor(s.p) * side.n_geo;
+    return side;
+}
+
+// One light's direct light at a shaded point before shadows: the way to it and what it gives
+// unoccluded; `lit` false where it gives nothing (behind the surface, or at the point itself).
+struct LightPath {
+    Vec3 wi = Vec3::Zero();  // unit, towards the light
+    float dist = kInf;       // to it; infinite for directional lights
+    Vec3 unshadowed = Vec3::Zero();
+    bool lit = false;
+};
+
+// The direct light of many diffuse or Phong primary hits at once (DifferentialIntegrator::
+// directBatch): each entry's inputs, and `out`, what direct() gives for it. Kept by the thread
+// with the scratch the batch needs, so that a tile allocates nothing.
+struct DirectBatch {
+    struct Entry {
+        const Surface* s = nullptr;
+        Vec3 n;       // the shading normal on the side the ray came from
+        Vec3 d;       // the ray's direction
+        Vec3 albedo;  // textured
+        Mode mode = Mode::kBoth;
+        SampleState* st = nullptr;
+        PrimaryDirect* record = nullptr;  // the penumbra filter's, or null
+        Pair out;
+        // Set by directBatch().
+        Vec3 n_facing, origin, diffuse;
+    };
+    std::vector<Entry> entries;
+    std::vector<LightPath> paths;
+    std::vector<Pair> visible;
+    std::vector<uint8_t> penumbra;
+    std::vector<HardShadowQuery> queries;
+    std::vector<uint32_t> queried;
+    std::vector<Pair> answers;
+};
+
 // What surfacesAt() sorts the hits of a batch by mesh in: kept by the thread, so that a tile
 // allocates nothing.
 struct SurfaceScratch {
@@ -66,6 +121,16 @@ public:
     // The same with scratch of its own.
     void surfacesAt(const Hit* hits, const Vec3* origins, const Vec3* dirs, size_t count,
                     Surface* out) const;
+    // direct() for every entry of `batch`, into its `out`: the same light, each entry's hard
+    // shadow rays traced with the others' as occlusion packets (ShadowRays::hardVisibilities).
+    // Counts its shadow rays in `counters` and logs them in `log` (may be null).
+    void directBatch(const Frame& f, DirectBatch& batch, Counters& counters, RayList* log) const;
+    // A diffuse or Phong surface's albedo, textured.
+    static Vec3 albedoAt(const Surface& s);
+    // What shade() gives a diffuse or Phong surface with direct light `local`: `local` and,
+    // where the material reflects, the mirrored ray's radiance (RT²AR's reflectance).
+    Pair withReflection(const Frame& f, const Surface& s, const Vec3& d, int depth, Mode mode,
+                        SampleState& st, const Pair& local, PrimaryDirect* record) const;
     // The environment lights' radiance along `d`.
     Vec3 environment(const Frame& f, const Vec3& d) const;
     // Conservative: can virtual objects change the shading of this real point seen along `d`?
@@ -78,6 +143,24 @@ private:
     // penumbra filter).
     Pair direct(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d, const Vec3& albedo,
                 Mode mode, SampleState& st, PrimaryDirect* record) const;
+    // `light`'s path to the point (`diffuse`: the albedo over π) for direct().
+    static LightPath lightPath(const LightData& light, const Surface& s, const Vec3& n,
+                               const Vec3& d, const Vec3& diffuse);
+    Pair lightVisibility(const Frame& f, const LightData& light, const Surface& s,
+                         const Vec3& origin, const Vec3& n_facing, const LightPath& path, Mode mode,
+                         SampleState& st, bool* penumbra, const Pair* traced = nullptr) const;
+    static void addLight(const LightPath& path, const Pair& visible, bool penumbra, Pair& out,
+                         PrimaryDirect* record);
+    static void addCaustics(const Frame& f, const Surface& s, const Vec3& n_facing,
+                            const Vec3& diffuse, Mode mode, Pair& out);
+    // The radiance of the ray mirrored off `s` (seen along `d`); none past max_depth.
+    Pair reflected(const Frame& f, const Surface& s, const Vec3& d, int depth, Mode mode,
+                   SampleState& st) const;
+    static float reflectanceMapAt(const Surface& s) {
+        return s.material->reflectance_map.empty()
+                   ? 1.f
+                   : s.material->reflectance_map.sample(s.uv).mean();
+    }
     Pair cameraAlbedoDirect(const Frame& f, const Surface& s, const Vec3& n, const Vec3& d,
                             SampleState& st, PrimaryDirect* record) const;
     std::optional<Vec3> cameraRadianceAt(const Frame& f, const Surface& s, SampleState& st) const;

@@ -67,12 +67,12 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
                 lit_r += occ_r[i] ? 0 : 1;
         }
     };
-    const float shorten = 1.f - 1e-4f;
+    const float shorten = kShorten;
     int lit_m = 0, lit_r = 0;
     const SoftShadowMethod method = options_.soft_shadows;
-    if (light.light.type != LightType::kSphere || method == SoftShadowMethod::kHard ||
-        dist <= light.light.radius) {
-        test(to_light, std::isfinite(dist) ? dist * shorten : kInf, lit_m, lit_r);
+    if (hard(light, dist)) {
+        const HardShadowQuery q = hardQuery(origin, to_light, dist, mode);
+        test(q.dir, q.length, lit_m, lit_r);
         return {Vec3::Constant(static_cast<float>(lit_m)),
                 Vec3::Constant(static_cast<float>(lit_r))};
     }
@@ -122,6 +122,54 @@ Pair ShadowRays::visibility(const LightData& light, const Vec3& origin, const Ve
     }
     return {Vec3::Constant(static_cast<float>(lit_m) / static_cast<float>(n)),
             Vec3::Constant(static_cast<float>(lit_r) / static_cast<float>(n))};
+}
+
+void ShadowRays::hardVisibilities(const HardShadowQuery* queries, size_t count, Counters& counters,
+                                  RayList* log, Pair* visible) const {
+    OcclusionPacket16 mixed, real;
+    // The real scene's ray of query i (visibility()'s test(): where the mixed one was blocked,
+    // or alone in Mode::kReal).
+    const auto traceReal = [&](uint32_t i) {
+        const HardShadowQuery& q = queries[i];
+        ++counters.shadow;
+        logRay(log, bench::RayLog::Kind::kShadow, scene_.ghosts(), scene_.ghosts(), q.origin, q.dir,
+               q.length);
+        real.add(q.origin, q.dir, q.length, i);
+        if (real.full())
+            real.trace(scene_.ghosts(), [&](uint32_t j, bool occluded) {
+                visible[j].r = Vec3::Constant(occluded ? 0.f : 1.f);
+            });
+    };
+    const auto traceMixed = [&] {
+        mixed.trace(scene_.all(), [&](uint32_t i, bool occluded) {
+            visible[i].m = Vec3::Constant(occluded ? 0.f : 1.f);
+            if (queries[i].mode == Mode::kMixed)
+                return;
+            if (occluded)
+                traceReal(i);
+            else
+                visible[i].r = Vec3::Ones();
+        });
+    };
+    for (size_t i = 0; i < count; ++i) {
+        const HardShadowQuery& q = queries[i];
+        visible[i] = {};
+        const auto slot = static_cast<uint32_t>(i);
+        if (q.mode == Mode::kReal) {
+            traceReal(slot);
+            continue;
+        }
+        ++counters.shadow;
+        logRay(log, bench::RayLog::Kind::kShadow, scene_.all(), scene_.ghosts(), q.origin, q.dir,
+               q.length);
+        mixed.add(q.origin, q.dir, q.length, slot);
+        if (mixed.full())
+            traceMixed();
+    }
+    traceMixed();
+    real.trace(scene_.ghosts(), [&](uint32_t j, bool occluded) {
+        visible[j].r = Vec3::Constant(occluded ? 0.f : 1.f);
+    });
 }
 
 // RT²AR's screen-space traversal for a shadow ray (kScreenSpace): whether the depth map's

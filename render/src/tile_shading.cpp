@@ -1,0 +1,159 @@
+// A tile's shading (embree_renderer.h): the footprint test on its primary hits, their shading
+// with the direct light of diffuse and Phong hits in one batch, and the film.
+#include "embree_renderer.h"
+
+namespace mixray::render::detail {
+
+uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool filter_penumbra,
+                                   TileScratch& scratch, Counters& counters, RayList* log) {
+    const DifferentialIntegrator& integrator = *integrator_;
+    Film& b = film_;
+    const int w = f.inputs->camera.width, spp = options_.samples_per_pixel;
+    const bool keep = options_.keep_layers;
+    const int tile_w = box.x1 - box.x0;
+    const PrimarySamples& primaries = scratch.primaries;
+    const Hit* const hits = primaries.hits.data();
+    const Vec3* const dirs = primaries.dirs.data();
+    const Vec3* const origins = primaries.origins.data();
+    const Surface* const surfaces = scratch.surfaces.data();
+    TileShading& sh = scratch.shading;
+
+    // The footprint test: the pixels virtual content can touch, which are shaded.
+    sh.pixels.clear();
+    for (int y = box.y0; y < box.y1; ++y)
+        for (int x = box.x0; x < box.x1; ++x) {
+            const size_t first = (static_cast<size_t>(y - box.y0) * tile_w + (x - box.x0)) * spp;
+            bool influenced = false;
+            for (int k = 0; k < spp && !influenced; ++k) {
+                const size_t i = first + static_cast<size_t>(k);
+                if (!hits[i].valid)
+                    continue;
+                influenced = objects_[hits[i].object].role == ObjectRole::kVirtual ||
+                             integrator.ghostInfluenced(f, surfaces[i], dirs[i]);
+            }
+            if (!influenced && !keep && options_.only_virtual_footprint)
+                continue;
+            sh.pixels.push_back({static_cast<size_t>(y) * w + x, first, influenced});
+        }
+
+    // Every sample of those pixels. Diffuse and Phong hits have their direct light in one batch,
+    // whose hard shadow rays go as packets; the rest are shaded at once. Each sample keeps its
+    // own random numbers, used in the order shade() uses them: its direct light, then its bounces.
+    const size_t count = sh.pixels.size() * static_cast<size_t>(spp);
+    sh.states.clear();
+    sh.states.reserve(count);  // the batch points at them
+    sh.light.assign(count, PrimaryDirect{});
+    sh.radiance.assign(count, Pair{});
+    sh.is_virtual.assign(count, 0);
+    sh.batch.entries.clear();
+    sh.batched.clear();
+    // A shaded sample's radiance pair; a virtual hit's I_r is the scene without it (keep_layers).
+    const auto finish = [&](size_t e, size_t i, const Pair& p, SampleState& st) {
+        if (!sh.is_virtual[e]) {
+            sh.radiance[e] = p;
+            return;
+        }
+        sh.radiance[e].m = p.m;
+        if (keep)
+            sh.radiance[e].r = integrator.trace(f, origins[i], dirs[i], 0, Mode::kReal, st).r;
+    };
+    for (size_t px = 0; px < sh.pixels.size(); ++px)
+        for (int k = 0; k < spp; ++k) {
+            const ShadedPixel& pixel = sh.pixels[px];
+            const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
+            const size_t i = pixel.first + static_cast<size_t>(k);
+            SampleState& st = sh.states.emplace_back(SampleState{
+                optics::Rng(hashIndex(options_.seed, pixel.index, k + 1)), &counters, log});
+            PrimaryDirect* const record = filter_penumbra ? &sh.light[e] : nullptr;
+            if (!hits[i].valid) {
+                if (primaries.live[i])
+                    sh.radiance[e].m = sh.radiance[e].r = integrator.environment(f, dirs[i]);
+                continue;
+            }
+            const Surface& s = surfaces[i];
+            sh.is_virtual[e] = s.object->role == ObjectRole::kVirtual;
+            const Mode mode = sh.is_virtual[e] ? Mode::kMixed : Mode::kBoth;
+            const MaterialType type = s.material->material.type;
+            if ((type == MaterialType::kDiffuse || type == MaterialType::kPhong) &&
+                !s.material->albedo_from_camera) {
+                DirectBatch::Entry& entry = sh.batch.entries.emplace_back();
+                entry.s = &s;
+                entry.n = sideOf(s, dirs[i]).n;
+                entry.d = dirs[i];
+                entry.albedo = DifferentialIntegrator::albedoAt(s);
+                entry.mode = mode;
+                entry.st = &st;
+                entry.record = record;
+                sh.batched.push_back({e, i});
+                continue;
+            }
+            st.primary_direct = record;
+            finish(e, i, integrator.shade(f, s, hits[i], dirs[i], 0, mode, st), st);
+        }
+    integrator.directBatch(f, sh.batch, counters, log);
+    for (size_t q = 0; q < sh.batched.size(); ++q) {
+        const DirectBatch::Entry& entry = sh.batch.entries[q];
+        const auto [e, i] = sh.batched[q];
+        finish(e, i,
+               integrator.withReflection(f, *entry.s, entry.d, 0, entry.mode, *entry.st, entry.out,
+                                         entry.record),
+               *entry.st);
+    }
+
+    // The film: each pixel's mean over its samples.
+    for (size_t px = 0; px < sh.pixels.size(); ++px) {
+        const size_t pixel = sh.pixels[px].index;
+        int n_virtual = 0;
+        Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(), rsum = Vec3::Zero();
+        PrimaryDirect light;  // over the pixel's samples, for the penumbra filter
+        Vec3 dv_dm = Vec3::Zero(), dd_dm = Vec3::Zero(), dd_dr = Vec3::Zero();
+        for (int k = 0; k < spp; ++k) {
+            const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
+            const Pair& p = sh.radiance[e];
+            const PrimaryDirect& sample_light = sh.light[e];
+            light.unshadowed += sample_light.unshadowed;
+            light.visible_m += sample_light.visible_m;
+            light.visible_r += sample_light.visible_r;
+            light.penumbra |= sample_light.penumbra;
+            if (sh.is_virtual[e]) {
+                ++n_virtual;
+                vsum += p.m;
+                dv_dm += sample_light.dm_dvisible_m;
+            } else {
+                dsum += p.m - p.r;
+                dd_dm += sample_light.dm_dvisible_m;
+                dd_dr += sample_light.dm_dvisible_r - sample_light.dr_dvisible_r;
+            }
+            msum += p.m;
+            rsum += p.r;
+        }
+        if (n_virtual > 0)
+            b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
+        if (n_virtual < spp)
+            b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
+        b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
+        b.flags[pixel] = kTraced;
+        // Only pixels virtual content can touch take part in the filter, so that tracing the
+        // others (only_virtual_footprint off) leaves the image as it is.
+        if (filter_penumbra && sh.pixels[px].influenced && light.unshadowed > 0) {
+            b.flags[pixel] |= kLit | (light.penumbra ? kPenumbra : 0);
+            b.visible_m[pixel] = light.visibleFractionM();
+            b.visible_r[pixel] = light.visibleFractionR();
+            // Only the penumbra's own pixels move: only they need the derivatives.
+            if (light.penumbra && n_virtual > 0)
+                b.dvirtual_dvisible_m[pixel] = dv_dm / static_cast<float>(n_virtual);
+            if (light.penumbra && n_virtual < spp) {
+                const auto n_real = static_cast<float>(spp - n_virtual);
+                b.ddifference_dvisible_m[pixel] = dd_dm / n_real;
+                b.ddifference_dvisible_r[pixel] = dd_dr / n_real;
+            }
+        }
+        if (keep) {
+            b.mixed[pixel] = msum / static_cast<float>(spp);
+            b.real[pixel] = rsum / static_cast<float>(spp);
+        }
+    }
+    return sh.pixels.size();
+}
+
+}  // namespace mixray::render::detail
