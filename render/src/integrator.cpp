@@ -302,14 +302,15 @@ Pair DifferentialIntegrator::direct(const Frame& f, const Surface& s, const Vec3
 
 void DifferentialIntegrator::directBatch(const Frame& f, DirectBatch& batch, Counters& counters,
                                          RayList* log) const {
-    const size_t count = batch.entries.size();
+    const size_t count = batch.count;
     batch.paths.resize(count);
     batch.visible.resize(count);
     batch.penumbra.resize(count);
     batch.queries.resize(count);
     batch.queried.resize(count);
     batch.answers.resize(count);
-    for (DirectBatch::Entry& e : batch.entries) {
+    for (size_t i = 0; i < count; ++i) {
+        DirectBatch::Entry& e = batch.entries[i];
         e.out = {};
         e.n_facing = facingNormal(*e.s, e.d);
         e.origin = e.s->p + offsetFor(e.s->p) * e.n_facing;
@@ -352,8 +353,10 @@ void DifferentialIntegrator::directBatch(const Frame& f, DirectBatch& batch, Cou
         }
     }
     if (f.caustics)
-        for (DirectBatch::Entry& e : batch.entries)
+        for (size_t i = 0; i < count; ++i) {
+            DirectBatch::Entry& e = batch.entries[i];
             addCaustics(f, *e.s, e.n_facing, e.diffuse, e.mode, e.out);
+        }
 }
 
 Vec3 DifferentialIntegrator::albedoAt(const Surface& s) {

@@ -68,7 +68,14 @@ struct DirectBatch {
         // Set by directBatch().
         Vec3 n_facing, origin, diffuse;
     };
+    // entries[0, count) are the batch; the vector only grows, so a tile constructs nothing.
     std::vector<Entry> entries;
+    size_t count = 0;
+    Entry& add() {
+        if (count == entries.size())
+            entries.resize(std::max<size_t>(64, 2 * entries.size()));
+        return entries[count++];
+    }
     std::vector<LightPath> paths;
     std::vector<Pair> visible;
     std::vector<uint8_t> penumbra;

@@ -147,6 +147,7 @@ inline Eigen::Vector2f discSample(int k, int n, float jitter, float rotation) {
 // A small, fast, deterministic generator (splitmix64) for per-pixel sampling.
 class Rng {
 public:
+    Rng() = default;  // seed 0: for arrays, each given a seeded one before use
     explicit Rng(uint64_t seed) : state_(seed) {}
     uint64_t next() {
         uint64_t z = (state_ += 0x9e3779b97f4a7c15ULL);
@@ -158,7 +159,7 @@ public:
     float uniform() { return static_cast<float>(next() >> 40) * (1.f / 16777216.f); }
 
 private:
-    uint64_t state_;
+    uint64_t state_ = 0;
 };
 
 }  // namespace mixray::render::optics

@@ -40,34 +40,41 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
     // whose hard shadow rays go as packets; the rest are shaded at once. Each sample keeps its
     // own random numbers, used in the order shade() uses them: its direct light, then its bounces.
     const size_t count = sh.pixels.size() * static_cast<size_t>(spp);
-    sh.states.clear();
-    sh.states.reserve(count);  // the batch points at them
-    sh.light.assign(count, PrimaryDirect{});
-    sh.radiance.assign(count, Pair{});
-    sh.is_virtual.assign(count, 0);
-    sh.batch.entries.clear();
-    sh.batched.clear();
+    // Grown, never shrunk: every entry below [0, count) is written before it is read.
+    if (sh.states.size() < count) {
+        sh.states.resize(count);
+        sh.light.resize(count);
+        sh.radiance.resize(count);
+        sh.is_virtual.resize(count);
+        sh.batched.resize(count);
+    }
+    sh.batch.count = 0;
     // A shaded sample's radiance pair; a virtual hit's I_r is the scene without it (keep_layers).
     const auto finish = [&](size_t e, size_t i, const Pair& p, SampleState& st) {
         if (!sh.is_virtual[e]) {
             sh.radiance[e] = p;
             return;
         }
-        sh.radiance[e].m = p.m;
-        if (keep)
-            sh.radiance[e].r = integrator.trace(f, origins[i], dirs[i], 0, Mode::kReal, st).r;
+        sh.radiance[e] = {p.m, keep ? integrator.trace(f, origins[i], dirs[i], 0, Mode::kReal, st).r
+                                    : Vec3::Zero()};
     };
     for (size_t px = 0; px < sh.pixels.size(); ++px)
         for (int k = 0; k < spp; ++k) {
             const ShadedPixel& pixel = sh.pixels[px];
             const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
             const size_t i = pixel.first + static_cast<size_t>(k);
-            SampleState& st = sh.states.emplace_back(SampleState{
-                optics::Rng(hashIndex(options_.seed, pixel.index, k + 1)), &counters, log});
-            PrimaryDirect* const record = filter_penumbra ? &sh.light[e] : nullptr;
+            SampleState& st = sh.states[e];
+            st = {optics::Rng(hashIndex(options_.seed, pixel.index, k + 1)), &counters, log};
+            PrimaryDirect* record = nullptr;
+            if (filter_penumbra) {
+                record = &sh.light[e];
+                *record = {};
+            }
+            sh.is_virtual[e] = 0;
             if (!hits[i].valid) {
-                if (primaries.live[i])
-                    sh.radiance[e].m = sh.radiance[e].r = integrator.environment(f, dirs[i]);
+                const Vec3 e_env =
+                    primaries.live[i] ? integrator.environment(f, dirs[i]) : Vec3::Zero();
+                sh.radiance[e] = {e_env, e_env};
                 continue;
             }
             const Surface& s = surfaces[i];
@@ -76,22 +83,22 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
             const MaterialType type = s.material->material.type;
             if ((type == MaterialType::kDiffuse || type == MaterialType::kPhong) &&
                 !s.material->albedo_from_camera) {
-                DirectBatch::Entry& entry = sh.batch.entries.emplace_back();
+                sh.batched[sh.batch.count] = {e, i};
+                DirectBatch::Entry& entry = sh.batch.add();
                 entry.s = &s;
-                entry.n = sideOf(s, dirs[i]).n;
+                entry.n = s.n_geometric.dot(dirs[i]) < 0 ? s.n_shading : Vec3(-s.n_shading);
                 entry.d = dirs[i];
                 entry.albedo = DifferentialIntegrator::albedoAt(s);
                 entry.mode = mode;
                 entry.st = &st;
                 entry.record = record;
-                sh.batched.push_back({e, i});
                 continue;
             }
             st.primary_direct = record;
             finish(e, i, integrator.shade(f, s, hits[i], dirs[i], 0, mode, st), st);
         }
     integrator.directBatch(f, sh.batch, counters, log);
-    for (size_t q = 0; q < sh.batched.size(); ++q) {
+    for (size_t q = 0; q < sh.batch.count; ++q) {
         const DirectBatch::Entry& entry = sh.batch.entries[q];
         const auto [e, i] = sh.batched[q];
         finish(e, i,
@@ -110,22 +117,29 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
         for (int k = 0; k < spp; ++k) {
             const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
             const Pair& p = sh.radiance[e];
+            if (sh.is_virtual[e]) {
+                ++n_virtual;
+                vsum += p.m;
+            } else {
+                dsum += p.m - p.r;
+            }
+            if (keep) {
+                msum += p.m;
+                rsum += p.r;
+            }
+            if (!filter_penumbra)
+                continue;
             const PrimaryDirect& sample_light = sh.light[e];
             light.unshadowed += sample_light.unshadowed;
             light.visible_m += sample_light.visible_m;
             light.visible_r += sample_light.visible_r;
             light.penumbra |= sample_light.penumbra;
             if (sh.is_virtual[e]) {
-                ++n_virtual;
-                vsum += p.m;
                 dv_dm += sample_light.dm_dvisible_m;
             } else {
-                dsum += p.m - p.r;
                 dd_dm += sample_light.dm_dvisible_m;
                 dd_dr += sample_light.dm_dvisible_r - sample_light.dr_dvisible_r;
             }
-            msum += p.m;
-            rsum += p.r;
         }
         if (n_virtual > 0)
             b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
