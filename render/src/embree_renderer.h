@@ -50,6 +50,9 @@ struct ShadedPixel {
 // (for the penumbra filter), radiance and kind; the batch of diffuse and Phong hits' direct light
 // and where each of its entries goes (sample, tile sample).
 struct TileShading {
+    std::vector<uint8_t> has_virtual;       // per pixel of the tile: a sample hit a virtual object
+    std::vector<uint32_t> ghost_hits;       // the others' samples on ghosts, for the footprint
+    std::vector<uint8_t> ghost_influenced;  // per sample: their footprint test
     std::vector<ShadedPixel> pixels;
     std::vector<SampleState> states;
     std::vector<PrimaryDirect> light;

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "caustics.h"
+#include "influence_batch.h"
 #include "shadow_map.h"
 #include "surface_batch.h"
 
@@ -620,6 +621,20 @@ Pair DifferentialIntegrator::trace(const Frame& f, const Vec3& origin, const Vec
         }
     }
     return {p.m, p.m};
+}
+
+void DifferentialIntegrator::ghostsInfluenced(const Frame& f, const Surface* surfaces,
+                                              const Vec3* dirs, const uint32_t* samples,
+                                              size_t count, uint8_t* influenced) const {
+    if (f.virtual_bounds.empty() || f.caustics) {
+        // Nothing virtual (no lanes needed), or caustics, which CausticMaps::near() tests hit by
+        // hit.
+        for (size_t k = 0; k < count; ++k)
+            influenced[samples[k]] =
+                ghostInfluenced(f, surfaces[samples[k]], dirs[samples[k]]) ? 1 : 0;
+        return;
+    }
+    detail::ghostsInfluenced({&f, options_.shadows, surfaces, dirs, samples, count}, influenced);
 }
 
 // Conservative: can virtual objects change the shading of this real point seen along `d`? True

@@ -142,6 +142,10 @@ public:
     Vec3 environment(const Frame& f, const Vec3& d) const;
     // Conservative: can virtual objects change the shading of this real point seen along `d`?
     bool ghostInfluenced(const Frame& f, const Surface& s, const Vec3& d) const;
+    // ghostInfluenced() of the ghost hits surfaces[samples[k]], seen along dirs[samples[k]], for
+    // k < count: into influenced[samples[k]], in SIMD lanes (influence_batch.h).
+    void ghostsInfluenced(const Frame& f, const Surface* surfaces, const Vec3* dirs,
+                          const uint32_t* samples, size_t count, uint8_t* influenced) const;
     // ghostInfluenced() for the depth surface at a point known to within `margin`.
     bool depthSurfaceInfluenced(const Frame& f, const Vec3& p, float margin) const;
 

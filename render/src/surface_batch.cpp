@@ -11,6 +11,7 @@
 #include <algorithm>
 
 #include "integrator.h"
+#include "simd_vec3-inl.h"
 #include "surface_batch.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -19,65 +20,17 @@ namespace hn = hwy::HWY_NAMESPACE;
 
 namespace {
 
-constexpr size_t kMaxLanes = 16;  // AVX-512's floats: the widest x86 target
+using namespace simd;  // NOLINT(google-build-using-namespace): this file's lane vocabulary
 
 // One group of lanes' hits and rays, as structure of arrays; the meshes' vertices are gathered
 // straight into SIMD registers.
 struct alignas(64) HitLanes {
     int32_t prim[kMaxLanes];
     float u[kMaxLanes], v[kMaxLanes], t[kMaxLanes];
-    float o[3][kMaxLanes], d[3][kMaxLanes];
-    float p[3][kMaxLanes], ng[3][kMaxLanes], ns[3][kMaxLanes], uv[2][kMaxLanes];
+    Lanes3 o, d;
+    Lanes3 p, ng, ns;
+    float uv[2][kMaxLanes];
 };
-
-using D = hn::ScalableTag<float>;
-using V = hn::Vec<D>;
-using DI = hn::RebindToSigned<D>;
-using VI = hn::Vec<DI>;
-
-// A 3-vector in each lane.
-struct V3 {
-    V x, y, z;
-};
-
-V3 load3(const float (&src)[3][kMaxLanes]) {
-    const D d;
-    return {hn::Load(d, src[0]), hn::Load(d, src[1]), hn::Load(d, src[2])};
-}
-
-void store3(const V3& v, float (&dst)[3][kMaxLanes]) {
-    const D d;
-    hn::Store(v.x, d, dst[0]);
-    hn::Store(v.y, d, dst[1]);
-    hn::Store(v.z, d, dst[2]);
-}
-
-// Eigen's squaredNorm() and dot() of 3-vectors: x·x' + (y·y' + z·z').
-V dot3(const V3& a, const V3& b) {
-    return hn::Add(hn::Mul(a.x, b.x), hn::Add(hn::Mul(a.y, b.y), hn::Mul(a.z, b.z)));
-}
-
-// Eigen's normalized(): v / sqrt(|v|²) where |v|² > 0, else v.
-V3 normalized3(const V3& v) {
-    const D d;
-    const V n2 = dot3(v, v);
-    const auto positive = hn::Gt(n2, hn::Zero(d));
-    const V len = hn::Sqrt(n2);
-    return {hn::IfThenElse(positive, hn::Div(v.x, len), v.x),
-            hn::IfThenElse(positive, hn::Div(v.y, len), v.y),
-            hn::IfThenElse(positive, hn::Div(v.z, len), v.z)};
-}
-
-// rotate(R, v) (frame_context.h): row i is (R(i,0)·x + R(i,1)·y) + R(i,2)·z.
-V3 rotate3(const Eigen::Matrix3f& R, const V3& v) {
-    const D d;
-    const auto row = [&](int i) {
-        return hn::Add(
-            hn::Add(hn::Mul(hn::Set(d, R(i, 0)), v.x), hn::Mul(hn::Set(d, R(i, 1)), v.y)),
-            hn::Mul(hn::Set(d, R(i, 2)), v.z));
-    };
-    return {row(0), row(1), row(2)};
-}
 
 // Vertex `index` of a packed array of `width`-float vectors (Eigen's Vector3f, Vector2f), component
 // `k` of each lane.

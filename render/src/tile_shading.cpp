@@ -18,19 +18,34 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
     const Surface* const surfaces = scratch.surfaces.data();
     TileShading& sh = scratch.shading;
 
-    // The footprint test: the pixels virtual content can touch, which are shaded.
+    // The footprint test: the pixels virtual content can touch, which are shaded. A pixel with
+    // a virtual hit is; the ghost hits of the others are tested together, in SIMD lanes.
+    const int tile_pixels = tile_w * (box.y1 - box.y0);
+    sh.has_virtual.assign(static_cast<size_t>(tile_pixels), 0);
+    sh.ghost_hits.clear();
+    for (int p = 0; p < tile_pixels; ++p) {
+        const size_t first = static_cast<size_t>(p) * spp;
+        for (int k = 0; k < spp; ++k)
+            if (hits[first + k].valid &&
+                objects_[hits[first + k].object].role == ObjectRole::kVirtual)
+                sh.has_virtual[static_cast<size_t>(p)] = 1;
+        if (sh.has_virtual[static_cast<size_t>(p)])
+            continue;
+        for (int k = 0; k < spp; ++k)
+            if (hits[first + k].valid)
+                sh.ghost_hits.push_back(static_cast<uint32_t>(first + k));
+    }
+    sh.ghost_influenced.resize(primaries.hits.size());
+    integrator.ghostsInfluenced(f, surfaces, dirs, sh.ghost_hits.data(), sh.ghost_hits.size(),
+                                sh.ghost_influenced.data());
     sh.pixels.clear();
     for (int y = box.y0; y < box.y1; ++y)
         for (int x = box.x0; x < box.x1; ++x) {
-            const size_t first = (static_cast<size_t>(y - box.y0) * tile_w + (x - box.x0)) * spp;
-            bool influenced = false;
-            for (int k = 0; k < spp && !influenced; ++k) {
-                const size_t i = first + static_cast<size_t>(k);
-                if (!hits[i].valid)
-                    continue;
-                influenced = objects_[hits[i].object].role == ObjectRole::kVirtual ||
-                             integrator.ghostInfluenced(f, surfaces[i], dirs[i]);
-            }
+            const auto p = static_cast<size_t>((y - box.y0) * tile_w + (x - box.x0));
+            const size_t first = p * spp;
+            bool influenced = sh.has_virtual[p] != 0;
+            for (int k = 0; k < spp && !influenced; ++k)
+                influenced = hits[first + k].valid && sh.ghost_influenced[first + k] != 0;
             if (!influenced && !keep && options_.only_virtual_footprint)
                 continue;
             sh.pixels.push_back({static_cast<size_t>(y) * w + x, first, influenced});

@@ -1,7 +1,8 @@
-// The integrator's batched surfaces (DifferentialIntegrator::surfacesAt, render/src/integrator.h)
-// against its one-hit surfaceAt(): the same bits for every hit, invalid hits left alone, on
-// meshes with and without normals and uvs, rotated instances, degenerate triangles, zero normals
-// and exact spheres, in the SIMD lanes of every instruction set this machine runs.
+// The integrator's batches against its one-hit functions, in the SIMD lanes of every instruction
+// set this machine runs: surfacesAt() against surfaceAt() (the same bits for every hit, invalid
+// hits left alone, on meshes with and without normals and uvs, rotated instances, degenerate
+// triangles, zero normals and exact spheres), and ghostsInfluenced() against ghostInfluenced()
+// (the same answer for every ghost hit, on every material, light kind and footprint shortcut).
 #include "integrator.h"
 
 #include <gtest/gtest.h>
@@ -114,6 +115,97 @@ TEST(Integrator, BatchedSurfacesAreSurfaceAtsBitForBit) {
     }
     hwy::SetSupportedTargetsForTest(0);  // back to what the CPU has
     std::printf("batched surfaces compared on %zu instruction sets\n", targets.size());
+}
+
+TEST(Integrator, BatchedFootprintTestIsGhostInfluencedsOnEveryHit) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> unit(0, 1), coord(-1, 1);
+    const auto randomDir = [&] { return Vec3(coord(rng), coord(rng), coord(rng)).normalized(); };
+    // Ghost materials of every kind the test tells apart.
+    std::vector<MaterialData> materials(6);
+    materials[0].material.type = MaterialType::kDiffuse;
+    materials[1].material.type = MaterialType::kDiffuse;
+    materials[1].material.reflectance = 0.15f;
+    materials[2].material.type = MaterialType::kPhong;
+    materials[3].material.type = MaterialType::kMirror;
+    materials[4].material.type = MaterialType::kMetal;
+    materials[5].material.type = MaterialType::kGlass;
+    std::vector<ObjectData> objects;
+    objects.push_back(test::floorObject(4));
+    auto scene = EmbreeScene::build(objects);
+    ASSERT_TRUE(scene) << scene.status().message();
+    // Lights of each kind, near and far from the points; balls as virtual bounds.
+    std::vector<LightData> lights(4);
+    lights[0].light.type = LightType::kPoint;
+    lights[0].position_world = {0.3f, 0.2f, 1.5f};
+    lights[1].light.type = LightType::kSphere;
+    lights[1].light.radius = 0.2f;
+    lights[1].position_world = {-0.8f, 0.4f, 0.9f};
+    lights[2].light.type = LightType::kDirectional;
+    lights[2].direction_world = Vec3(0.3f, -0.2f, -1).normalized();
+    lights[3].light.type = LightType::kPoint;
+    lights[3].position_world = {0.5f, 0.5f, 0.5f};  // among the points: zero lengths nearby
+    std::vector<Hit> hits;
+    std::vector<Surface> surfaces;
+    std::vector<Vec3> dirs;
+    for (int i = 0; i < 997; ++i) {
+        Surface s;
+        s.p = {coord(rng), coord(rng), 0.5f * coord(rng)};
+        if (i % 97 == 0)
+            s.p = lights[3].position_world;  // at a light
+        s.n_geometric = randomDir();
+        s.n_shading = (s.n_geometric + 0.3f * randomDir()).normalized();
+        s.object = &objects[0];
+        s.material = &materials[static_cast<size_t>(i) % materials.size()];
+        surfaces.push_back(s);
+        dirs.push_back(randomDir());
+    }
+    std::vector<uint32_t> samples;
+    for (uint32_t i = 0; i < surfaces.size(); ++i)
+        if (i % 11 != 4)  // some left out: their answers must stay as they were
+            samples.push_back(i);
+    const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
+    int cases = 0;
+    for (const bool shadows : {true, false})
+        for (const bool lone_flat_ghost : {true, false})
+            for (const int n_lights : {0, 1, 4}) {
+                RenderOptions options;
+                options.shadows = shadows;
+                const DifferentialIntegrator integrator(options, materials, objects, **scene,
+                                                        std::nullopt);
+                Frame f;
+                f.lone_flat_ghost = lone_flat_ghost;
+                f.virtual_bounds = {{{0.1f, 0.1f, 0.4f}, 0.15f},
+                                    {{-0.5f, 0.3f, 0.2f}, 0.05f},
+                                    {{0.6f, -0.6f, 0.1f}, 0.3f}};
+                for (int l = 0; l < n_lights; ++l)
+                    f.lights.push_back(&lights[static_cast<size_t>(l)]);
+                std::vector<uint8_t> expected(surfaces.size(), 7);
+                int yes = 0;
+                for (const uint32_t i : samples) {
+                    expected[i] = integrator.ghostInfluenced(f, surfaces[i], dirs[i]) ? 1 : 0;
+                    yes += expected[i];
+                }
+                for (const int64_t target : targets) {
+                    SCOPED_TRACE(::testing::Message()
+                                 << hwy::TargetName(target) << ", shadows " << shadows
+                                 << ", lone flat ghost " << lone_flat_ghost << ", " << n_lights
+                                 << " lights");
+                    hwy::SetSupportedTargetsForTest(target);
+                    std::vector<uint8_t> batched(surfaces.size(), 7);
+                    integrator.ghostsInfluenced(f, surfaces.data(), dirs.data(), samples.data(),
+                                                samples.size(), batched.data());
+                    int differ = 0;
+                    for (size_t i = 0; i < surfaces.size(); ++i)
+                        differ += batched[i] != expected[i];
+                    EXPECT_EQ(differ, 0) << yes << " of " << samples.size() << " influenced";
+                }
+                hwy::SetSupportedTargetsForTest(0);
+                // Both answers occur, so the comparison can fail either way.
+                if (yes > 50 && yes < static_cast<int>(samples.size()) - 50)
+                    ++cases;
+            }
+    EXPECT_GE(cases, 6) << "too few configurations give both answers";
 }
 
 }  // namespace
