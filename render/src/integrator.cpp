@@ -305,13 +305,17 @@ void DifferentialIntegrator::directBatch(const Frame& f, DirectBatch& batch, Cou
                                          RayList* log) const {
     const size_t count = batch.count;
     batch.paths.resize(count);
-    batch.visible.resize(count);
-    batch.penumbra.resize(count);
+    batch.traced.resize(count);
     batch.queries.resize(count);
-    batch.queried.resize(count);
     batch.answers.resize(count);
+    // The vectors' data as plain pointers: the byte array's stores may alias anything.
+    DirectBatch::Entry* const entries = batch.entries.data();
+    LightPath* const paths = batch.paths.data();
+    uint8_t* const traced = batch.traced.data();
+    HardShadowQuery* const queries = batch.queries.data();
+    Pair* const answers = batch.answers.data();
     for (size_t i = 0; i < count; ++i) {
-        DirectBatch::Entry& e = batch.entries[i];
+        DirectBatch::Entry& e = entries[i];
         e.out = {};
         e.n_facing = facingNormal(*e.s, e.d);
         e.origin = e.s->p + offsetFor(e.s->p) * e.n_facing;
@@ -320,42 +324,31 @@ void DifferentialIntegrator::directBatch(const Frame& f, DirectBatch& batch, Cou
     for (const LightData* light : f.lights) {
         // Each point's way to the light; then what blocks it: hard tests of all points traced
         // together as packets, the rest (shadow maps, soft shadows) point by point.
-        size_t queries = 0;
+        const bool hard_rays = options_.shadows && !light->shadow_map;
+        size_t n_queries = 0;
         for (size_t i = 0; i < count; ++i) {
-            DirectBatch::Entry& e = batch.entries[i];
-            const LightPath& path = batch.paths[i] = lightPath(*light, *e.s, e.n, e.d, e.diffuse);
-            batch.penumbra[i] = 0;
-            if (!path.lit)
-                continue;
-            if (options_.shadows && !light->shadow_map && shadows_.hard(*light, path.dist)) {
-                batch.queries[queries] = shadows_.hardQuery(e.origin, path.wi, path.dist, e.mode);
-                batch.queried[queries++] = static_cast<uint32_t>(i);
-            }
+            const DirectBatch::Entry& e = entries[i];
+            const LightPath& path = paths[i] = lightPath(*light, *e.s, e.n, e.d, e.diffuse);
+            traced[i] = path.lit && hard_rays && shadows_.hard(*light, path.dist);
+            if (traced[i])
+                queries[n_queries++] = shadows_.hardQuery(e.origin, path.wi, path.dist, e.mode);
         }
-        shadows_.hardVisibilities(batch.queries.data(), queries, counters, log,
-                                  batch.answers.data());
-        for (size_t q = 0; q < queries; ++q)
-            batch.penumbra[batch.queried[q]] = 2;  // marks "traced": the answer is answers[q]
+        shadows_.hardVisibilities(queries, n_queries, counters, log, answers);
         for (size_t i = 0, q = 0; i < count; ++i) {
-            const LightPath& path = batch.paths[i];
+            const LightPath& path = paths[i];
             if (!path.lit)
                 continue;
-            DirectBatch::Entry& e = batch.entries[i];
-            const Pair* traced = nullptr;
-            if (batch.penumbra[i] == 2) {
-                traced = &batch.answers[q++];
-                batch.penumbra[i] = 0;
-            }
+            DirectBatch::Entry& e = entries[i];
             bool penumbra = false;
-            const Pair visible =
-                lightVisibility(f, *light, *e.s, e.origin, e.n_facing, path, e.mode, *e.st,
-                                e.record != nullptr ? &penumbra : nullptr, traced);
+            const Pair visible = lightVisibility(
+                f, *light, *e.s, e.origin, e.n_facing, path, e.mode, *e.st,
+                e.record != nullptr ? &penumbra : nullptr, traced[i] ? &answers[q++] : nullptr);
             addLight(path, visible, penumbra, e.out, e.record);
         }
     }
     if (f.caustics)
         for (size_t i = 0; i < count; ++i) {
-            DirectBatch::Entry& e = batch.entries[i];
+            DirectBatch::Entry& e = entries[i];
             addCaustics(f, *e.s, e.n_facing, e.diffuse, e.mode, e.out);
         }
 }

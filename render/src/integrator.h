@@ -77,10 +77,8 @@ struct DirectBatch {
         return entries[count++];
     }
     std::vector<LightPath> paths;
-    std::vector<Pair> visible;
-    std::vector<uint8_t> penumbra;
+    std::vector<uint8_t> traced;  // the light's hard test of the entry is among the queries
     std::vector<HardShadowQuery> queries;
-    std::vector<uint32_t> queried;
     std::vector<Pair> answers;
 };
 

@@ -20,22 +20,26 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
 
     // The footprint test: the pixels virtual content can touch, which are shaded. A pixel with
     // a virtual hit is; the ghost hits of the others are tested together, in SIMD lanes.
+    // The vectors' data as plain pointers: the byte arrays' stores may alias anything, and would
+    // make the compiler load every vector's pointer again after each.
     const int tile_pixels = tile_w * (box.y1 - box.y0);
     sh.has_virtual.assign(static_cast<size_t>(tile_pixels), 0);
+    uint8_t* const has_virtual = sh.has_virtual.data();
     sh.ghost_hits.clear();
     for (int p = 0; p < tile_pixels; ++p) {
         const size_t first = static_cast<size_t>(p) * spp;
         for (int k = 0; k < spp; ++k)
             if (hits[first + k].valid &&
                 objects_[hits[first + k].object].role == ObjectRole::kVirtual)
-                sh.has_virtual[static_cast<size_t>(p)] = 1;
-        if (sh.has_virtual[static_cast<size_t>(p)])
+                has_virtual[p] = 1;
+        if (has_virtual[p])
             continue;
         for (int k = 0; k < spp; ++k)
             if (hits[first + k].valid)
                 sh.ghost_hits.push_back(static_cast<uint32_t>(first + k));
     }
     sh.ghost_influenced.resize(primaries.hits.size());
+    const uint8_t* const ghost_influenced = sh.ghost_influenced.data();
     integrator.ghostsInfluenced(f, surfaces, dirs, sh.ghost_hits.data(), sh.ghost_hits.size(),
                                 sh.ghost_influenced.data());
     sh.pixels.clear();
@@ -43,9 +47,9 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
         for (int x = box.x0; x < box.x1; ++x) {
             const auto p = static_cast<size_t>((y - box.y0) * tile_w + (x - box.x0));
             const size_t first = p * spp;
-            bool influenced = sh.has_virtual[p] != 0;
+            bool influenced = has_virtual[p] != 0;
             for (int k = 0; k < spp && !influenced; ++k)
-                influenced = hits[first + k].valid && sh.ghost_influenced[first + k] != 0;
+                influenced = hits[first + k].valid && ghost_influenced[first + k] != 0;
             if (!influenced && !keep && options_.only_virtual_footprint)
                 continue;
             sh.pixels.push_back({static_cast<size_t>(y) * w + x, first, influenced});
@@ -64,41 +68,47 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
         sh.batched.resize(count);
     }
     sh.batch.count = 0;
+    const ShadedPixel* const pixels = sh.pixels.data();
+    SampleState* const states = sh.states.data();
+    PrimaryDirect* const lights = sh.light.data();
+    Pair* const radiance = sh.radiance.data();
+    uint8_t* const is_virtual = sh.is_virtual.data();
+    std::pair<size_t, size_t>* const batched = sh.batched.data();
+    const uint8_t* const live = primaries.live.data();
     // A shaded sample's radiance pair; a virtual hit's I_r is the scene without it (keep_layers).
     const auto finish = [&](size_t e, size_t i, const Pair& p, SampleState& st) {
-        if (!sh.is_virtual[e]) {
-            sh.radiance[e] = p;
+        if (!is_virtual[e]) {
+            radiance[e] = p;
             return;
         }
-        sh.radiance[e] = {p.m, keep ? integrator.trace(f, origins[i], dirs[i], 0, Mode::kReal, st).r
-                                    : Vec3::Zero()};
+        radiance[e] = {p.m, keep ? integrator.trace(f, origins[i], dirs[i], 0, Mode::kReal, st).r
+                                 : Vec3::Zero()};
     };
     for (size_t px = 0; px < sh.pixels.size(); ++px)
         for (int k = 0; k < spp; ++k) {
-            const ShadedPixel& pixel = sh.pixels[px];
+            const ShadedPixel& pixel = pixels[px];
             const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
             const size_t i = pixel.first + static_cast<size_t>(k);
-            SampleState& st = sh.states[e];
+            SampleState& st = states[e];
             st = {optics::Rng(hashIndex(options_.seed, pixel.index, k + 1)), &counters, log};
             PrimaryDirect* record = nullptr;
             if (filter_penumbra) {
-                record = &sh.light[e];
+                record = &lights[e];
                 *record = {};
             }
-            sh.is_virtual[e] = 0;
+            is_virtual[e] = 0;
             if (!hits[i].valid) {
-                const Vec3 e_env =
-                    primaries.live[i] ? integrator.environment(f, dirs[i]) : Vec3::Zero();
-                sh.radiance[e] = {e_env, e_env};
+                const Vec3 e_env = live[i] ? integrator.environment(f, dirs[i]) : Vec3::Zero();
+                radiance[e] = {e_env, e_env};
                 continue;
             }
             const Surface& s = surfaces[i];
-            sh.is_virtual[e] = s.object->role == ObjectRole::kVirtual;
-            const Mode mode = sh.is_virtual[e] ? Mode::kMixed : Mode::kBoth;
+            is_virtual[e] = s.object->role == ObjectRole::kVirtual;
+            const Mode mode = is_virtual[e] ? Mode::kMixed : Mode::kBoth;
             const MaterialType type = s.material->material.type;
             if ((type == MaterialType::kDiffuse || type == MaterialType::kPhong) &&
                 !s.material->albedo_from_camera) {
-                sh.batched[sh.batch.count] = {e, i};
+                batched[sh.batch.count] = {e, i};
                 DirectBatch::Entry& entry = sh.batch.add();
                 entry.s = &s;
                 entry.n = s.n_geometric.dot(dirs[i]) < 0 ? s.n_shading : Vec3(-s.n_shading);
@@ -113,9 +123,10 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
             finish(e, i, integrator.shade(f, s, hits[i], dirs[i], 0, mode, st), st);
         }
     integrator.directBatch(f, sh.batch, counters, log);
+    const DirectBatch::Entry* const entries = sh.batch.entries.data();
     for (size_t q = 0; q < sh.batch.count; ++q) {
-        const DirectBatch::Entry& entry = sh.batch.entries[q];
-        const auto [e, i] = sh.batched[q];
+        const DirectBatch::Entry& entry = entries[q];
+        const auto [e, i] = batched[q];
         finish(e, i,
                integrator.withReflection(f, *entry.s, entry.d, 0, entry.mode, *entry.st, entry.out,
                                          entry.record),
@@ -123,16 +134,20 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
     }
 
     // The film: each pixel's mean over its samples.
+    Vec3* const virtual_radiance = b.virtual_radiance.data();
+    Vec3* const difference = b.difference.data();
+    float* const mask = b.mask.data();
+    uint8_t* const flags = b.flags.data();
     for (size_t px = 0; px < sh.pixels.size(); ++px) {
-        const size_t pixel = sh.pixels[px].index;
+        const size_t pixel = pixels[px].index;
         int n_virtual = 0;
         Vec3 vsum = Vec3::Zero(), dsum = Vec3::Zero(), msum = Vec3::Zero(), rsum = Vec3::Zero();
         PrimaryDirect light;  // over the pixel's samples, for the penumbra filter
         Vec3 dv_dm = Vec3::Zero(), dd_dm = Vec3::Zero(), dd_dr = Vec3::Zero();
         for (int k = 0; k < spp; ++k) {
             const size_t e = px * static_cast<size_t>(spp) + static_cast<size_t>(k);
-            const Pair& p = sh.radiance[e];
-            if (sh.is_virtual[e]) {
+            const Pair& p = radiance[e];
+            if (is_virtual[e]) {
                 ++n_virtual;
                 vsum += p.m;
             } else {
@@ -144,12 +159,12 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
             }
             if (!filter_penumbra)
                 continue;
-            const PrimaryDirect& sample_light = sh.light[e];
+            const PrimaryDirect& sample_light = lights[e];
             light.unshadowed += sample_light.unshadowed;
             light.visible_m += sample_light.visible_m;
             light.visible_r += sample_light.visible_r;
             light.penumbra |= sample_light.penumbra;
-            if (sh.is_virtual[e]) {
+            if (is_virtual[e]) {
                 dv_dm += sample_light.dm_dvisible_m;
             } else {
                 dd_dm += sample_light.dm_dvisible_m;
@@ -157,15 +172,15 @@ uint64_t EmbreeRenderer::shadeTile(const Frame& f, const PixelBox& box, bool fil
             }
         }
         if (n_virtual > 0)
-            b.virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
+            virtual_radiance[pixel] = vsum / static_cast<float>(n_virtual);
         if (n_virtual < spp)
-            b.difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
-        b.mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
-        b.flags[pixel] = kTraced;
+            difference[pixel] = dsum / static_cast<float>(spp - n_virtual);
+        mask[pixel] = static_cast<float>(n_virtual) / static_cast<float>(spp);
+        flags[pixel] = kTraced;
         // Only pixels virtual content can touch take part in the filter, so that tracing the
         // others (only_virtual_footprint off) leaves the image as it is.
-        if (filter_penumbra && sh.pixels[px].influenced && light.unshadowed > 0) {
-            b.flags[pixel] |= kLit | (light.penumbra ? kPenumbra : 0);
+        if (filter_penumbra && pixels[px].influenced && light.unshadowed > 0) {
+            flags[pixel] |= kLit | (light.penumbra ? kPenumbra : 0);
             b.visible_m[pixel] = light.visibleFractionM();
             b.visible_r[pixel] = light.visibleFractionR();
             // Only the penumbra's own pixels move: only they need the derivatives.
