@@ -2,7 +2,9 @@
 // set this machine runs: surfacesAt() against surfaceAt() (the same bits for every hit, invalid
 // hits left alone, on meshes with and without normals and uvs, rotated instances, degenerate
 // triangles, zero normals and exact spheres), and ghostsInfluenced() against ghostInfluenced()
-// (the same answer for every ghost hit, on every material, light kind and footprint shortcut).
+// (the same answer for every ghost hit, on every material, light kind and footprint shortcut);
+// and the direct-light batch's hard shadow rays, traced as 16-ray occlusion packets
+// (ShadowRays::hardVisibilities), against visibility()'s one ray at a time.
 #include "integrator.h"
 
 #include <gtest/gtest.h>
@@ -13,6 +15,7 @@
 #include <random>
 
 #include "embree_test_util.h"
+#include "shadow_rays.h"
 
 namespace mixray::render::detail {
 namespace {
@@ -57,7 +60,8 @@ TEST(Integrator, BatchedSurfacesAreSurfaceAtsBitForBit) {
         Eigen::AngleAxisf(0.7f, Vec3(1, 2, 3).normalized()).toRotationMatrix();
     std::vector<ObjectData> objects;
     objects.push_back(meshObject(soup(rng, true, true), turned, {0.1f, -0.2f, 0.3f}));
-    objects.push_back(meshObject(soup(rng, false, false), Eigen::Matrix3f::Identity(), {}));
+    objects.push_back(
+        meshObject(soup(rng, false, false), Eigen::Matrix3f::Identity(), Vec3::Zero()));
     objects.push_back(meshObject(soup(rng, true, false), turned.transpose(), {1, 1, 1}));
     objects.push_back(test::ballObject(0.3f, {0, 0, 2}));
     auto scene = EmbreeScene::build(objects);
@@ -206,6 +210,71 @@ TEST(Integrator, BatchedFootprintTestIsGhostInfluencedsOnEveryHit) {
                     ++cases;
             }
     EXPECT_GE(cases, 6) << "too few configurations give both answers";
+}
+
+TEST(Integrator, PacketsOfHardShadowRaysAreVisibilitysAnswers) {
+    // A ghost floor, a real ball on it and virtual balls: rays blocked in both scenes, in the
+    // mixed one only, and in neither.
+    std::vector<ObjectData> objects;
+    objects.push_back(test::floorObject(4));
+    objects.push_back(test::ballObject(0.25f, {0.2f, -0.3f, 0.25f}, ObjectRole::kGhost));
+    objects.push_back(test::ballObject(0.2f, {-0.3f, 0.2f, 0.4f}));
+    objects.push_back(test::ballObject(0.15f, {0.4f, 0.4f, 0.6f}));
+    for (ObjectData& o : objects)
+        o.active = true;
+    auto scene = EmbreeScene::build(objects);
+    ASSERT_TRUE(scene) << scene.status().message();
+    ASSERT_TRUE((*scene)->setPoses(objects));
+    const RenderOptions options;
+    const ShadowRays shadows(options, **scene);
+    LightData point;
+    point.light.type = LightType::kPoint;
+
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> coord(-1, 1), unit(0, 1);
+    // More than a packet, not a multiple of one; every mode, finite and infinite lengths.
+    std::vector<HardShadowQuery> queries;
+    std::vector<float> dists;
+    for (int i = 0; i < 203; ++i) {
+        const Vec3 origin(coord(rng), coord(rng), 0.01f + 0.3f * unit(rng));
+        const Vec3 light(0.6f * coord(rng), 0.6f * coord(rng), 1.2f + unit(rng));
+        const bool far = i % 11 == 4;
+        const Vec3 to_light = far ? Vec3(coord(rng), coord(rng), 1).normalized()
+                                  : Vec3((light - origin).normalized());
+        const float dist = far ? kInf : (light - origin).norm();
+        queries.push_back(ShadowRays::hardQuery(origin, to_light, dist, static_cast<Mode>(i % 3)));
+        dists.push_back(dist);
+    }
+
+    Counters batch_counters;
+    std::vector<Pair> batched(queries.size());
+    shadows.hardVisibilities(queries.data(), queries.size(), batch_counters, nullptr,
+                             batched.data());
+    Counters one_counters;
+    SampleState st;
+    st.counters = &one_counters;
+    int blocked_m = 0, blocked_r = 0, lit_both = 0;
+    for (size_t i = 0; i < queries.size(); ++i) {
+        const HardShadowQuery& q = queries[i];
+        const Pair one = shadows.visibility(point, q.origin, q.dir, dists[i], q.mode, st);
+        const bool want_m = q.mode != Mode::kReal, want_r = q.mode != Mode::kMixed;
+        if (want_m) {
+            EXPECT_EQ(batched[i].m.x(), one.m.x()) << i;
+            blocked_m += one.m.x() == 0;
+        }
+        if (want_r) {
+            EXPECT_EQ(batched[i].r.x(), one.r.x()) << i;
+            blocked_r += one.r.x() == 0;
+        }
+        lit_both += want_m && want_r && one.m.x() == 1 && one.r.x() == 1;
+    }
+    EXPECT_EQ(batch_counters.shadow, one_counters.shadow);
+    // Every outcome occurs, so the comparison can fail either way.
+    EXPECT_GT(blocked_m, 10);
+    EXPECT_GT(blocked_r, 5);
+    EXPECT_GT(lit_both, 10);
+    std::printf("%zu hard tests: %d blocked in the mixed scene, %d in the real one\n",
+                queries.size(), blocked_m, blocked_r);
 }
 
 }  // namespace
