@@ -52,14 +52,11 @@ struct GlassBall {
             objects.push_back(test::ballObject(3, {0, 0, 0}, ObjectRole::kGhost));
             objects.back().name = "room";
         }
-        for (ObjectData& o : objects)
-            o.active = true;
-        auto built = EmbreeScene::build(objects);
+        auto built = test::posedScene(objects);
         EXPECT_TRUE(built) << built.status().toString();
         if (!built)
             return;
         scene = std::move(built).value();
-        EXPECT_TRUE(scene->setPoses(objects));
         integrator.emplace(options, materials, objects, *scene, std::nullopt);
     }
 };

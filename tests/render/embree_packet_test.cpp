@@ -173,13 +173,10 @@ TEST(EmbreePackets, AgreeWithSingleRaysOnEveryIsa) {
                 kPerIsaLimit, "Embree packets on isa=" + isa + " (" + name + ")",
                 [&, make = make](mixray::test::WatchdogStage& stage) {
                     ShadowSetup setup = make();
-                    for (ObjectData& o : setup.objects)
-                        o.active = true;
                     stage.set("building the scene");
-                    auto built = EmbreeScene::build(setup.objects, isa);
+                    auto built = test::posedScene(setup.objects, isa);
                     ASSERT_TRUE(built) << built.status().toString();
                     EmbreeScene& scene = **built;
-                    ASSERT_TRUE(scene.setPoses(setup.objects));
                     const Mismatches m = compareWithSingleRays(scene, setup, stage);
                     // Packet and single-ray kernels may differ on a ray that grazes an
                     // edge; anything more is a wrong answer.

@@ -1,6 +1,10 @@
 // Objects for the tests of the renderer's internals (render/src/embree_scene.h): a ghost floor
-// and exact spheres, built as scene loading builds them.
+// and exact spheres, built as scene loading builds them, and a scene of them posed.
 #pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "embree_scene.h"
 #include "mixray/render/assets.h"
@@ -33,6 +37,20 @@ inline ObjectData ballObject(float radius, const Eigen::Vector3f& centre,
     ball.bound_radius = radius;
     ball.t_world_object = centre;
     return ball;
+}
+
+// `objects`, every one active, built into a scene (on Embree's `isa`; "": the widest) and
+// posed, as a frame's set-up leaves them.
+inline Result<std::unique_ptr<detail::EmbreeScene>> posedScene(std::vector<ObjectData>& objects,
+                                                               const std::string& isa = "") {
+    for (ObjectData& o : objects)
+        o.active = true;
+    auto built = detail::EmbreeScene::build(objects, isa);
+    if (!built)
+        return built;
+    if (Status posed = (*built)->setPoses(objects); !posed)
+        return posed;
+    return built;
 }
 
 }  // namespace mixray::render::test

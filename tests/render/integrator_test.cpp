@@ -220,11 +220,8 @@ TEST(Integrator, PacketsOfHardShadowRaysAreVisibilitysAnswers) {
     objects.push_back(test::ballObject(0.25f, {0.2f, -0.3f, 0.25f}, ObjectRole::kGhost));
     objects.push_back(test::ballObject(0.2f, {-0.3f, 0.2f, 0.4f}));
     objects.push_back(test::ballObject(0.15f, {0.4f, 0.4f, 0.6f}));
-    for (ObjectData& o : objects)
-        o.active = true;
-    auto scene = EmbreeScene::build(objects);
+    auto scene = test::posedScene(objects);
     ASSERT_TRUE(scene) << scene.status().message();
-    ASSERT_TRUE((*scene)->setPoses(objects));
     const RenderOptions options;
     const ShadowRays shadows(options, **scene);
     LightData point;
@@ -239,8 +236,8 @@ TEST(Integrator, PacketsOfHardShadowRaysAreVisibilitysAnswers) {
         const Vec3 origin(coord(rng), coord(rng), 0.01f + 0.3f * unit(rng));
         const Vec3 light(0.6f * coord(rng), 0.6f * coord(rng), 1.2f + unit(rng));
         const bool far = i % 11 == 4;
-        const Vec3 to_light = far ? Vec3(coord(rng), coord(rng), 1).normalized()
-                                  : Vec3((light - origin).normalized());
+        const Vec3 to_light =
+            far ? Vec3(coord(rng), coord(rng), 1).normalized() : (light - origin).normalized();
         const float dist = far ? kInf : (light - origin).norm();
         queries.push_back(ShadowRays::hardQuery(origin, to_light, dist, static_cast<Mode>(i % 3)));
         dists.push_back(dist);

@@ -36,14 +36,10 @@ struct BallOverFloor {
         if (real_ball_above)
             objects.push_back(test::ballObject(kBallRadius, kBallCentre + Vector3f(0, 0, 0.3f),
                                                ObjectRole::kGhost));
-        for (ObjectData& o : objects)
-            o.active = true;
-        auto built = EmbreeScene::build(objects);
+        auto built = test::posedScene(objects);
         EXPECT_TRUE(built) << built.status().toString();
-        if (built) {
+        if (built)
             scene = std::move(built).value();
-            EXPECT_TRUE(scene->setPoses(objects));
-        }
     }
 };
 
