@@ -431,24 +431,27 @@ TEST(Cli, BenchRenderPrintsItsFigures) {
 }
 
 // The soft scene measures the adaptive aim: each row against the uniform one, its speed-up and
-// the RMSE of its composite; the hard-shadow row is the floor.
+// the RMSE of its composite; the hard-shadow row is the floor, the row without rays to the lights
+// the ceiling.
 TEST(Cli, BenchRenderSoftComparesEachRowWithTheUniformOne) {
     MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
     CliRun run = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes soft");
     ASSERT_EQ(run.exit_code, 0) << run.output;
-    for (const char* line : {"soft shadows, 20 samples uniform, 3 bounces (reference), 64x48",
-                             "soft shadows, 20 samples adaptive, 3 bounces, 64x48",
-                             "hard shadows (one ray to the lamp's centre), 3 bounces, 64x48",
-                             "vs the reference: ", "x its fps; composite RMSE "}) {
+    for (const char* line :
+         {"soft shadows, 20 samples uniform, 3 bounces (reference), 64x48",
+          "soft shadows, 20 samples adaptive, 3 bounces, 64x48",
+          "hard shadows (one ray to the lamp's centre), 3 bounces, 64x48",
+          "no shadow rays to the lights (every light unoccluded), 3 bounces, 64x48",
+          "vs the reference: ", "x its fps; composite RMSE "}) {
         EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
     }
     CliRun json = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes soft --json");
     ASSERT_EQ(json.exit_code, 0) << json.output;
     const auto rows = nlohmann::json::parse(json.output, nullptr, false);
-    ASSERT_TRUE(rows.is_array() && rows.size() == 3u) << json.output;
+    ASSERT_TRUE(rows.is_array() && rows.size() == 4u) << json.output;
     EXPECT_TRUE(rows[0]["rmse_vs_reference"].is_null());
     EXPECT_TRUE(rows[0]["speedup_vs_reference"].is_null());
-    for (int i : {1, 2}) {
+    for (int i : {1, 2, 3}) {
         EXPECT_GE(rows[i]["rmse_vs_reference"].get<double>(), 0);
         EXPECT_GT(rows[i]["speedup_vs_reference"].get<double>(), 0);
     }
@@ -458,6 +461,10 @@ TEST(Cli, BenchRenderSoftComparesEachRowWithTheUniformOne) {
               rows[1]["rays_per_frame"]["shadow"].get<double>());
     EXPECT_LT(rows[1]["rays_per_frame"]["shadow"].get<double>(),
               rows[0]["rays_per_frame"]["shadow"].get<double>());
+    // The ceiling traces no ray to the lamp: its only shadow rays are those that test whether
+    // the camera saw a real point that a reflection shows.
+    EXPECT_LT(rows[3]["rays_per_frame"]["shadow"].get<double>(),
+              rows[2]["rays_per_frame"]["shadow"].get<double>());
 }
 
 // The same teapot frame in mixray and in POV-Ray: both timed (POV-Ray's median run), and the
