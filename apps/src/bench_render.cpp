@@ -520,9 +520,8 @@ std::vector<Config> configsFor(const std::string& scene, int threads,
         adaptive.soft_shadows = SoftShadowMethod::kAdaptive;
         // The uniform row is the reference the others' composites are measured against; the
         // hard-shadow row (one ray to the lamp's centre) is the floor of any method that traces
-        // at least one shadow ray per shaded point, and the row without rays to the lights the
-        // ceiling of every shadow method: its speed-up is the most any shadow method could give
-        // here (it also shades fewer pixels: nothing virtual casts a shadow).
+        // at least one shadow ray per shaded point; the row without rays to the lights is the
+        // ceiling of every shadow method.
         RenderOptions unshadowed = base;
         unshadowed.shadows = false;
         out.push_back({scene, "soft shadows, 20 samples uniform, 3 bounces (reference)", uniform});
