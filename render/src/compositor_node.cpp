@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 
 namespace mixray::render {
 namespace {
@@ -176,6 +177,7 @@ Result<Renderer*> CompositorNode::renderer(int step) {
     auto& slot = renderers_[static_cast<size_t>(step)];
     if (!slot) {
         RenderOptions o = options_.render;
+        o.yield_to_capture = o.yield_to_capture || !options_.lossless;
         const QualityStep& q = ladder_[static_cast<size_t>(step)];
         o.samples_per_pixel = q.samples_per_pixel;
         o.shadow_samples = q.shadow_samples;
@@ -369,6 +371,8 @@ void CompositorNode::drainEnvironmentMaps() {
 }
 
 void CompositorNode::run() {
+    if (!options_.lossless)
+        runAs(ThreadRole::kRenderer);
     Status result;
     while (true) {
         std::optional<Pending> set;
@@ -391,6 +395,11 @@ void CompositorNode::run() {
             continue;
         }
         mailbox_cv_.notify_all();
+        if (!options_.lossless && graph_->recordingBacklog() >= kRecordingBacklogToSkip) {
+            std::lock_guard lock(mutex_);
+            ++stats_.skipped_for_recording;
+            continue;
+        }
         result = composite(*set);
         if (result.code() == ErrorCode::kCancelled) {
             std::lock_guard lock(mutex_);

@@ -11,9 +11,38 @@
 #include <chrono>
 
 #include "bare_trace.h"
+#include "mixray/graph/thread_priority.h"
 #include "shadow_map.h"
 
 namespace mixray::render::detail {
+
+namespace {
+// The nice value each thread had before it joined a render arena (TBB calls entry and exit on
+// the joining thread itself).
+thread_local int nice_before_render = 0;
+thread_local int render_arena_depth = 0;
+}  // namespace
+
+RenderThreadPriority::RenderThreadPriority(tbb::task_arena& arena)
+    : tbb::task_scheduler_observer(arena) {
+    observe(true);
+}
+
+RenderThreadPriority::~RenderThreadPriority() {
+    observe(false);
+}
+
+void RenderThreadPriority::on_scheduler_entry(bool /*is_worker*/) {
+    if (render_arena_depth++ == 0) {
+        nice_before_render = currentNice();
+        runAs(ThreadRole::kRenderer);
+    }
+}
+
+void RenderThreadPriority::on_scheduler_exit(bool /*is_worker*/) {
+    if (--render_arena_depth == 0)
+        (void)setCurrentNice(nice_before_render);  // refused without privilege: see the header
+}
 
 EmbreeRenderer::EmbreeRenderer(RenderOptions options, std::vector<MaterialData> materials,
                                std::vector<ObjectData> objects, std::vector<LightData> lights,
@@ -50,6 +79,8 @@ Status EmbreeRenderer::init() {
     const int threads = options_.threads > 0 ? options_.threads : tbb::task_arena::automatic;
     arena_.emplace(threads);
     arena_->initialize();
+    if (options_.yield_to_capture)
+        thread_priority_.emplace(*arena_);
     scratch_.resize(static_cast<size_t>(arena_->max_concurrency()));
     integrator_.emplace(options_, materials_, objects_, *scene_, depth_object_);
     if (caustic_settings_) {

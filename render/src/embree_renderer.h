@@ -4,6 +4,7 @@
 #pragma once
 
 #include <tbb/task_arena.h>
+#include <tbb/task_scheduler_observer.h>
 
 #include <filesystem>
 #include <memory>
@@ -68,6 +69,22 @@ struct TileScratch {
     std::vector<Surface> surfaces;  // at the tile's valid hits, from the footprint test to shading
     SurfaceScratch surface_sort;
     TileShading shading;
+};
+
+// Lowers every thread that joins a renderer's arena (its TBB workers and the thread that calls
+// render()) to ThreadRole::kRenderer's nice value while it renders, and gives each back its
+// own on leaving. TBB's workers serve every arena in the process; an unprivileged process may
+// not raise a thread's priority again, so there a worker keeps the renderer's nice value for
+// the other TBB work it picks up (OpenCV's and Embree's loops), which also yields to capture.
+class RenderThreadPriority final : public tbb::task_scheduler_observer {
+public:
+    explicit RenderThreadPriority(tbb::task_arena& arena);
+    ~RenderThreadPriority() override;
+    RenderThreadPriority(const RenderThreadPriority&) = delete;
+    RenderThreadPriority& operator=(const RenderThreadPriority&) = delete;
+
+    void on_scheduler_entry(bool is_worker) override;
+    void on_scheduler_exit(bool is_worker) override;
 };
 
 class EmbreeRenderer final : public Renderer {
@@ -143,6 +160,9 @@ private:
     std::vector<uint8_t> tile_mask_;
     // The threads every frame runs on (RenderOptions::threads), made with the BVH.
     std::optional<tbb::task_arena> arena_;
+    // With RenderOptions::yield_to_capture: the arena's threads run as ThreadRole::kRenderer
+    // while in it. Declared after arena_, so it stops observing before the arena goes.
+    std::optional<RenderThreadPriority> thread_priority_;
     // One per thread slot of arena_ (tbb::this_task_arena::current_thread_index()).
     std::vector<TileScratch> scratch_;
 };

@@ -3,6 +3,7 @@
 #include "mixray/graph/recorder.h"
 
 #include <gtest/gtest.h>
+#include <sys/mount.h>
 #include <sys/resource.h>
 
 #include <csignal>
@@ -296,24 +297,31 @@ private:
     milliseconds delay_;
 };
 
+// A recorder of `path` whose writer takes `delay` per frame: a disk too slow for its streams.
+RecorderOptions slowDiskRecorder(const std::filesystem::path& path, QueuePolicy policy,
+                                 size_t queue_capacity, milliseconds delay) {
+    RecorderOptions options;
+    options.path = path;
+    options.policy = policy;
+    options.queue_capacity = queue_capacity;
+    options.writer_factory =
+        [path, delay](const RecordingHeader& header) -> Result<std::unique_ptr<RecordingWriter>> {
+        auto writer = createMkvWriter(path, header);
+        if (!writer)
+            return writer.status();
+        return std::unique_ptr<RecordingWriter>(
+            std::make_unique<SlowWriter>(std::move(*writer), delay));
+    };
+    return options;
+}
+
 TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
     const auto path = test::tempDir() / "slow.mkv";
     Graph graph;
     const StreamId depth =
         addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
-    RecorderOptions options;
-    options.path = path;
-    options.policy = QueuePolicy::kLive;
-    options.queue_capacity = 4;
-    options.writer_factory =
-        [&](const RecordingHeader& header) -> Result<std::unique_ptr<RecordingWriter>> {
-        auto writer = createMkvWriter(path, header);
-        if (!writer)
-            return writer.status();
-        return std::unique_ptr<RecordingWriter>(
-            std::make_unique<SlowWriter>(std::move(*writer), milliseconds(30)));
-    };
-    auto recorder = std::make_unique<Recorder>(options);
+    auto recorder =
+        std::make_unique<Recorder>(slowDiskRecorder(path, QueuePolicy::kLive, 4, milliseconds(30)));
     Recorder* rec = recorder.get();
     ASSERT_TRUE(graph.addNode(std::move(recorder)));
     ASSERT_TRUE(graph.start());
@@ -344,6 +352,31 @@ TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
         const FrameRef& original = published.at(f.meta().sequence);
         EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
     }
+}
+
+TEST_F(RecorderTest, LosslessPolicyHoldsTheDriverAndSaysForHowLong) {
+    const auto path = test::tempDir() / "slow_lossless.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
+    auto recorder = std::make_unique<Recorder>(
+        slowDiskRecorder(path, QueuePolicy::kLossless, 2, milliseconds(20)));
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+    constexpr int kFrames = 12;
+    for (int i = 0; i < kFrames; ++i)
+        publish(graph, depth, i, 1'000'000 * (i + 1));
+    graph.stop();
+
+    const RecorderStats stats = rec->stats();
+    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
+    EXPECT_EQ(stats.frames_written, static_cast<uint64_t>(kFrames));
+    EXPECT_EQ(stats.frames_dropped, 0u);
+    // Twelve frames into two slots at 20 ms a frame: the driver waited most of the time.
+    EXPECT_GT(stats.producer_waits, 0u);
+    EXPECT_GT(stats.producer_waited_s, 0.05);
+    EXPECT_NE(stats.summary().find("waited for the disk"), std::string::npos) << stats.summary();
 }
 
 // Lowers this process's file size limit (and ignores SIGXFSZ, so writes fail with EFBIG like
@@ -416,6 +449,70 @@ TEST_F(RecorderTest, FullDiskStopsWritingReportsAndLeavesAValidFile) {
     for (size_t i = 0; i < frames.size(); ++i) {
         const FrameRef& original = published.at(i);
         EXPECT_TRUE(test::sameFrame(frames[i], {original, original.meta()})) << i;
+    }
+}
+
+// A real full disk: a 256 KiB tmpfs mounted for the test (root only; skipped elsewhere).
+class SmallTmpfs {
+public:
+    explicit SmallTmpfs(const std::filesystem::path& where) : path_(where) {
+        std::filesystem::create_directories(where);
+        mounted_ = ::mount("tmpfs", where.c_str(), "tmpfs", 0, "size=256k") == 0;
+    }
+    ~SmallTmpfs() {
+        if (mounted_)
+            ::umount2(path_.c_str(), MNT_DETACH);
+    }
+    bool mounted() const { return mounted_; }
+
+private:
+    std::filesystem::path path_;
+    bool mounted_ = false;
+};
+
+TEST_F(RecorderTest, ARealFullDiskStopsWritingSaysSoAndLeavesAValidFile) {
+    const auto dir = test::tempDir() / "small_disk";
+    SmallTmpfs disk(dir);
+    if (!disk.mounted())
+        GTEST_SKIP() << "cannot mount a tmpfs here (needs root): the file size limit test "
+                        "covers the same path";
+    const auto path = dir / "full.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 64, 48));
+    RecorderOptions options;
+    options.path = path;
+    options.policy = QueuePolicy::kLive;
+    options.queue_capacity = 4;
+    auto recorder = std::make_unique<Recorder>(options);
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+    // Noisy 64x48 depth frames hardly compress: 200 of them do not fit in 256 KiB.
+    constexpr int kFrames = 200;
+    std::map<uint64_t, FrameRef> published;
+    for (int i = 0; i < kFrames; ++i) {
+        published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
+        std::this_thread::sleep_for(milliseconds(1));
+    }
+    graph.stop();
+
+    const RecorderStats stats = rec->stats();
+    ASSERT_FALSE(stats.error.isOk()) << "the disk never filled";
+    EXPECT_EQ(stats.error.code(), ErrorCode::kIoError) << stats.error.toString();
+    EXPECT_NE(stats.error.message().find(path.string()), std::string::npos)
+        << stats.error.toString();
+    EXPECT_NE(stats.summary().find("stopped"), std::string::npos) << stats.summary();
+    EXPECT_EQ(stats.frames_written + stats.frames_dropped + stats.frames_discarded,
+              static_cast<uint64_t>(kFrames));
+    Status end;
+    auto frames = readRecording(path, &end);
+    EXPECT_EQ(end.code(), ErrorCode::kCorruptData) << end.toString();
+    EXPECT_GT(frames.size(), 0u);
+    EXPECT_LE(frames.size(), stats.frames_written);
+    for (const FrameRef& f : frames) {
+        const FrameRef& original = published.at(f.meta().sequence);
+        EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
     }
 }
 

@@ -71,7 +71,7 @@ EnvironmentLightStats EnvironmentLightNode::stats() const {
 void EnvironmentLightNode::run() {
     // Live, a late estimate holds up no composite: the light node takes the newest there is.
     if (!options_->lossless)
-        runAsBackgroundThread();
+        runAs(ThreadRole::kEstimator);
     while (auto next = detail::popUnlessStopped(*queue_, stop_)) {
         if (!options_->lossless) {
             const uint64_t skipped = detail::skipToNewest(*queue_, *next);

@@ -91,7 +91,7 @@ private:
     };
     void run() {
         // A late estimate holds up no composite: each light record takes the newest there is.
-        runAsBackgroundThread();
+        runAs(ThreadRole::kEstimator);
         std::unique_lock lock(mutex_);
         while (true) {
             cv_.wait(lock, [this] { return stop_ || pending_; });

@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 
+#include "mixray/graph/thread_priority.h"
 #include "mixray/tracking/environment_light_node.h"
 #include "mixray/tracking/light_estimation_node.h"
 #include "mixray/tracking/marker_tracking_node.h"
@@ -67,7 +68,12 @@ Status TrackingGraphNode::start() {
     if (!graph_)
         return {ErrorCode::kInternal, name() + ": start() before connect()"};
     stop_ = false;
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] {
+        // Tracking and light estimation: below capture, the recorder and the publishers,
+        // above the renderer (mixray/graph/thread_priority.h).
+        runAs(ThreadRole::kEstimator);
+        run();
+    });
     return Status::ok();
 }
 

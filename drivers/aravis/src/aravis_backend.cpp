@@ -16,6 +16,7 @@
 
 #include "mixray/graph/clock.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 
 namespace mixray::aravis {
 namespace {
@@ -800,6 +801,7 @@ Status AravisDevice::reconnect() {
 }
 
 void AravisDevice::run() {
+    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
     int64_t last_frame_ns = monotonicNowNs();
     while (true) {
         {

@@ -18,6 +18,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "participant.h"
 #include "time_exchange.h"
 
@@ -372,7 +373,10 @@ Status DdsDevice::start() {
                                               stream->remote.topic};
     }
     for (auto& stream : d.streams)
-        stream->thread = std::thread([&d, s = stream.get()] { d.receive(*s); });
+        stream->thread = std::thread([&d, s = stream.get()] {
+            runAs(ThreadRole::kCapture);  // another host's frames: lost if late
+            d.receive(*s);
+        });
     d.watcher = std::thread([&d] { d.watchAnnouncements(); });
     return Status::ok();
 }

@@ -11,6 +11,7 @@
 #include "frame_message.h"
 #include "mixray/graph/host_time.h"
 #include "mixray/graph/pose.h"
+#include "mixray/graph/thread_priority.h"
 #include "participant.h"
 #include "ros_camera.h"
 #include "ros_image.h"
@@ -380,7 +381,10 @@ Status DdsPublisher::start() {
         return {ErrorCode::kInternal, "dds publisher: start() before a successful connect()"};
     d.stopping = false;
     for (auto& stream : d.streams)
-        stream->thread = std::thread([&d, s = stream.get()] { d.run(*s); });
+        stream->thread = std::thread([&d, s = stream.get()] {
+            runAs(ThreadRole::kPublisher);
+            d.run(*s);
+        });
     return Status::ok();
 }
 

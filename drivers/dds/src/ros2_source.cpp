@@ -11,6 +11,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "participant.h"
 #include "ros_image.h"
 
@@ -258,6 +259,7 @@ Status Ros2ImageDevice::start() {
         return {ErrorCode::kInternal, "ros2 device: start() before connect()"};
     d.stopping = false;
     d.thread = std::thread([&d] {
+        runAs(ThreadRole::kCapture);
         detail::RosImage image;
         while (!d.stopping.load(std::memory_order_relaxed)) {
             (void)d.reader->wait_for_unread_message(eprosima::fastrtps::Duration_t(0, 50'000'000));

@@ -33,7 +33,12 @@ bool FrameQueue::push(FrameRef frame) {
             if (closed_)
                 return false;
         } else {
+            const auto since = std::chrono::steady_clock::now();
             not_full_.wait(lock, [&] { return closed_ || size_ < ring_.size(); });
+            ++stats_.waits;
+            stats_.waited_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::steady_clock::now() - since)
+                                    .count();
             if (closed_)
                 return false;
         }

@@ -190,6 +190,20 @@ std::vector<EdgeStats> Graph::edgeStats() const {
     return out;
 }
 
+double Graph::recordingBacklog() const {
+    std::lock_guard lock(mutex_);
+    double fullest = 0;
+    for (const auto& s : streams_) {
+        for (const auto& queue : *s->subscribers) {
+            if (!queue->options().feeds_recording || queue->options().capacity == 0)
+                continue;
+            fullest = std::max(fullest, static_cast<double>(queue->stats().size) /
+                                            static_cast<double>(queue->options().capacity));
+        }
+    }
+    return fullest;
+}
+
 Result<PooledStream> addPooledStream(Graph& graph, const StreamInfo& info, size_t buffer_count,
                                      size_t buffer_bytes) {
     auto id = graph.addStream(info);

@@ -45,6 +45,11 @@ std::string RecorderStats::summary() const {
         }
         out += ")";
     }
+    if (producer_waits > 0) {
+        std::snprintf(text, sizeof(text), "; the drivers waited for the disk %llu times (%.2f s)",
+                      static_cast<unsigned long long>(producer_waits), producer_waited_s);
+        out += text;
+    }
     if (frames_discarded > 0) {
         out += "; not written after the error: " + std::to_string(frames_discarded);
     }
@@ -99,7 +104,8 @@ Status Recorder::connect(Graph& graph) {
     header_.tags = options_.tags;
     for (Input& input : inputs_) {
         auto queue = graph.subscribe(
-            input.graph_id, QueueOptions{options_.queue_capacity, options_.policy, options_.name});
+            input.graph_id,
+            QueueOptions{options_.queue_capacity, options_.policy, options_.name, true});
         if (!queue)
             return queue.status();
         input.queue = *queue;
@@ -112,6 +118,8 @@ Status Recorder::start() {
         return Status::ok();
     if (inputs_.empty())
         return {ErrorCode::kInvalidArgument, "recorder: not connected to a graph"};
+    // The encoders' threads start here and keep this thread's priority: the recorder's.
+    const ScopedThreadRole role(ThreadRole::kRecorder);
     auto writer = options_.writer_factory
                       ? options_.writer_factory(header_)
                       : createMkvWriter(options_.path, header_, options_.writer);
@@ -201,11 +209,9 @@ void Recorder::writeFrame(size_t index, FrameRef frame) {
 }
 
 void Recorder::run() {
-    // Writing is throughput work with a queue to absorb delays; the threads that carry a frame
-    // to its composite are latency work, and go first: with the live AR pipeline recording
-    // everything on 2 cores, p99 latency went from 58-100 ms to 56-66 ms over several runs, and
-    // the recorder still dropped nothing.
-    runAsBackgroundThread();
+    // Its queues hold the drivers' pool buffers: when it falls behind, frames are lost for
+    // good. So it runs above everything but capture; the renderer gives way instead.
+    runAs(ThreadRole::kRecorder);
     while (true) {
         pullHeads(false);
         size_t best = inputs_.size();
@@ -240,9 +246,15 @@ void Recorder::run() {
                 failed = !error_.isOk();
             }
             // Write the oldest head once no stream can still deliver an older frame: every
-            // stream has a head, or it waited out the reorder window, or we are draining.
+            // stream has a head, or it waited out the reorder window, or we are draining. Order
+            // never costs a frame: once any queue is half full (a stream's records come late,
+            // such as tracking's on a starved machine), the oldest head is written at once.
             const bool waited = Clock::now() - inputs_[best].head_since >= options_.reorder_window;
-            if (all_present || waited || stopping_ || failed) {
+            const bool pressed =
+                std::any_of(inputs_.begin(), inputs_.end(), [this](const Input& input) {
+                    return input.queue->stats().size * 2 >= options_.queue_capacity;
+                });
+            if (all_present || waited || pressed || stopping_ || failed) {
                 if (!all_present && waited) {
                     for (Input& input : inputs_)
                         input.overdue = input.overdue || (!input.head && !input.finished &&
@@ -280,8 +292,12 @@ RecorderStats Recorder::stats() const {
         const QueueStats queue = inputs_[i].queue->stats();
         stats.streams[i].dropped = queue.dropped;
         stats.streams[i].queue_high_water = queue.high_water;
+        stats.streams[i].producer_waits = queue.waits;
+        stats.streams[i].producer_waited_s = static_cast<double>(queue.waited_ns) * 1e-9;
     }
     for (const auto& s : stats.streams) {
+        stats.producer_waits += s.producer_waits;
+        stats.producer_waited_s += s.producer_waited_s;
         stats.frames_written += s.written;
         stats.frames_dropped += s.dropped;
         stats.frames_discarded += s.discarded;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "mixray/graph/thread_priority.h"
+
 namespace mixray {
 
 std::string_view toString(SyncTimeBase base) {
@@ -631,6 +633,7 @@ SyncStats SyncNode::stats() const {
 }
 
 void SyncNode::run() {
+    runAs(ThreadRole::kEstimator);  // matching: below capture and recording
     const size_t n = queues_.size();
     std::vector<bool> ended(n, false);
     size_t ended_count = 0;

@@ -21,6 +21,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 
 namespace mixray::openni2 {
 namespace {
@@ -779,6 +780,7 @@ void OpenNI2Device::stop() {
 }
 
 void OpenNI2Device::run() {
+    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
     Impl& impl = *impl_;
     const size_t n = impl.streams.size();
     std::vector<openni::VideoStream*> handles;

@@ -10,6 +10,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "mixray/pattern/random.h"
 
 namespace mixray::pattern {
@@ -319,6 +320,7 @@ int64_t PatternDevice::deviceStampNs(uint64_t k) const {
 }
 
 void PatternDevice::run() {
+    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
     const size_t n = ids_.size();
     Random random(options_.seed * 0x9E3779B97F4A7C15ull ^ fnv1a(name_));
     struct Pending {

@@ -1,6 +1,7 @@
 // The "replay" backend: opens recordings by path as devices.
 #include "mixray/replay/replay_backend.h"
 
+#include "mixray/graph/thread_priority.h"
 #include "mixray/replay/open_recording.h"
 
 namespace mixray::replay {
@@ -19,6 +20,8 @@ Result<std::unique_ptr<Device>> ReplayBackend::open(const DeviceConfig& config) 
     auto options = ReplayOptions::fromConfig(config.options);
     if (!options)
         return options.status();
+    // The decoders' threads start here and keep this thread's priority: capture's.
+    const ScopedThreadRole role(ThreadRole::kCapture);
     auto reader = openRecording(config.id, {options->buffers_per_stream});
     if (!reader)
         return reader.status();

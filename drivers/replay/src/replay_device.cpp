@@ -8,6 +8,7 @@
 
 #include "image_files.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "mixray/replay/depth_units.h"
 #include "mixray/replay/replay_backend.h"
 
@@ -406,6 +407,7 @@ bool ReplayDevice::waitFor(Clock::duration duration) {
 }
 
 void ReplayDevice::run() {
+    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
     const auto stopping = [this] {
         std::lock_guard lock(mutex_);
         return stop_requested_;

@@ -21,6 +21,7 @@
 #include "mixray/graph/clock.h"
 #include "mixray/graph/device_options.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "mixray/v4l2/mjpeg.h"
 
 namespace mixray::v4l2 {
@@ -739,6 +740,7 @@ bool V4l2Device::recover(Status lost) {
 }
 
 void V4l2Device::run() {
+    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
     const uint32_t memory = options_.io == IoMethod::kMmap ? V4L2_MEMORY_MMAP : V4L2_MEMORY_USERPTR;
     while (!stop_requested_.load()) {
         // The timeout bounds the wait on nodes whose poll never reports POLLIN (umockdev's

@@ -60,8 +60,14 @@ struct ArPipelineOptions {
     // colour stream's nominal rate).
     double target_fps = 0;
     bool skip_without_pose = false;
-    // Record raw streams, poses, lights and the composite into one recording.
+    // Record raw streams, poses, lights and the composite into one recording. Live, every
+    // frame a device published on a recorded stream reaches the file: the recorder runs above
+    // tracking and the renderer, and the compositor skips sets while it is behind.
     std::filesystem::path record;
+    // How the recording stores images. FFV1 by default at either pace: at real pace the
+    // recorder's priority pays for its CPU with skipped composites, never lost frames, and it
+    // writes a tenth or less of the raw data rate.
+    MkvCompression record_compression = MkvCompression::kFfv1;
     std::vector<Attachment> record_attachments;
     std::map<std::string, std::string> record_tags;
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
@@ -77,8 +83,9 @@ struct ArPipelineStats {
         std::string name;
         std::string device;
         uint64_t published = 0;
-        uint64_t lost = 0;  // lost by the source (full pool, dropped by the device)
-        double fps = 0;     // over the last second
+        uint64_t lost = 0;      // lost by the source (full pool, dropped by the device)
+        bool captured = false;  // a device's stream (raw frames), not a pipeline node's
+        double fps = 0;         // over the last second
     };
     struct Device {
         std::string name;

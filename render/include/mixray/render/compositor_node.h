@@ -70,6 +70,10 @@ private:
     int frames_fast_ = 0;
 };
 
+// Live, a set is skipped instead of rendered while a recording edge is at least this full:
+// the recorder is behind, and a composite is the one thing that may give way.
+inline constexpr double kRecordingBacklogToSkip = 0.5;
+
 struct CompositorOptions {
     std::string name = "compositor";
     std::string color_stream;  // rgb8 or bgr8; required
@@ -139,16 +143,20 @@ struct LatencyPercentiles {
 };
 
 struct CompositorStats {
-    uint64_t sets = 0;                  // complete sets the synchronizer gave
-    uint64_t composites = 0;            // published
-    uint64_t rendered = 0;              // of them ray traced
-    uint64_t passed_through = 0;        // of them the camera image (no pose)
-    uint64_t skipped_superseded = 0;    // live: a newer set came before this one was started
+    uint64_t sets = 0;                // complete sets the synchronizer gave
+    uint64_t composites = 0;          // published
+    uint64_t rendered = 0;            // of them ray traced
+    uint64_t passed_through = 0;      // of them the camera image (no pose)
+    uint64_t skipped_superseded = 0;  // live: a newer set came before this one was started
+    // Live: the recording was backed up (Graph::recordingBacklog() at or above
+    // kRecordingBacklogToSkip) when this set's turn came, so its cores went to the recorder.
+    uint64_t skipped_for_recording = 0;
     uint64_t skipped_without_pose = 0;  // skip_without_pose
     uint64_t publish_failures = 0;      // no free output buffer
     uint64_t skipped_at_stop = 0;       // waiting or being rendered when stop() came
     // Every set is accounted for: sets == composites + skipped_superseded +
-    // skipped_without_pose + publish_failures + skipped_at_stop (once stopped or done).
+    // skipped_for_recording + skipped_without_pose + publish_failures + skipped_at_stop (once
+    // stopped or done).
     SyncStats sync;              // frames the synchronizer could not match, and why
     LatencyPercentiles latency;  // over the last 1024 composites
     double render_ms_mean = 0;
@@ -161,10 +169,11 @@ struct CompositorStats {
 };
 
 // Runs a SyncNode over its inputs and renders on a thread of its own, so matching never waits
-// for the renderer. Light records change the renderer's lights only when they change. With
-// target_fps it keeps a renderer per ladder rung it used and moves down a rung when frames
-// take more than 90 % of the period, up again after 2 s below 45 %.
-// Thread-safe: stats(), status() and waitDone() from any thread.
+// for the renderer. Live, it renders as ThreadRole::kRenderer (RenderOptions::yield_to_capture)
+// and skips sets while the recording is backed up, so it never costs a captured frame. Light
+// records change the renderer's lights only when they change. With target_fps it keeps a renderer
+// per ladder rung it used and moves down a rung when frames take more than 90 % of the period, up
+// again after 2 s below 45 %. Thread-safe: stats(), status() and waitDone() from any thread.
 class CompositorNode : public Node {
 public:
     static Result<std::unique_ptr<CompositorNode>> create(CompositorOptions options,

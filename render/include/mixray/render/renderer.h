@@ -58,8 +58,13 @@ struct RenderOptions {
     bool screen_footprint = true;
     bool keep_layers = false;  // also return I_m, I_r and M
     int threads = 0;           // 0: all hardware threads
-    int tile_size = 16;        // pixels per tile side
-    uint64_t seed = 1;         // sampling is deterministic for a given seed
+    // Render on threads that run as ThreadRole::kRenderer (mixray/graph/thread_priority.h),
+    // below capture, the recorder, the publishers and tracking: when the machine is short of
+    // CPU, the composite waits, never a captured or recorded frame. The live compositor sets
+    // it; offline renders keep normal priority. Same image either way.
+    bool yield_to_capture = false;
+    int tile_size = 16;  // pixels per tile side
+    uint64_t seed = 1;   // sampling is deterministic for a given seed
     // Embree's instruction set: "" (default) the widest this CPU has, else one of
     // embreeIsas() ("sse2", "sse4.2", "avx", "avx2", "avx512"), Embree's `isa=` device option.
     // For tests and benchmarks that must cover every kernel, and as a way round a kernel that

@@ -25,6 +25,10 @@ struct QueueOptions {
     size_t capacity = 4;  // frames held at most; memory is capacity buffers
     QueuePolicy policy = QueuePolicy::kLive;
     std::string name;  // consumer name, for statistics
+    // The edge feeds a recording: its frames are the ones a user cannot get back. While such
+    // an edge is backed up, work that may be skipped (the live compositor) gives way to it
+    // (Graph::recordingBacklog()).
+    bool feeds_recording = false;
 };
 
 struct QueueStats {
@@ -33,6 +37,9 @@ struct QueueStats {
     uint64_t dropped = 0;   // frames discarded under the live policy
     size_t size = 0;        // frames queued now
     size_t high_water = 0;  // most frames ever queued at once
+    // Lossless: pushes that found the queue full and held their producer up, and for how long.
+    uint64_t waits = 0;
+    int64_t waited_ns = 0;
 };
 
 // Fixed-capacity FIFO of FrameRefs between one producer side and one consumer. Storage is

@@ -89,6 +89,9 @@ public:
     void countLost(StreamId stream, uint64_t frames = 1);
     uint64_t lostCount(StreamId stream) const;
     std::vector<EdgeStats> edgeStats() const;
+    // How far behind the recording is: the fullest edge with QueueOptions::feeds_recording,
+    // as the fraction of its capacity queued now (0: none is backed up or there is none).
+    double recordingBacklog() const;
 
 private:
     struct StreamState {

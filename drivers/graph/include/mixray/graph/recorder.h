@@ -36,7 +36,8 @@ struct RecorderOptions {
     // the drivers' pool sizes: a longer queue starves the driver instead of dropping here.
     size_t queue_capacity = 4;
     // How long a frame may wait for other streams' older frames before it is written anyway.
-    // Frames are written in host-stamp order within this window.
+    // Frames are written in host-stamp order within this window, and at once when any queue is
+    // half full: ordering never costs a frame.
     std::chrono::milliseconds reorder_window{100};
     std::vector<Attachment> attachments;      // rig description, calibration, ...
     std::map<std::string, std::string> tags;  // recording tags
@@ -53,6 +54,9 @@ struct RecorderStreamStats {
     uint64_t dropped = 0;    // frames the live queue dropped because the writer fell behind
     uint64_t discarded = 0;  // frames drained and not written after a write error
     size_t queue_high_water = 0;
+    // Lossless: times the stream's driver waited for the writer (a slow disk), and how long.
+    uint64_t producer_waits = 0;
+    double producer_waited_s = 0;
 };
 
 struct RecorderStats {
@@ -60,13 +64,16 @@ struct RecorderStats {
     uint64_t frames_written = 0;
     uint64_t frames_dropped = 0;
     uint64_t frames_discarded = 0;
+    uint64_t producer_waits = 0;
+    double producer_waited_s = 0;
     uint64_t bytes_written = 0;
     double seconds = 0;           // since start() (until the writer closed)
     double bytes_per_second = 0;  // average over `seconds`
     bool writing = false;         // started, not stopped, no error
     Status error;                 // the first error; nothing was written after it
 
-    // One line for logs: "recorded 300 frames, 12.1 MB at 3.2 MB/s; dropped 4 (cam/depth 4)".
+    // One line for logs: "recorded 300 frames, 12.1 MB at 3.2 MB/s; dropped 4 (cam/depth 4)";
+    // under the lossless policy, how long the drivers waited for the disk.
     std::string summary() const;
 };
 
