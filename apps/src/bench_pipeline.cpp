@@ -24,6 +24,7 @@
 
 #include "backends.h"
 #include "console.h"
+#include "cpu_load.h"
 #include "mixray/graph/mkv.h"
 #include "mixray/render/ar_pipeline.h"
 #include "mixray/render/renderer.h"
@@ -55,6 +56,8 @@ struct BenchPipelineOptions {
     int threads = 0;
     std::string record;  // default: a temporary file, removed after it was counted
     bool no_record = false;
+    MkvCompression compression = MkvCompression::kFfv1;  // mixray run's default
+    int load = 0;  // busy processes beside the pipeline at real pace (CpuLoad)
     bool json = false;
 };
 
@@ -314,6 +317,7 @@ Status writeUncompressedCopy(const fs::path& session, const fs::path& copy) {
 struct StreamCount {
     std::string name;
     uint64_t published = 0, in_file = 0;
+    bool captured = false;  // a device's raw frames, not a pipeline node's records
 };
 
 struct RealFigures {
@@ -321,7 +325,8 @@ struct RealFigures {
     double color_fps = 0;     // the session's nominal rate
     uint64_t captured = 0;    // colour frames the replayed camera published
     uint64_t composites = 0;  // published by the compositor
-    uint64_t sets = 0, superseded = 0, without_pose = 0, publish_failures = 0, at_stop = 0;
+    uint64_t sets = 0, superseded = 0, for_recording = 0, without_pose = 0, publish_failures = 0,
+             at_stop = 0;
     std::vector<double> latencies_ms;  // sorted
     std::map<int, uint64_t> rungs;     // ladder rung -> composites
     std::vector<std::string> rung_labels;
@@ -330,6 +335,23 @@ struct RealFigures {
     bool recorded = false;
     std::vector<StreamCount> streams;
     uint64_t recorder_dropped = 0;
+    uint64_t lost_at_source = 0;  // raw frames the devices could not publish (a full pool)
+    int load = 0;                 // busy processes beside the pipeline
+    std::string compression;
+
+    // Raw frames published on recorded streams and how many of them the file lacks.
+    uint64_t rawPublished() const {
+        uint64_t n = 0;
+        for (const StreamCount& sc : streams)
+            n += sc.captured ? sc.published : 0;
+        return n;
+    }
+    uint64_t rawMissing() const {
+        uint64_t n = 0;
+        for (const StreamCount& sc : streams)
+            n += sc.captured && sc.in_file < sc.published ? sc.published - sc.in_file : 0;
+        return n;
+    }
 };
 
 // Frames per stream name in a recording, read back from the file.
@@ -361,6 +383,8 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
                            ("mixray-bench-pipeline-" + std::to_string(::getpid()) + ".mkv")
                      : fs::path(options.record);
         ar.record = record;
+        ar.record_compression = options.compression;
+        f.compression = options.compression == MkvCompression::kNone ? "none" : "ffv1";
     }
     std::mutex mutex;
     ar.on_composite = [&](const render::CompositeFrame& c) {
@@ -378,6 +402,10 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
     if (!created)
         return created.status();
     render::ArPipeline& p = **created;
+    auto load = CpuLoad::start(options.load);
+    if (!load)
+        return load.status();
+    f.load = load->processes();
     MIXRAY_RETURN_IF_ERROR(p.start());
     const auto start = Clock::now();
     {
@@ -400,12 +428,14 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
     }
     f.seconds = secondsSince(start);
     p.stop();
+    load->stop();
     MIXRAY_RETURN_IF_ERROR(p.status());
     const render::ArPipelineStats s = p.stats();
     const render::CompositorStats& c = *s.compositor;
     f.composites = c.composites;
     f.sets = c.sets;
     f.superseded = c.skipped_superseded;
+    f.for_recording = c.skipped_for_recording;
     f.without_pose = c.skipped_without_pose;
     f.publish_failures = c.publish_failures;
     f.at_stop = c.skipped_at_stop;
@@ -423,6 +453,12 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
         for (const RecorderStreamStats& r : s.recorder->streams) {
             StreamCount sc;
             sc.name = r.stream;
+            for (const render::ArPipelineStats::Stream& st : s.streams) {
+                if (st.name == r.stream && st.captured) {
+                    sc.captured = true;
+                    f.lost_at_source += st.lost;
+                }
+            }
             if (const auto id = p.graph().findStream(r.stream))
                 sc.published = p.graph().publishedCount(*id);
             sc.in_file = (*counts)[r.stream];
@@ -471,31 +507,41 @@ json realJson(const RealFigures& f) {
                          {"composites", n}});
     json streams = json::array();
     for (const StreamCount& sc : f.streams)
-        streams.push_back(
-            {{"stream", sc.name}, {"published", sc.published}, {"in_file", sc.in_file}});
+        streams.push_back({{"stream", sc.name},
+                           {"published", sc.published},
+                           {"in_file", sc.in_file},
+                           {"raw", sc.captured}});
     const double bound_ms = 2e3 / f.color_fps;
-    return {
-        {"seconds", f.seconds},
-        {"session_fps", f.color_fps},
-        {"captured", f.captured},
-        {"composites", f.composites},
-        {"delivered_fps", static_cast<double>(f.composites) / f.seconds},
-        {"latency_ms",
-         {{"p50", percentile(f.latencies_ms, 0.50)},
-          {"p95", percentile(f.latencies_ms, 0.95)},
-          {"p99", percentile(f.latencies_ms, 0.99)},
-          {"max", f.latencies_ms.empty() ? 0 : f.latencies_ms.back()},
-          {"bound", bound_ms}}},
-        {"sets",
-         {{"total", f.sets},
-          {"superseded", f.superseded},
-          {"without_pose", f.without_pose},
-          {"publish_failures", f.publish_failures},
-          {"at_stop", f.at_stop}}},
-        {"render_ms", f.render_ms},
-        {"ladder", rungs},
-        {"final_rung", f.final_rung + 1},
-        {"recording", {{"on", f.recorded}, {"dropped", f.recorder_dropped}, {"streams", streams}}}};
+    return {{"seconds", f.seconds},
+            {"session_fps", f.color_fps},
+            {"captured", f.captured},
+            {"composites", f.composites},
+            {"delivered_fps", static_cast<double>(f.composites) / f.seconds},
+            {"latency_ms",
+             {{"p50", percentile(f.latencies_ms, 0.50)},
+              {"p95", percentile(f.latencies_ms, 0.95)},
+              {"p99", percentile(f.latencies_ms, 0.99)},
+              {"max", f.latencies_ms.empty() ? 0 : f.latencies_ms.back()},
+              {"bound", bound_ms}}},
+            {"sets",
+             {{"total", f.sets},
+              {"superseded", f.superseded},
+              {"skipped_for_recording", f.for_recording},
+              {"without_pose", f.without_pose},
+              {"publish_failures", f.publish_failures},
+              {"at_stop", f.at_stop}}},
+            {"render_ms", f.render_ms},
+            {"ladder", rungs},
+            {"final_rung", f.final_rung + 1},
+            {"load_processes", f.load},
+            {"recording",
+             {{"on", f.recorded},
+              {"compression", f.compression},
+              {"dropped", f.recorder_dropped},
+              {"raw_published", f.rawPublished()},
+              {"raw_lost", f.rawMissing() + f.lost_at_source},
+              {"raw_lost_at_source", f.lost_at_source},
+              {"streams", streams}}}};
 }
 
 void printComparison(const FastFigures& f, const char* aim) {
@@ -540,7 +586,9 @@ void printReal(const RealFigures& f) {
     const double fps = static_cast<double>(f.composites) / f.seconds;
     const double bound_ms = 2e3 / f.color_fps;
     const double p99 = percentile(f.latencies_ms, 0.99);
-    std::printf("real pace, looped, %.1f s:\n", f.seconds);
+    std::printf(
+        "real pace, looped, %.1f s%s:\n", f.seconds,
+        f.load > 0 ? (", beside " + std::to_string(f.load) + " busy processes").c_str() : "");
     std::printf(
         "  delivered %.1f composites/s of the session's %.0f fps (%.2f); %llu colour "
         "frames captured\n",
@@ -552,10 +600,11 @@ void printReal(const RealFigures& f) {
         f.latencies_ms.empty() ? 0 : f.latencies_ms.back(), bound_ms,
         p99 < bound_ms ? "within" : "OVER");
     std::printf(
-        "  sets %llu: composited %llu, superseded by newer %llu, without pose %llu, no "
-        "output buffer %llu, at stop %llu\n",
+        "  sets %llu: composited %llu, superseded by newer %llu, skipped for the recorder %llu, "
+        "without pose %llu, no output buffer %llu, at stop %llu\n",
         static_cast<unsigned long long>(f.sets), static_cast<unsigned long long>(f.composites),
         static_cast<unsigned long long>(f.superseded),
+        static_cast<unsigned long long>(f.for_recording),
         static_cast<unsigned long long>(f.without_pose),
         static_cast<unsigned long long>(f.publish_failures),
         static_cast<unsigned long long>(f.at_stop));
@@ -575,10 +624,18 @@ void printReal(const RealFigures& f) {
         in_file += sc.in_file;
     }
     std::printf(
-        "  recording: %llu of %llu published frames in the file (read back), %llu "
+        "  recording (%s): %llu of %llu published frames in the file (read back), %llu "
         "dropped by the recorder\n",
-        static_cast<unsigned long long>(in_file), static_cast<unsigned long long>(published),
+        f.compression.c_str(), static_cast<unsigned long long>(in_file),
+        static_cast<unsigned long long>(published),
         static_cast<unsigned long long>(f.recorder_dropped));
+    std::printf(
+        "  raw frames lost: %llu of %llu the devices captured (%llu missing from the file, %llu "
+        "never published: no free buffer)\n",
+        static_cast<unsigned long long>(f.rawMissing() + f.lost_at_source),
+        static_cast<unsigned long long>(f.rawPublished() + f.lost_at_source),
+        static_cast<unsigned long long>(f.rawMissing()),
+        static_cast<unsigned long long>(f.lost_at_source));
     for (const StreamCount& sc : f.streams)
         std::printf("    %-28s %6llu published, %6llu in the file\n", sc.name.c_str(),
                     static_cast<unsigned long long>(sc.published),
@@ -687,6 +744,12 @@ void registerBenchPipeline(CLI::App& bench, Commands& commands) {
                     "Real pace: keep the recording here (default: a temporary file, removed "
                     "after its frames were counted)");
     sub->add_flag("--no-record", o->no_record, "Real pace: record nothing");
+    addCompressionOption(*sub, o->compression, "real pace: mixray run's default");
+    sub->add_option("--load", o->load,
+                    "Real pace: run this many busy processes beside the pipeline, as another job "
+                    "on the machine would (one per core: the machine has no CPU to spare)")
+        ->check(CLI::Range(0, 256))
+        ->capture_default_str();
     sub->add_flag("--json", o->json, "Print the figures as JSON");
     commands.push_back({sub, [o] { return runBenchPipeline(*o); }});
 }

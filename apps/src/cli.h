@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "mixray/graph/mkv.h"
 #include "mixray/graph/result.h"
 
 namespace mixray::cli {
@@ -31,6 +32,11 @@ int fail(const std::string& command, const Status& status);
 // (tracking::PipelineOptions::camera_environment); 0: none.
 inline constexpr int kDefaultCameraEnvironmentWidth = 128;
 CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width);
+
+// --compression of the commands that record (record, run): how images are stored
+// (mixray/graph/mkv.h). `what_for` ends the help text: why this command's default is what it is.
+CLI::Option* addCompressionOption(CLI::App& command, MkvCompression& compression,
+                                  const std::string& what_for);
 
 // A subcommand and what to run when it was chosen.
 struct Command {

@@ -29,7 +29,7 @@ struct RecordOptions {
     double duration_s = 0;
     std::string policy;  // live | lossless; empty: from the rig
     size_t queue = 32;
-    std::string compression = "ffv1";
+    MkvCompression compression = MkvCompression::kFfv1;
     bool force = false;
     std::string ptp4l = PtpQueryOptions{}.socket;
 };
@@ -173,8 +173,7 @@ int runRecord(const RecordOptions& options) {
     recorder_options.path = options.output;
     recorder_options.policy = policyOf(options, *rig);
     recorder_options.queue_capacity = options.queue;
-    recorder_options.writer.compression =
-        options.compression == "none" ? MkvCompression::kNone : MkvCompression::kFfv1;
+    recorder_options.writer.compression = options.compression;
     recorder_options.attachments = std::move(*attachments);
     recorder_options.tags["rig"] = rig->name;
     recorder_options.tags["software"] = "mixray 0.1.0";
@@ -325,10 +324,9 @@ void registerRecordCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--queue", options->queue, "Frames queued per stream")
         ->check(CLI::Range(1, 4096))
         ->capture_default_str();
-    sub->add_option("--compression", options->compression,
-                    "ffv1: lossless, 2-4x smaller, CPU-bound; none: uncompressed, disk-bound")
-        ->check(CLI::IsMember({"ffv1", "none"}))
-        ->capture_default_str();
+    addCompressionOption(*sub, options->compression,
+                         "a fast stream on a fast disk may "
+                         "outrun FFV1; none keeps up as long as the disk does");
     sub->add_flag("--force", options->force, "Overwrite an existing output file");
     sub->add_option("--ptp4l", options->ptp4l,
                     "ptp4l's management socket (its uds_address), asked through linuxptp's pmc "

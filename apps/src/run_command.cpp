@@ -37,6 +37,7 @@ struct RunOptions {
     std::string setup;
     std::string calibration;
     std::string record;
+    MkvCompression compression = MkvCompression::kFfv1;
     std::string output = "out/run";
     std::string pace = "real";
     std::string view;  // [ADDR:]PORT of the live view; empty: none
@@ -197,6 +198,7 @@ int runRun(const RunOptions& options) {
     ar.render.threads = options.threads;
     ar.render.depth_secondary = render::DepthSecondaryRays::kNone;
     ar.record = options.record;
+    ar.record_compression = options.compression;
     ar.target_fps = options.target_fps;
     if (options.camera_environment > 0)
         ar.tracking.camera_environment =
@@ -340,6 +342,9 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
                     "Calibration file: the colour camera's model and depth registration");
     sub->add_option("--record", o->record,
                     "Record raw streams, poses, lights and the composite into this .mkv");
+    addCompressionOption(*sub, o->compression,
+                         "with --record; the recorder runs above the renderer, so FFV1's CPU "
+                         "costs composites, never recorded frames");
     sub->add_option("-o,--output", o->output, "Folder for summary.json")->capture_default_str();
     sub->add_option("--pace", o->pace,
                     "real: devices, or the recording at its own pace as its rig delivered it "

@@ -291,12 +291,10 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         RecorderOptions r;
         r.path = options.record;
         r.policy = lossless ? QueuePolicy::kLossless : QueuePolicy::kLive;
-        // Live, FFV1 would take a core of the two the pipeline runs on: store the frames
-        // uncompressed (lossless too, bound by the disk); `mixray convert` compresses later.
-        // Clusters close every second instead of every frame (a crash loses at most that), and
-        // the queues ride out the disk's hiccups.
+        r.writer.compression = options.record_compression;
+        // Live, clusters close every second instead of every frame (a crash loses at most
+        // that), and the queues ride out the disk's hiccups.
         if (!lossless) {
-            r.writer.compression = MkvCompression::kNone;
             r.writer.flush_every_frame = false;
             r.queue_capacity = 8;
         }
@@ -385,6 +383,7 @@ ArPipelineStats ArPipeline::stats() const {
             st.device = info.device;
             st.published = graph_->publishedCount(w.id);
             st.lost = graph_->lostCount(w.id);
+            st.captured = w.source;
             if (st.published != w.last_count) {
                 w.last_count = st.published;
                 w.last_change = now;
@@ -491,7 +490,12 @@ std::string ArPipelineStats::json() const {
                            {"rendered", c.rendered},
                            {"passed_through", c.passed_through},
                            {"render_ms_mean", c.render_ms_mean},
-                           {"estimated_lights", c.estimated_lights}};
+                           {"estimated_lights", c.estimated_lights},
+                           {"skipped_for_recording", c.skipped_for_recording}};
+        if (c.skipped_for_recording > 0)
+            messages.push_back(std::to_string(c.skipped_for_recording) +
+                               " composites skipped while the recorder caught up (captured "
+                               "frames go first)");
         if (c.passed_through > 0)
             messages.push_back(std::to_string(c.passed_through) +
                                " composites without a pose: the camera image as is");

@@ -5,26 +5,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "cli_runner.h"
+#include "bench_pipeline_json.h"
 
 namespace mixray::test {
 namespace {
 
 using nlohmann::json;
 
-json benchJson(const std::string& args) {
-    const CliRun run = mixray("bench pipeline --json " + args);
-    EXPECT_EQ(run.exit_code, 0) << run.output;
-    // Progress goes to stderr before the JSON, which is the rest of the output.
-    const size_t start = run.output.find("\n{");
-    EXPECT_NE(start, std::string::npos) << run.output;
-    if (start == std::string::npos)
-        return {};
-    return json::parse(run.output.substr(start + 1), nullptr, false);
-}
-
 TEST(BenchPipelineCli, FastPaceRendersTheSameImagesAsTheRendererAloneWithAndWithoutEstimation) {
-    const json j = benchJson("--pace fast --passes 1 --threads 2");
+    const json j = benchPipelineJson("--pace fast --passes 1 --threads 2");
     ASSERT_TRUE(j.contains("fast")) << j.dump();
     const json& f = j["fast"];
     EXPECT_EQ(f["composites"].get<int>(), 36);
@@ -49,14 +38,10 @@ TEST(BenchPipelineCli, FastPaceRendersTheSameImagesAsTheRendererAloneWithAndWith
 }
 
 TEST(BenchPipelineCli, RealPaceAccountsForEverySetAndRecordedFrame) {
-    const json j = benchJson("--pace real --seconds 3 --threads 2");
+    const json j = benchPipelineJson("--pace real --seconds 3 --threads 2");
     ASSERT_TRUE(j.contains("real")) << j.dump();
     const json& r = j["real"];
-    const json& sets = r["sets"];
-    EXPECT_EQ(r["composites"].get<uint64_t>() + sets["superseded"].get<uint64_t>() +
-                  sets["without_pose"].get<uint64_t>() + sets["publish_failures"].get<uint64_t>() +
-                  sets["at_stop"].get<uint64_t>(),
-              sets["total"].get<uint64_t>());
+    expectEverySetAccountedFor(r);
     EXPECT_GT(r["composites"].get<uint64_t>(), 0u);
     EXPECT_DOUBLE_EQ(r["latency_ms"]["bound"].get<double>(), 2000.0 / 30);
     EXPECT_LE(r["latency_ms"]["p50"].get<double>(), r["latency_ms"]["p99"].get<double>());
