@@ -1126,6 +1126,7 @@ int runBenchPeer(const BenchRenderOptions& options, const std::vector<Size>& siz
     base.threads = options.threads;
     base.soft_shadows = SoftShadowMethod::kHard;
     base.samples_per_pixel = 1;
+    base.cut_paths_see_environment = false;  // black, as POV-Ray past max_trace_level
     const auto configs = teapotVariants(base);
     if (!options.json)
         std::printf(
