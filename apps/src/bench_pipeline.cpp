@@ -421,7 +421,7 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
                           "rung %d",
                           secondsSince(start), options.seconds,
                           static_cast<unsigned long long>(s.compositor->composites),
-                          s.compositor->latency.p99_ms, s.compositor->quality_step + 1);
+                          s.compositor->latency.p99_ms, s.compositor->qualityRung());
             status.update(line);
         }
         status.finish();

@@ -1,6 +1,7 @@
 // mixray bench render: RT²AR's scenes (a metal teapot on a real chessboard table; two Stanford
 // dragons of ~1.1M triangles each beside it) rendered with a slowly orbiting camera, and the
-// rays of one frame traced again by bare Embree on the same BVH: the renderer's efficiency.
+// rays of one frame traced again by bare Embree on the same BVH: the renderer's efficiency; and
+// the compositor's quality ladder, each rung against full quality.
 #include "bench_render.h"
 
 #include <algorithm>
@@ -22,6 +23,7 @@
 #include "console.h"
 #include "mixray/render/assets.h"
 #include "mixray/render/bench_seam.h"
+#include "mixray/render/compositor_node.h"
 #include "mixray/render/output.h"
 #include "mixray/render/povray.h"
 #include "mixray/render/renderer.h"
@@ -37,7 +39,7 @@ struct BenchRenderOptions {
     std::string sizes = "640x480,1280x720";
     int frames = 20;
     int threads = 0;
-    std::string scenes = "teapot,soft,dragons,dof,shadow-maps,caustics";
+    std::string scenes = "teapot,soft,dragons,dof,shadow-maps,caustics,ladder";
     bool json = false;
     int repeats = 3;
     std::string shared_data;
@@ -77,14 +79,14 @@ Result<std::vector<Size>> parseSizes(const std::string& text) {
 }
 
 Result<std::vector<std::string>> parseScenes(const std::string& text) {
-    static const std::vector<std::string> known = {"teapot", "soft",        "dragons",
-                                                   "dof",    "shadow-maps", "caustics"};
+    static const std::vector<std::string> known = {"teapot",      "soft",     "dragons", "dof",
+                                                   "shadow-maps", "caustics", "ladder"};
     std::vector<std::string> scenes = splitList(text);
     for (const std::string& item : scenes)
         if (std::find(known.begin(), known.end(), item) == known.end())
             return Status(ErrorCode::kInvalidArgument,
                           "--scenes: unknown scene '" + item +
-                              "' (teapot, soft, dragons, dof, shadow-maps, caustics)");
+                              "' (teapot, soft, dragons, dof, shadow-maps, caustics, ladder)");
     return scenes;
 }
 
@@ -205,6 +207,43 @@ SceneDescription teapotScene(const fs::path& shared, bool sphere_light) {
     lamp.radius = 0.08f;
     lamp.intensity = Rgb::Constant(2.0f);
     scene.lights.push_back(lamp);
+    return scene;
+}
+
+// ladder: the teapot scene under its spherical lamp with a glass ball beside the teapot and a
+// room around them (a light upper half, a darker floor: an estimated environment's shape), so
+// that what each rung of the quality ladder gives up shows on metal, glass and shadows.
+SceneDescription ladderScene(const fs::path& shared) {
+    SceneDescription scene = teapotScene(shared, true);
+    Material glass;
+    glass.name = "glass";
+    glass.type = MaterialType::kGlass;
+    glass.ior = Rgb::Constant(1.5f);
+    scene.materials[glass.name] = glass;
+    SceneObject ball;
+    ball.name = "glass_ball";
+    ball.shape.type = ShapeType::kSphere;
+    ball.shape.radius = 0.03f;
+    ball.material = glass.name;
+    ball.T_anchor_object = pose(kBoardCentre + Eigen::Vector3d(0.1, -0.05, 0.03), 0, 0);
+    scene.objects.push_back(ball);
+    auto room = std::make_shared<FloatImage>();
+    room->width = 64;
+    room->height = 32;
+    room->pixels.resize(static_cast<size_t>(room->width) * room->height * 3);
+    for (int y = 0; y < room->height; ++y)
+        for (int x = 0; x < room->width; ++x) {
+            const bool upper = y < room->height / 2;  // row 0 looks up (+z)
+            float* texel = room->at(x, y);
+            texel[0] = upper ? 0.55f : 0.25f;
+            texel[1] = upper ? 0.6f : 0.22f;
+            texel[2] = upper ? 0.7f : 0.2f;
+        }
+    Light environment;
+    environment.name = "room";
+    environment.type = LightType::kEnvironment;
+    environment.environment_image = std::move(room);
+    scene.lights.push_back(environment);
     return scene;
 }
 
@@ -373,7 +412,7 @@ double processCpuSeconds() {
 }
 
 struct Config {
-    std::string scene;  // teapot, soft, dragons, dof, shadow-maps
+    std::string scene;  // teapot, soft, dragons, dof, shadow-maps, caustics, ladder
     std::string name;
     RenderOptions options;
     LensEffects lens_effects = {};              // added to the scene
@@ -389,6 +428,7 @@ struct Config {
     std::string generator = {};
     std::optional<CausticSettings> caustics = {};
     bool move_light = false;
+    std::optional<int> rung = {};  // ladder: the quality ladder's rung, from 1 (rungText())
 };
 
 // RT²AR's teapot rows: primary rays only, + hard shadows, + shadows and 3 bounces.
@@ -512,6 +552,24 @@ std::vector<Config> configsFor(const std::string& scene, int threads,
         add("sphere", 150000, 1, false);
         add("dragon", 240000, 1, true);
         add("dragon", 240000, 1, false);
+    } else if (scene == "ladder") {
+        // The compositor's quality ladder (render::qualityLadder) from what `mixray run` would
+        // be asked for at its best, each rung against the first, full quality.
+        RenderOptions best = base;
+        best.samples_per_pixel = 4;
+        best.soft_shadows = SoftShadowMethod::kAdaptive;
+        best.shadow_samples = 20;
+        best.max_depth = 3;
+        const std::vector<QualityStep> ladder = qualityLadder(best);
+        for (size_t k = 0; k < ladder.size(); ++k) {
+            const int step = static_cast<int>(k);
+            Config c{scene,
+                     rungText(step, static_cast<int>(ladder.size()), ladder[k].label()) +
+                         (k == 0 ? " (reference)" : ""),
+                     ladder[k].applied(best)};
+            c.rung = step + 1;
+            out.push_back(c);
+        }
     } else if (scene == "soft") {
         RenderOptions uniform = base;
         uniform.soft_shadows = SoftShadowMethod::kUniform;
@@ -596,6 +654,7 @@ void paintCameraImage(const calibration::CameraModel& camera, const Eigen::Isome
 
 struct Figures {
     std::string scene, config;
+    std::optional<int> rung;  // ladder rows
     Size size;
     int frames = 0;
     double fps = 0;
@@ -606,7 +665,7 @@ struct Figures {
     double caustic_photons = 0;                         // per frame, stored
     Image composite;  // the logged frame's, for image differences between rows
     Image camera;     // the logged frame's camera image
-    // shadow-maps, soft: against the first row of the same size.
+    // shadow-maps, soft, ladder: against the first row of the same size.
     std::optional<double> rmse_vs_reference;        // of the composite, 0..255
     std::optional<double> speedup_vs_reference;     // its frame time over this row's
     double primary = 0, secondary = 0, shadow = 0;  // rays per frame
@@ -656,6 +715,7 @@ Result<Figures> benchOne(Renderer& renderer, const Config& config, const std::ve
     Figures fig;
     fig.scene = config.scene;
     fig.config = config.name;
+    fig.rung = config.rung;
     fig.size = size;
     fig.frames = frames;
     double total = 0;
@@ -790,6 +850,7 @@ nlohmann::json triedJson(const bench::BareTraceTimes& bare) {
 nlohmann::json toJson(const Figures& f) {
     return {{"scene", f.scene},
             {"config", f.config},
+            {"rung", f.rung ? nlohmann::json(*f.rung) : nlohmann::json()},
             {"width", f.size.width},
             {"height", f.size.height},
             {"frames", f.frames},
@@ -1126,6 +1187,7 @@ int runBenchPeer(const BenchRenderOptions& options, const std::vector<Size>& siz
     base.threads = options.threads;
     base.soft_shadows = SoftShadowMethod::kHard;
     base.samples_per_pixel = 1;
+    base.cut_paths_see_environment = false;  // black, as POV-Ray past max_trace_level
     const auto configs = teapotVariants(base);
     if (!options.json)
         std::printf(
@@ -1235,9 +1297,10 @@ int runBenchRender(BenchRenderOptions options) {
             dragon_dir = dragon_dir.parent_path() / "bench";
         }
         Result<SceneDescription> scene =
-            name == "dragons" ? dragonScene(shared, dragon_dir, dragon_mesh)
-                              : Result<SceneDescription>(
-                                    teapotScene(shared, name == "soft" || name == "shadow-maps"));
+            name == "dragons"  ? dragonScene(shared, dragon_dir, dragon_mesh)
+            : name == "ladder" ? Result<SceneDescription>(ladderScene(shared))
+                               : Result<SceneDescription>(
+                                     teapotScene(shared, name == "soft" || name == "shadow-maps"));
         if (!scene)
             return fail("bench render", scene.status());
         if (name == "dragons") {
@@ -1265,8 +1328,8 @@ int runBenchRender(BenchRenderOptions options) {
                 configs.push_back(std::move(config));
             }
         }
-        // shadow-maps, soft: each size's first row's composite and frame time, which the others
-        // are compared with.
+        // shadow-maps, soft, ladder: each size's first row's composite and frame time, which the
+        // others are compared with.
         std::map<std::pair<int, int>, std::pair<Image, double>> references;
         for (const Config& config : configs) {
             SceneDescription with_lens = *scene;
@@ -1296,7 +1359,7 @@ int runBenchRender(BenchRenderOptions options) {
                 if (!figures)
                     return fail("bench render", figures.status());
                 figures->created = bench::creationTimes(**renderer);
-                if (name == "shadow-maps" || name == "soft") {
+                if (name == "shadow-maps" || name == "soft" || name == "ladder") {
                     const auto key = std::pair{size.width, size.height};
                     if (!references.contains(key)) {
                         references[key] = {figures->composite, figures->frame_ms};
@@ -1328,7 +1391,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         "render",
         "Frames/s and rays/s of the Embree renderer on RT²AR's scenes (teapot on a chessboard "
         "table; soft shadows; two 1.1M-triangle dragons; depth of field; shadow maps; "
-        "caustics), against bare Embree tracing the same rays on the same BVH in the same run");
+        "caustics; the quality ladder's rungs), against bare Embree tracing the same rays on the "
+        "same BVH in the same run");
     auto options = std::make_shared<BenchRenderOptions>();
     render->add_option("--size", options->sizes, "Image sizes, WIDTHxHEIGHT[,WIDTHxHEIGHT...]")
         ->capture_default_str();
@@ -1340,7 +1404,8 @@ void registerBenchRender(CLI::App& bench, Commands& commands) {
         ->capture_default_str();
     render
         ->add_option("--scenes", options->scenes,
-                     "Scenes: teapot, soft, dragons, dof, shadow-maps, caustics (comma list)")
+                     "Scenes: teapot, soft, dragons, dof, shadow-maps, caustics, ladder (the "
+                     "compositor's quality rungs against full quality) (comma list)")
         ->capture_default_str();
     render
         ->add_option("--repeats", options->repeats,

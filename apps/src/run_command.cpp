@@ -78,10 +78,9 @@ std::string statusText(const render::ArPipelineStats& s, const std::string& colo
         const auto& c = *s.compositor;
         std::snprintf(line, sizeof line,
                       "%.1f s: %s %.1f fps, composite %.1f fps, latency p50 %.0f / p95 %.0f / "
-                      "p99 %.0f ms, quality %d/%d (%s), skipped %llu%s",
+                      "p99 %.0f ms, quality %s, skipped %llu%s",
                       s.seconds, color.c_str(), color_fps, composite_fps, c.latency.p50_ms,
-                      c.latency.p95_ms, c.latency.p99_ms, c.quality_step + 1, c.quality_steps,
-                      c.quality_label.c_str(),
+                      c.latency.p95_ms, c.latency.p99_ms, c.qualityText().c_str(),
                       static_cast<unsigned long long>(c.skipped_superseded), devices.c_str());
     } else {
         std::string rates;
@@ -306,12 +305,11 @@ int runRun(const RunOptions& options) {
         const auto& c = *stats.compositor;
         std::printf(
             "%llu composites (%llu rendered) in %.1f s; latency p50 %.1f ms, p95 %.1f ms, p99 "
-            "%.1f ms; %llu sets skipped for newer ones; quality %d/%d (%s)\n",
+            "%.1f ms; %llu sets skipped for newer ones; quality %s\n",
             static_cast<unsigned long long>(c.composites),
             static_cast<unsigned long long>(c.rendered), stats.seconds, c.latency.p50_ms,
             c.latency.p95_ms, c.latency.p99_ms,
-            static_cast<unsigned long long>(c.skipped_superseded), c.quality_step + 1,
-            c.quality_steps, c.quality_label.c_str());
+            static_cast<unsigned long long>(c.skipped_superseded), c.qualityText().c_str());
     }
     if (stats.recorder)
         std::printf("%s: %s\n", options.record.c_str(), stats.recorder->summary().c_str());

@@ -485,7 +485,7 @@ std::string ArPipelineStats::json() const {
                      {"frames_unmatched", c.sync.framesDropped()},
                      {"skipped", c.skipped_superseded}};
         j["ladder"] = {
-            {"step", c.quality_step}, {"steps", c.quality_steps}, {"label", c.quality_label}};
+            {"rung", c.qualityRung()}, {"rungs", c.quality_steps}, {"label", c.quality_label}};
         j["composites"] = {{"published", c.composites},
                            {"rendered", c.rendered},
                            {"passed_through", c.passed_through},

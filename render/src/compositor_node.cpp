@@ -82,6 +82,19 @@ std::string QualityStep::label() const {
            ", depth " + std::to_string(max_depth);
 }
 
+RenderOptions QualityStep::applied(RenderOptions options) const {
+    options.samples_per_pixel = samples_per_pixel;
+    options.shadow_samples = shadow_samples;
+    options.max_depth = max_depth;
+    options.soft_shadows = soft_shadows;
+    return options;
+}
+
+std::string rungText(int step, int steps, const std::string& label) {
+    return "rung " + std::to_string(step + 1) + " of " + std::to_string(steps) +
+           (label.empty() ? "" : " (" + label + ")");
+}
+
 std::vector<QualityStep> qualityLadder(const RenderOptions& best) {
     std::vector<QualityStep> ladder;
     QualityStep s{best.samples_per_pixel, best.shadow_samples, best.max_depth, best.soft_shadows};
@@ -176,13 +189,8 @@ CompositorNode::~CompositorNode() {
 Result<Renderer*> CompositorNode::renderer(int step) {
     auto& slot = renderers_[static_cast<size_t>(step)];
     if (!slot) {
-        RenderOptions o = options_.render;
+        RenderOptions o = ladder_[static_cast<size_t>(step)].applied(options_.render);
         o.yield_to_capture = o.yield_to_capture || !options_.lossless;
-        const QualityStep& q = ladder_[static_cast<size_t>(step)];
-        o.samples_per_pixel = q.samples_per_pixel;
-        o.shadow_samples = q.shadow_samples;
-        o.max_depth = q.max_depth;
-        o.soft_shadows = q.soft_shadows;
         auto made = Renderer::create(scene_, o);
         if (!made)
             return made.status();

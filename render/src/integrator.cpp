@@ -375,12 +375,44 @@ Pair DifferentialIntegrator::withReflection(const Frame& f, const Surface& s, co
                scaled(reflected(f, s, d, depth, mode, st), Vec3::Constant(rho)));
 }
 
+Vec3 DifferentialIntegrator::cutPath(const Frame& f, const Vec3& p, const Vec3& d) const {
+    if (!f.environments.empty())
+        return environment(f, d);
+    // No environment: a grey world lit by the direct lights, each as a hemisphere sky around
+    // its direction, so the surface a ray along `d` would meet (facing back along it) gets
+    // (1 - d·wi) / 2 of the light's irradiance: full looking away from the light, none
+    // looking into it.
+    Vec3 irradiance = Vec3::Zero();
+    for (const LightData* light : f.lights) {
+        Vec3 wi = -light->direction_world;
+        Vec3 e = light->light.intensity;
+        if (light->light.type != LightType::kDirectional) {
+            const Vec3 delta = light->position_world - p;
+            const float dist2 = delta.squaredNorm();
+            if (!(dist2 > 0))
+                continue;
+            wi = delta / std::sqrt(dist2);
+            e /= dist2;
+        }
+        irradiance += e * (0.5f * (1 - d.dot(wi)));
+    }
+    return irradiance * (kCutWorldAlbedo / optics::kPi);
+}
+
+Pair DifferentialIntegrator::onward(const Frame& f, const Vec3& origin, const Vec3& d, int depth,
+                                    Mode mode, SampleState& st) const {
+    if (depth < options_.max_depth)
+        return trace(f, origin, d, depth + 1, mode, st);
+    if (!options_.cut_paths_see_environment)
+        return {};
+    const Vec3 e = cutPath(f, origin, d);
+    return {e, e};
+}
+
 Pair DifferentialIntegrator::reflected(const Frame& f, const Surface& s, const Vec3& d, int depth,
                                        Mode mode, SampleState& st) const {
-    if (depth >= options_.max_depth)
-        return {};
     const HitSide side = sideOf(s, d);
-    return trace(f, side.above, optics::reflect(d, side.n).normalized(), depth + 1, mode, st);
+    return onward(f, side.above, optics::reflect(d, side.n).normalized(), depth, mode, st);
 }
 
 Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& hit, const Vec3& d,
@@ -392,7 +424,6 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
     const bool entering = side.entering;
     const Vec3& n = side.n;
     const Vec3 below = s.p - offsetFor(s.p) * side.n_geo;
-    const bool can_bounce = depth < options_.max_depth;
     const auto reflectedRay = [&]() { return reflected(f, s, d, depth, mode, st); };
     const float map = reflectanceMapAt(s);
 
@@ -437,21 +468,19 @@ Pair DifferentialIntegrator::shade(const Frame& f, const Surface& s, const Hit& 
             if (!dispersive)
                 reflectance = Vec3::Constant(reflectance[0]);
             Pair result;
-            if (can_bounce) {
-                if (reflectance.maxCoeff() > 0)
-                    result = scaled(reflectedRay(), reflectance);
-                for (int c = 0; c < channels; ++c) {
-                    if (!refracted[c])
-                        continue;
-                    Pair t = trace(f, below, *refracted[c], depth + 1, mode, st);
-                    Vec3 weight = Vec3::Ones() - reflectance;
-                    if (dispersive) {
-                        const float keep = weight[c];
-                        weight = Vec3::Zero();
-                        weight[c] = keep;
-                    }
-                    result = sum(result, scaled(t, weight));
+            if (reflectance.maxCoeff() > 0)
+                result = scaled(reflectedRay(), reflectance);
+            for (int c = 0; c < channels; ++c) {
+                if (!refracted[c])
+                    continue;
+                Pair t = onward(f, below, *refracted[c], depth, mode, st);
+                Vec3 weight = Vec3::Ones() - reflectance;
+                if (dispersive) {
+                    const float keep = weight[c];
+                    weight = Vec3::Zero();
+                    weight[c] = keep;
                 }
+                result = sum(result, scaled(t, weight));
             }
             return scaled(result, absorbed);
         }

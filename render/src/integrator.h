@@ -89,6 +89,10 @@ struct SurfaceScratch {
     std::vector<uint32_t> order;
 };
 
+// The albedo of the grey world a path cut at max_depth sees where the scene has no environment
+// light (DifferentialIntegrator::cutPath): a middling real room's.
+constexpr float kCutWorldAlbedo = 0.5f;
+
 // Const, so reentrant over tiles. Keeps every argument by reference: they must outlive it; the
 // objects' poses change between frames, not during one.
 class DifferentialIntegrator {
@@ -162,7 +166,16 @@ private:
                          PrimaryDirect* record);
     static void addCaustics(const Frame& f, const Surface& s, const Vec3& n_facing,
                             const Vec3& diffuse, Mode mode, Pair& out);
-    // The radiance of the ray mirrored off `s` (seen along `d`); none past max_depth.
+    // What a path cut at max_depth sees from `p` along `d`, the same in both scenes: the
+    // environment lights' radiance, or without any, a grey world (kCutWorldAlbedo) lit by the
+    // direct lights. So a mirror, metal or glass surface on a low rung of the quality ladder
+    // shows its surroundings' light, not black.
+    Vec3 cutPath(const Frame& f, const Vec3& p, const Vec3& d) const;
+    // The radiance pair a ray leaving a surface hit `depth` bounces deep brings back: traced
+    // while bounces are left, else cutPath().
+    Pair onward(const Frame& f, const Vec3& origin, const Vec3& d, int depth, Mode mode,
+                SampleState& st) const;
+    // The radiance of the ray mirrored off `s` (seen along `d`), onward().
     Pair reflected(const Frame& f, const Surface& s, const Vec3& d, int depth, Mode mode,
                    SampleState& st) const;
     static float reflectanceMapAt(const Surface& s) {

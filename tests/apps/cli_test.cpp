@@ -469,6 +469,37 @@ TEST(Cli, BenchRenderSoftComparesEachRowWithTheUniformOne) {
 
 // The same teapot frame in mixray and in POV-Ray: both timed (POV-Ray's median run), and the
 // images alike.
+// The compositor's quality ladder (render::qualityLadder), each rung a row against the first,
+// full quality: its label numbered as the run's status line numbers it, its fps, its RMSE.
+TEST(Cli, BenchRenderLadderComparesEveryRungWithFullQuality) {
+    MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
+    CliRun run = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes ladder");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    for (const char* line :
+         {"ladder: rung 1 of 5 (spp 4, shadows adaptive/20, depth 3) (reference), 64x48",
+          "ladder: rung 2 of 5 (spp 1, shadows adaptive/20, depth 3), 64x48",
+          "ladder: rung 5 of 5 (spp 1, shadows hard, depth 0), 64x48", "fps ",
+          "vs the reference: ", "x its fps; composite RMSE "}) {
+        EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
+    }
+    CliRun json = mixray("bench render --size 64x48 --frames 1 --repeats 1 --scenes ladder --json");
+    ASSERT_EQ(json.exit_code, 0) << json.output;
+    const auto rows = nlohmann::json::parse(json.output, nullptr, false);
+    ASSERT_TRUE(rows.is_array() && rows.size() == 5u) << json.output;
+    EXPECT_TRUE(rows[0]["rmse_vs_reference"].is_null());
+    for (int i = 0; i < 5; ++i) {
+        EXPECT_EQ(rows[i]["rung"], i + 1);
+        EXPECT_GT(rows[i]["fps"].get<double>(), 0);
+        if (i > 0) {
+            EXPECT_GE(rows[i]["rmse_vs_reference"].get<double>(), 0);
+            EXPECT_GT(rows[i]["speedup_vs_reference"].get<double>(), 0);
+        }
+    }
+    // Rung 5 gives up the bounces: fewer secondary rays than rung 4's one bounce.
+    EXPECT_LT(rows[4]["rays_per_frame"]["secondary"].get<double>(),
+              rows[3]["rays_per_frame"]["secondary"].get<double>());
+}
+
 TEST(Cli, BenchRenderAgainstPovray) {
     MIXRAY_REQUIRE_SHARED_DATA(test::sharedDataDir() / "06_models" / "newell_teapot.obj");
     EXPECT_EQ(mixray("bench render --peer blender").exit_code, 2);

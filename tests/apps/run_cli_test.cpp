@@ -46,6 +46,14 @@ TEST(RunCli, FastPaceCompositesAndRecordsEveryFrameOfTheSession) {
     EXPECT_GE(summary["latency_ms"]["p99"].get<double>(),
               summary["latency_ms"]["p50"].get<double>());
     EXPECT_EQ(summary["stopped_by"], "the end of the source");
+    // The ladder's position is numbered one way: summary.json's rung is the console's, from 1
+    // (full quality; a fast pace never steps down).
+    const auto& ladder = summary["ladder"];
+    ASSERT_TRUE(ladder.is_object()) << summary.dump();
+    EXPECT_EQ(ladder["rung"], 1);
+    const std::string rung = "quality rung 1 of " + std::to_string(ladder["rungs"].get<int>()) +
+                             " (" + ladder["label"].get<std::string>() + ")";
+    EXPECT_NE(run.output.find(rung), std::string::npos) << rung << "\n" << run.output;
     // The recording holds the raw streams and what the pipeline made of them, and info reads
     // every record in it.
     const CliRun info = mixray("info " + q(out / "run.mkv"));

@@ -621,7 +621,7 @@ TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
                R"("streams":[{"name":"cam/color","fps":30.0,"published":)" +
                std::to_string(n) +
                R"(,"dropped":0}],"latency_ms":{"p50":12.5,"p95":20,"p99":31},)"
-               R"("ladder":{"step":2,"steps":4,"label":"spp 1"},"messages":["marker 23 stale"]})";
+               R"("ladder":{"rung":2,"rungs":4,"label":"spp 1"},"messages":["marker 23 stale"]})";
     });
     ASSERT_TRUE(rig.view
                     ->setOverlay("cam/color",
@@ -676,7 +676,7 @@ TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
     // The figures are the latest: a published count the provider gave after the page opened.
     EXPECT_GT(std::stoi(page["published"].get<std::string>()), status_before);
     EXPECT_NE(page["latency"].get<std::string>().find("p99 31.0 ms"), std::string::npos);
-    EXPECT_NE(page["ladder"].get<std::string>().find("step 2 of 4"), std::string::npos);
+    EXPECT_NE(page["ladder"].get<std::string>().find("rung 2 of 4 (spp 1)"), std::string::npos);
     EXPECT_NE(page["messages"].get<std::string>().find("marker 23 stale"), std::string::npos);
     EXPECT_GE(rig.view->stats().clients_ever, 1u);
 }

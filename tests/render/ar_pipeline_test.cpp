@@ -552,7 +552,7 @@ TEST(ArPipeline, RealPaceKeepsUpAndReportsLatency) {
     EXPECT_LE(c.latency.p50_ms, c.latency.p99_ms);
     EXPECT_GE(c.quality_steps, 2);
     const std::string json = stats.json();
-    for (const char* key : {"\"latency_ms\"", "\"p99\"", "\"ladder\"", "\"devices\""})
+    for (const char* key : {"\"latency_ms\"", "\"p99\"", "\"ladder\"", "\"rung\"", "\"devices\""})
         EXPECT_NE(json.find(key), std::string::npos) << key << " missing in " << json;
 }
 
@@ -762,6 +762,10 @@ TEST(QualityLadder, GoesDownFromWhatWasAskedAndLeavesOutRungsThatChangeNothing) 
     EXPECT_EQ(ladder.front().samples_per_pixel, 4);
     EXPECT_EQ(ladder.back().soft_shadows, SoftShadowMethod::kHard);
     EXPECT_EQ(ladder.back().max_depth, 0);
+    // People count rungs from 1, full quality first.
+    EXPECT_EQ(rungText(0, static_cast<int>(ladder.size()), ladder.front().label()),
+              "rung 1 of " + std::to_string(ladder.size()) + " (" + ladder.front().label() + ")");
+    EXPECT_EQ(rungText(1, 5, ""), "rung 2 of 5");
     RenderOptions cheap;
     cheap.samples_per_pixel = 1;
     cheap.shadow_samples = 4;

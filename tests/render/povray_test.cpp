@@ -171,6 +171,7 @@ TEST(Povray, BothRenderersDrawTheSameFrame) {
         options.soft_shadows = SoftShadowMethod::kHard;
         options.only_virtual_footprint = false;
         options.threads = 2;
+        options.cut_paths_see_environment = false;  // black, as POV-Ray past max_trace_level
         auto renderer = Renderer::create(scene, options);
         ASSERT_TRUE(renderer) << renderer.status().toString();
         Image black(ImageDesc::packed(PixelFormat::kRGB8, w, h));

@@ -227,7 +227,7 @@ function onStatus(s) {
     `skew mean ${fmt(sy.skew_ms_mean, 2)} ms, max ${fmt(sy.skew_ms_max, 2)} ms, sets ${sy.sets ?? "-"}, skipped ${sy.skipped ?? "-"}` : "-";
   const la = p.ladder;
   document.getElementById("ladder").textContent = la ?
-    `step ${la.step} of ${la.steps}${la.label ? ": " + la.label : ""}` : "-";
+    `rung ${la.rung} of ${la.rungs}${la.label ? " (" + la.label + ")" : ""}` : "-";
   const messages = (p.messages || []).map(m => el("li", "", String(m)));
   if (s.error) messages.unshift(el("li", "", s.error));
   fill("messages", messages);

@@ -44,11 +44,20 @@ struct QualityStep {
     int max_depth = 3;
     SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
     std::string label() const;  // "spp 4, shadows adaptive/20, depth 3"
+    // `options` (the best, what was asked for) as this rung renders it.
+    RenderOptions applied(RenderOptions options) const;
 };
 
-// The ladder from `best` (rung 0, what was asked for) down to one sample, few shadow rays and
-// no bounces; rungs that would change nothing are left out.
+// The ladder from `best` (index 0, what was asked for) down to one sample, few shadow rays,
+// hard shadows and no bounces; rungs that would change nothing are left out. Every rung draws
+// every material: where it cuts a path's bounces, the path takes the environment.
 std::vector<QualityStep> qualityLadder(const RenderOptions& best);
+
+// How people and files number a ladder position: rungs count from 1 (full quality) to the
+// ladder's length, "rung 2 of 5 (spp 1, shadows adaptive/8, depth 3)" in text and "rung": 2 in
+// JSON. `step` is the index into qualityLadder(), from 0, as the code holds it
+// (QualityController::step(), CompositorStats::quality_step, CompositeFrame::quality_step).
+std::string rungText(int step, int steps, const std::string& label);
 
 // Picks the ladder rung that holds a frame rate from the render times it is told: down a rung
 // when frames take more than 90 % of the period (averaged, after 3 frames on a rung), up a rung
@@ -127,7 +136,7 @@ struct CompositeFrame {
     // valid during the callback only.
     const RenderLayers* layers = nullptr;
     RenderStats stats;
-    int quality_step = 0;
+    int quality_step = 0;  // index into qualityLadder(), from 0 (rungText() numbers it)
     // From the colour frame's capture (host stamp; for a replayed frame, when it entered the
     // graph: FrameMetadata::graph_stamp_ns) to the composite's publication.
     double latency_ms = 0;
@@ -163,9 +172,12 @@ struct CompositorStats {
     // Lights from the estimates (and the estimated environment map) the last rendered composite
     // was lit by: 0 until the first light record with lights arrives.
     size_t estimated_lights = 0;
-    int quality_step = 0;
+    int quality_step = 0;  // index into qualityLadder(), from 0 (rungText() numbers it)
     int quality_steps = 1;
     std::string quality_label;
+
+    int qualityRung() const { return quality_step + 1; }  // as people and JSON number it
+    std::string qualityText() const { return rungText(quality_step, quality_steps, quality_label); }
 };
 
 // Runs a SyncNode over its inputs and renders on a thread of its own, so matching never waits

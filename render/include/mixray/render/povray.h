@@ -10,7 +10,9 @@
 //   `reflection` ρ) and mirrors; Phong, metal and glass are refused (POV-Ray's highlight and
 //   Fresnel are other formulas), as are textures and reflectance maps;
 // - lights: point lights (the inverse-square fall-off as POV-Ray's `fade_power 2` with a
-//   fade distance of 1 µm) and directional ones; spherical and environment lights are refused.
+//   fade distance of 1 µm) and directional ones; spherical and environment lights are refused;
+// - paths past max_depth: black, as POV-Ray past max_trace_level, where mixray is told so
+//   (RenderOptions::cut_paths_see_environment off).
 // Ghosts are written as ordinary objects: POV-Ray renders the whole modelled scene, which
 // mixray renders with RenderOptions::only_virtual_footprint off and every object virtual.
 #pragma once

@@ -36,7 +36,12 @@ enum class DepthSecondaryRays : uint8_t {
 };
 
 struct RenderOptions {
-    int max_depth = 3;          // secondary bounces after the primary hit
+    int max_depth = 3;  // secondary bounces after the primary hit
+    // What a path whose bounces max_depth cut sees: true, the environment lights along it (with
+    // none, a grey world lit by the scene's lights), the same in I_m and I_r, so that few
+    // bounces never draw a mirror, metal or glass surface black; false, black, as POV-Ray's
+    // max_trace_level does (for comparisons with it).
+    bool cut_paths_see_environment = true;
     bool shadows = true;        // false: lights are never occluded (no shadow rays)
     int samples_per_pixel = 1;  // stratified jittered supersampling; a square number
     SoftShadowMethod soft_shadows = SoftShadowMethod::kAdaptive;
