@@ -4,8 +4,15 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include "test_data.h"
+
+// The fuzzer's entry point (tests/fuzz/liveview_request_fuzz.cpp, linked into this test too): it
+// aborts on any input that breaks its checks.
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size);
 
 namespace mixray::liveview {
 namespace {
@@ -200,6 +207,18 @@ TEST(RequestCheck, ANonLoopbackAddressIsAnnouncedAsServingEveryCamera) {
     const std::string one = exposureWarning("192.168.1.20", 9000);
     EXPECT_NE(one.find("on 192.168.1.20:9000"), std::string::npos) << one;
     EXPECT_NE(one.find("token"), std::string::npos) << one;
+}
+
+TEST(RequestCheck, TheFuzzersSeedsHoldItsChecks) {
+    const auto dir = test::sourceDir() / "tests" / "fuzz" / "corpus" / "liveview";
+    int seeds = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+        const std::string bytes = test::readText(entry.path());
+        ASSERT_FALSE(bytes.empty()) << entry.path();
+        LLVMFuzzerTestOneInput(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+        ++seeds;
+    }
+    EXPECT_GE(seeds, 10);
 }
 
 }  // namespace
