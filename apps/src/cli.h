@@ -8,6 +8,10 @@
 
 #include "mixray/graph/result.h"
 
+namespace mixray::liveview {
+class LiveView;
+}
+
 namespace mixray::cli {
 
 // Exit codes, stable for scripts: what went wrong, not where.
@@ -31,6 +35,12 @@ int fail(const std::string& command, const Status& status);
 // (tracking::PipelineOptions::camera_environment); 0: none.
 inline constexpr int kDefaultCameraEnvironmentWidth = 128;
 CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width);
+
+// --view-token TOKEN of the commands with --view (liveview::LiveViewOptions::token).
+CLI::Option* addViewTokenOption(CLI::App& command, std::string& token);
+// Once the view listens: its warning on stderr (not on loopback), each URL on stdout after
+// `prefix` ("live view: ").
+void printLiveViewUrls(const liveview::LiveView& view, const char* prefix);
 
 // A subcommand and what to run when it was chosen.
 struct Command {
