@@ -788,6 +788,7 @@ void registerCalibrateCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--view", o->live_options.view,
                     "--live: serve the live view at [ADDR:]PORT (loopback unless ADDR is given; "
                     "docs/live-view.md)");
+    addViewTokenOption(*sub, o->live_options.view_token);
     sub->add_option("--record", o->live_options.record,
                     "--live: the recording of the kept views (default OUTPUT/live_session.mkv)");
     sub->add_option("--duration", o->live_options.duration_s,

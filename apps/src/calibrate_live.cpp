@@ -49,6 +49,7 @@ int runCalibrateLive(const LiveCalibrateOptions& o,
     if (!o.view.empty())
         if (Status s = liveview::parseViewAddress(o.view, &view_options); !s)
             return fail("calibrate", s.withContext("--view"));
+    view_options.token = o.view_token;
     const fs::path record =
         o.record.empty() ? fs::path(o.output) / "live_session.mkv" : fs::path(o.record);
     std::error_code ec;
@@ -107,7 +108,7 @@ int runCalibrateLive(const LiveCalibrateOptions& o,
     if (Status s = p.start(); !s)
         return fail("calibrate", s);
     if (view)
-        std::printf("live view at %s\n", view->url().c_str());
+        printLiveViewUrls(*view, "live view at ");
     std::fflush(stdout);
     StatusLine status;
     const auto started = std::chrono::steady_clock::now();

@@ -11,6 +11,8 @@ struct LiveCalibrateOptions {
     std::string target;  // --target spec
     std::string view;    // [ADDR:]PORT; empty: no view
     std::string record;  // the kept views' recording; empty: OUTPUT/live_session.mkv
+    // --view-token; empty: none on loopback, a random one for any other address
+    std::string view_token;
     std::string output = "out/calibration";
     double duration_s = 0;  // 0: until the devices end or a signal
     double min_shift_px = 0;

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <map>
 
+#include "mixray/liveview/live_view.h"
+
 namespace mixray::cli {
 
 int exitCodeFor(const Status& status) {
@@ -54,6 +56,20 @@ CLI::Option* addCompressionOption(CLI::App& command, MkvCompression& compression
                         what_for + ")")
         ->transform(CLI::CheckedTransformer(names))
         ->default_str(compression == MkvCompression::kNone ? "none" : "ffv1");
+}
+
+CLI::Option* addViewTokenOption(CLI::App& command, std::string& token) {
+    return command.add_option(
+        "--view-token", token,
+        "The secret the live view requires in its URL (?token=...): 16..256 characters of "
+        "A-Z a-z 0-9 - . _ ~. Default: none on loopback, a random one for any other address");
+}
+
+void printLiveViewUrls(const liveview::LiveView& view, const char* prefix) {
+    if (const std::string warning = view.exposureWarning(); !warning.empty())
+        std::fprintf(stderr, "%s\n", warning.c_str());
+    for (const std::string& url : view.urls())
+        std::printf("%s%s\n", prefix, url.c_str());
 }
 
 }  // namespace mixray::cli

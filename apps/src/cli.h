@@ -9,6 +9,10 @@
 #include "mixray/graph/mkv.h"
 #include "mixray/graph/result.h"
 
+namespace mixray::liveview {
+class LiveView;
+}
+
 namespace mixray::cli {
 
 // Exit codes, stable for scripts: what went wrong, not where.
@@ -37,6 +41,11 @@ CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width);
 // (mixray/graph/mkv.h). `what_for` ends the help text: why this command's default is what it is.
 CLI::Option* addCompressionOption(CLI::App& command, MkvCompression& compression,
                                   const std::string& what_for);
+// --view-token TOKEN of the commands with --view (liveview::LiveViewOptions::token).
+CLI::Option* addViewTokenOption(CLI::App& command, std::string& token);
+// Once the view listens: its warning on stderr (not on loopback), each URL on stdout after
+// `prefix` ("live view: ").
+void printLiveViewUrls(const liveview::LiveView& view, const char* prefix);
 
 // A subcommand and what to run when it was chosen.
 struct Command {

@@ -41,6 +41,8 @@ struct RunOptions {
     std::string output = "out/run";
     std::string pace = "real";
     std::string view;  // [ADDR:]PORT of the live view; empty: none
+    // --view-token; empty: none on loopback, a random one for any other address
+    std::string view_token;
     bool loop = false;
     double target_fps = -1;  // -1: the colour stream's rate at real pace, 0: no ladder
     double duration_s = 0;   // 0: until the source ends (or a signal)
@@ -210,6 +212,7 @@ int runRun(const RunOptions& options) {
         liveview::LiveViewOptions view_options;
         if (Status s = liveview::parseViewAddress(options.view, &view_options); !s)
             return fail("run", s);
+        view_options.token = options.view_token;
         view_options.title = "mixray run " + path.filename().string();
         auto made = liveview::LiveView::create(view_options);
         if (!made)
@@ -271,7 +274,7 @@ int runRun(const RunOptions& options) {
     if (Status s = p.start(); !s)
         return fail("run", s);
     if (live_view)
-        std::printf("live view: %s\n", live_view->url().c_str());
+        printLiveViewUrls(*live_view, "live view: ");
     std::fflush(stdout);
     StatusLine status;
     const auto started = std::chrono::steady_clock::now();
@@ -353,6 +356,7 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--view", o->view,
                     "Serve the live view (tiles, tracking overlay, figures) on [ADDR:]PORT; "
                     "loopback unless ADDR is given (docs/live-view.md)");
+    addViewTokenOption(*sub, o->view_token);
     sub->add_flag("--loop", o->loop, "Play the recording again at its end (long live runs)");
     sub->add_flag("--publish", o->publish,
                   "Publish the composite and the poses over DDS: other hosts read them as a dds "

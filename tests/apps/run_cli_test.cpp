@@ -97,6 +97,9 @@ TEST(RunCli, RefusesBadSourcesAndOptionsClearly) {
     const CliRun view = mixray("run " + q(session()) + " --view 127.0.0.1:99999");
     EXPECT_EQ(view.exit_code, 2) << view.output;
     EXPECT_NE(view.output.find("--view"), std::string::npos) << view.output;
+    const CliRun token = mixray("run " + q(session()) + " --view 127.0.0.1:0 --view-token secret");
+    EXPECT_EQ(token.exit_code, 2) << token.output;
+    EXPECT_NE(token.output.find("token"), std::string::npos) << token.output;
 }
 
 TEST(RunCli, LiveViewOfTheSessionAtItsOwnPaceInABrowser) {
@@ -106,14 +109,16 @@ TEST(RunCli, LiveViewOfTheSessionAtItsOwnPaceInABrowser) {
     const fs::path out = tempDir() / "run_view";
     fs::remove_all(out);
     fs::create_directories(out);
-    const CliProcess process = startMixray(
-        {"run", session().string(), "--scene", objects().string(), "--pace", "real", "--loop",
-         "--max-depth", "1", "--view", "127.0.0.1:0", "--duration", "120", "-o", out.string()},
-        out / "output.txt");
+    const CliProcess process =
+        startMixray({"run", session().string(), "--scene", objects().string(), "--pace", "real",
+                     "--loop", "--max-depth", "1", "--view", "127.0.0.1:0", "--view-token",
+                     "run-cli-test-token-0123", "--duration", "120", "-o", out.string()},
+                    out / "output.txt");
     ASSERT_GT(process.pid, 0);
-    // The URL it prints once the view listens.
+    // The URL it prints once the view listens, with the token the page passes to its WebSocket.
     std::string url;
-    const std::regex printed(R"(live view: (http://127\.0\.0\.1:[0-9]+/))");
+    const std::regex printed(
+        R"(live view: (http://127\.0\.0\.1:[0-9]+/\?token=run-cli-test-token-0123))");
     for (int i = 0; i < 300 && url.empty(); ++i) {
         std::smatch m;
         const std::string text = readText(process.output);

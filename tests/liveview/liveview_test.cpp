@@ -316,8 +316,9 @@ std::optional<ImageMessage> parseImage(const WsClient::Message& m) {
     return out;
 }
 
-// An HTTP GET on 127.0.0.1:port; the whole response.
-std::string httpGet(int port, const std::string& path) {
+// An HTTP GET on 127.0.0.1:port (Host 127.0.0.1:port unless `headers` has one); the whole
+// response.
+std::string httpGet(int port, const std::string& path, const std::string& headers = "") {
     const int fd = socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in addr{};
     addr.sin_family = AF_INET;
@@ -325,8 +326,11 @@ std::string httpGet(int port, const std::string& path) {
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     std::string response;
     if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0) {
+        const std::string host = headers.find("Host:") == std::string::npos
+                                     ? "Host: 127.0.0.1:" + std::to_string(port) + "\r\n"
+                                     : "";
         const std::string request =
-            "GET " + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+            "GET " + path + " HTTP/1.1\r\n" + host + headers + "Connection: close\r\n\r\n";
         send(fd, request.data(), request.size(), MSG_NOSIGNAL);
         char chunk[65536];
         ssize_t n = 0;
@@ -355,6 +359,13 @@ TEST(LiveView, ServesItsPageOnLoopbackAndChoosesImageStreams) {
     EXPECT_EQ(page.rfind("HTTP/1.1 200", 0), 0u) << page.substr(0, 200);
     EXPECT_NE(page.find("new WebSocket"), std::string::npos);
     EXPECT_EQ(httpGet(port, "/secret").rfind("HTTP/1.1 404", 0), 0u);
+    // No way out of the two paths: dot segments are resolved before the path is judged.
+    for (const char* path : {"/../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/ws/../secret"})
+        EXPECT_EQ(httpGet(port, path).rfind("HTTP/1.1 404", 0), 0u) << path;
+    // Loopback and no token: nothing to warn about, a URL without a token.
+    EXPECT_EQ(rig.view->exposureWarning(), "");
+    EXPECT_EQ(rig.view->token(), "");
+    EXPECT_EQ(rig.view->urls(), std::vector<std::string>{rig.view->url()});
     const LiveViewStats stats = rig.view->stats();
     ASSERT_EQ(stats.tiles.size(), 3u);
     EXPECT_EQ(stats.tiles[0].stream, "cam/color");
@@ -603,6 +614,204 @@ TEST(LiveView, MoreBrowsersThanMaxClientsAreRefused) {
     EXPECT_EQ(rig.view->stats().clients.size(), 2u);
 }
 
+// ---- Who may connect, and how much ----
+
+TEST(LiveViewSecurity, OtherSitesPagesAreRefusedOnLoopback) {
+    Rig rig(anyPort(), {pattern::PatternStream::kColor});
+    ASSERT_TRUE(rig.graph.start().isOk());
+    const int port = rig.view->port();
+    const std::string p = std::to_string(port);
+    // A page of another site opening a WebSocket to the view.
+    WsClient evil;
+    EXPECT_FALSE(evil.open(port, 0, {"/ws", "", "Origin: http://evil.example\r\n"}));
+    EXPECT_EQ(evil.status(), 403);
+    // DNS rebinding: a name of the attacker's resolving to 127.0.0.1 is its Host and Origin.
+    WsClient rebound;
+    EXPECT_FALSE(rebound.open(
+        port, 0, {"/ws", "evil.example:" + p, "Origin: http://evil.example:" + p + "\r\n"}));
+    EXPECT_EQ(rebound.status(), 403);
+    EXPECT_EQ(httpGet(port, "/", "Host: evil.example:" + p + "\r\n").rfind("HTTP/1.1 403", 0), 0u);
+    // The view's own page, by either loopback name, and a client that is not a browser.
+    WsClient page, named, tool;
+    EXPECT_TRUE(page.open(port, 0, {"/ws", "", "Origin: http://127.0.0.1:" + p + "\r\n"}));
+    EXPECT_TRUE(
+        named.open(port, 0, {"/ws", "localhost:" + p, "Origin: http://localhost:" + p + "\r\n"}));
+    EXPECT_TRUE(tool.open(port));
+    const auto first = page.next();
+    ASSERT_TRUE(first.has_value());
+    EXPECT_EQ(nlohmann::json::parse(first->payload)["type"], "config");
+    const LiveViewStats stats = rig.view->stats();
+    EXPECT_EQ(stats.requests_unauthorized, 3u);
+    EXPECT_EQ(stats.clients.size(), 3u);
+}
+
+TEST(LiveViewSecurity, AGivenTokenIsRequiredOnEveryRequest) {
+    LiveViewOptions o = anyPort();
+    o.token = "s3cret-Token_0123456789";
+    Rig rig(o, {pattern::PatternStream::kColor});
+    ASSERT_TRUE(rig.graph.start().isOk());
+    const int port = rig.view->port();
+    EXPECT_EQ(rig.view->url(), "http://127.0.0.1:" + std::to_string(port) + "/?token=" + o.token);
+    EXPECT_EQ(rig.view->token(), o.token);
+    const std::string missing = httpGet(port, "/");
+    EXPECT_EQ(missing.rfind("HTTP/1.1 401", 0), 0u) << missing;
+    EXPECT_NE(missing.find("?token="), std::string::npos) << "says how to get in";
+    EXPECT_EQ(httpGet(port, "/?token=s3cret-Token_0123456780").rfind("HTTP/1.1 403", 0), 0u);
+    const std::string page = httpGet(port, "/?token=" + o.token);
+    EXPECT_EQ(page.rfind("HTTP/1.1 200", 0), 0u) << page.substr(0, 300);
+    // The token in the page's URL goes to no cache and no other site.
+    EXPECT_NE(page.find("Referrer-Policy: no-referrer"), std::string::npos);
+    EXPECT_NE(page.find("Cache-Control: no-store"), std::string::npos);
+    WsClient none, wrong, right;
+    EXPECT_FALSE(none.open(port));
+    EXPECT_EQ(none.status(), 401);
+    EXPECT_FALSE(wrong.open(port, 0, {"/ws?token=" + o.token + "x", "", ""}));
+    EXPECT_EQ(wrong.status(), 403);
+    EXPECT_TRUE(right.open(port, 0, {"/ws?token=" + o.token, "", ""}));
+    EXPECT_TRUE(right.next().has_value());
+    EXPECT_EQ(rig.view->stats().requests_unauthorized, 4u);
+
+    // A token too short to guess at is refused before anything listens.
+    LiveViewOptions weak;
+    weak.token = "secret";
+    const Status s = weak.validate();
+    EXPECT_EQ(s.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(s.message().find("token"), std::string::npos) << s.message();
+}
+
+TEST(LiveViewSecurity, RequiredTokensAreMadeFreshFromTheKernelsRandomness) {
+    LiveViewOptions o = anyPort();
+    o.require_token = true;
+    Rig a(o, {pattern::PatternStream::kColor});
+    Rig b(o, {pattern::PatternStream::kColor});
+    ASSERT_TRUE(a.graph.start().isOk());
+    ASSERT_TRUE(b.graph.start().isOk());
+    const std::string token = a.view->token();
+    EXPECT_EQ(token.size(), 64u);
+    EXPECT_EQ(token.find_first_not_of("0123456789abcdef"), std::string::npos) << token;
+    EXPECT_NE(token, b.view->token());
+    EXPECT_NE(a.view->url().find("/?token=" + token), std::string::npos) << a.view->url();
+    EXPECT_EQ(httpGet(a.view->port(), "/").rfind("HTTP/1.1 401", 0), 0u);
+    EXPECT_EQ(a.view->exposureWarning(), "");  // loopback: nothing to warn about
+}
+
+// A WebSocket frame from a client (masked, as browsers send them).
+std::string clientFrame(uint8_t first_byte, const std::string& payload) {
+    std::string frame(1, static_cast<char>(first_byte));
+    frame.push_back(static_cast<char>(0x80 | payload.size()));  // short payloads only
+    const std::string mask = "\x01\x02\x03\x04";
+    frame += mask;
+    for (size_t i = 0; i < payload.size(); ++i)
+        frame.push_back(static_cast<char>(payload[i] ^ mask[i % 4]));
+    return frame;
+}
+
+// Reads until the server's close frame; its status code, or 0 when the connection ended without.
+int closeCode(WsClient& client) {
+    for (int i = 0; i < 200; ++i) {
+        const auto m = client.next();
+        if (!m)
+            return 0;
+        if (m->opcode == 8 && m->payload.size() >= 2)
+            return (static_cast<uint8_t>(m->payload[0]) << 8) | static_cast<uint8_t>(m->payload[1]);
+    }
+    return -1;
+}
+
+TEST(LiveViewSecurity, FloodsOversizedRequestsAndBadFramesLeaveTheWatchingBrowserServed) {
+    test::runWithin(60s, "the flood test", [](test::WatchdogStage& stage) {
+        LiveViewOptions o = anyPort();
+        o.max_clients = 2;
+        o.max_requests = 2;
+        o.request_timeout_ms = 1000;
+        o.max_tile_fps = 15;
+        // Small tiles: the flood's admitted client reads nothing until its bad frame, and its
+        // socket's buffers hold many seconds of them (it is not a stalled browser).
+        Rig rig(o, {pattern::PatternStream::kColor}, 64, 48);
+        ASSERT_TRUE(rig.graph.start().isOk());
+        const int port = rig.view->port();
+        WsClient watching;
+        ASSERT_TRUE(watching.open(port));
+        test::ImageMessageCounter frames(watching);
+        std::this_thread::sleep_for(500ms);
+        const uint64_t memory_before = test::memoryInUse();
+        const int frames_before = frames.count();
+        const auto t0 = Clock::now();
+
+        stage.set("a flood of WebSocket clients at once");
+        constexpr int kFlood = 12;
+        std::vector<std::unique_ptr<WsClient>> flood(kFlood);
+        std::vector<std::thread> openers;
+        for (int i = 0; i < kFlood; ++i) {
+            flood[i] = std::make_unique<WsClient>();
+            openers.emplace_back([&, i] { flood[i]->open(port); });
+        }
+        for (auto& t : openers)
+            t.join();
+        WsClient* admitted = nullptr;
+        int opened = 0;
+        int busy = 0;
+        for (const auto& c : flood) {
+            if (c->status() == 101)
+                admitted = c.get(), ++opened;
+            busy += c->status() == 503;
+        }
+        ASSERT_EQ(opened, 1) << "exactly one more browser fits beside the watching one";
+        EXPECT_EQ(busy, kFlood - 1);
+
+        stage.set("connections that never send a request");
+        std::vector<int> idle;
+        for (int i = 0; i < 4; ++i) {
+            const int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
+            sockaddr_in addr{};
+            addr.sin_family = AF_INET;
+            addr.sin_port = htons(static_cast<uint16_t>(port));
+            addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+            (void)connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
+            idle.push_back(fd);
+        }
+
+        stage.set("an oversized request and one with too many header lines");
+        // civetweb answers a head that overflows its buffer itself: 413, or in 1.15 "400
+        // Malformed message" when the buffer filled mid-line.
+        const std::string big = httpGet(port, "/", "X-Big: " + std::string(16384, 'a') + "\r\n");
+        EXPECT_TRUE(big.rfind("HTTP/1.0 400", 0) == 0 || big.rfind("HTTP/1.1 413", 0) == 0)
+            << big.substr(0, 200);
+        std::string lines;
+        for (int i = 0; i < 40; ++i)
+            lines += "X-Line-" + std::to_string(i) + ": 1\r\n";
+        EXPECT_EQ(httpGet(port, "/", lines).rfind("HTTP/1.1 431", 0), 0u);
+
+        stage.set("bad frames from an admitted client");
+        ASSERT_TRUE(admitted->sendRaw(clientFrame(0x82, "\x01\x02")));  // binary
+        EXPECT_EQ(closeCode(*admitted), 1003);
+        WsClient huge;
+        for (int i = 0; i < 50 && !huge.open(port); ++i)  // its place comes free
+            std::this_thread::sleep_for(50ms);
+        ASSERT_EQ(huge.status(), 101);
+        // A frame announcing 2^40 bytes: civetweb will not buffer it and ends the connection.
+        const std::string announce =
+            std::string("\x82\xFF\x00\x00\x01\x00\x00\x00\x00\x00", 10) + "\x01\x02\x03\x04";
+        ASSERT_TRUE(huge.sendRaw(announce));
+        EXPECT_LE(closeCode(huge), 0);
+
+        const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        const int received = frames.count() - frames_before;
+        const uint64_t memory_after = test::memoryInUse();
+        for (const int fd : idle)
+            close(fd);
+        // The watching browser kept receiving at about the tile rate throughout.
+        EXPECT_GE(received, static_cast<int>(0.5 * 15 * seconds)) << "in " << seconds << " s";
+        EXPECT_LT(memory_after, memory_before + 16u * 1024 * 1024)
+            << "memory in use grew from " << memory_before << " to " << memory_after;
+        const LiveViewStats stats = rig.view->stats();
+        EXPECT_GE(stats.clients_refused, static_cast<uint64_t>(kFlood - 1));
+        EXPECT_EQ(stats.messages_refused, 1u);
+        EXPECT_GE(stats.requests_refused, 1u);  // the header lines (civetweb's own 400/413 not)
+        frames.stop();
+    });
+}
+
 // ---- The page in a real browser ----
 
 TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
@@ -678,6 +887,29 @@ TEST(LiveViewBrowser, TilesChangeFiguresUpdateAndDeviceStatesShow) {
     EXPECT_NE(page["latency"].get<std::string>().find("p99 31.0 ms"), std::string::npos);
     EXPECT_NE(page["ladder"].get<std::string>().find("rung 2 of 4 (spp 1)"), std::string::npos);
     EXPECT_NE(page["messages"].get<std::string>().find("marker 23 stale"), std::string::npos);
+    EXPECT_GE(rig.view->stats().clients_ever, 1u);
+}
+
+TEST(LiveViewBrowser, ThePageCarriesItsTokenToItsWebSocket) {
+    if (test::chromiumPath().empty())
+        GTEST_SKIP() << "chromium is not installed: the page's token is not checked in a browser";
+    LiveViewOptions o = anyPort();
+    o.require_token = true;
+    o.max_tile_fps = 10;
+    Rig rig(o, {pattern::PatternStream::kColor});
+    ASSERT_TRUE(rig.graph.start().isOk());
+    test::ChromiumOptions chrome;
+    chrome.timeout = 30s;
+    chrome.until_js =
+        "(() => { const t = document.querySelector('.tile');"
+        " return !!t && Number(t.dataset.images) >= 3; })()";
+    chrome.result_js =
+        "JSON.stringify({connected: document.body.dataset.connected || '',"
+        " images: Number((document.querySelector('.tile') || {dataset: {}}).dataset.images || 0)})";
+    const test::ChromiumRun run = test::runHeadlessChromium(rig.view->url(), chrome);
+    ASSERT_TRUE(run.started) << run.error;
+    EXPECT_TRUE(run.until_met) << run.result << "\n" << run.error;
+    EXPECT_EQ(rig.view->stats().requests_unauthorized, 0u);
     EXPECT_GE(rig.view->stats().clients_ever, 1u);
 }
 

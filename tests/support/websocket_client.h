@@ -1,5 +1,6 @@
 // A minimal WebSocket client for the tests of the live view: the handshake, then server frames
 // (unmasked) one by one. A client that never calls next() is a browser that stalled.
+// Thread-bound.
 #pragma once
 
 #include <arpa/inet.h>
@@ -10,16 +11,25 @@
 
 #include <atomic>
 #include <cstdint>
+#include <cstdlib>
 #include <optional>
 #include <string>
 #include <thread>
 
 namespace mixray::test {
 
+// What a handshake asks for beyond the defaults.
+struct WsRequest {
+    std::string path = "/ws";  // with its query ("/ws?token=...")
+    std::string host;          // the Host header; empty: 127.0.0.1:PORT
+    std::string headers;       // more header lines, each ending in \r\n ("Origin: ...\r\n")
+};
+
 class WsClient {
 public:
     // Connects and completes the handshake; receive_buffer > 0 shrinks the socket's buffer.
-    bool open(int port, int receive_buffer = 0) {
+    // False when the answer is not 101; status() says what it was.
+    bool open(int port, int receive_buffer = 0, const WsRequest& ask = {}) {
         fd_ = socket(AF_INET, SOCK_STREAM, 0);
         if (receive_buffer > 0) {
             setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof(receive_buffer));
@@ -30,10 +40,12 @@ public:
         addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
         if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0)
             return false;
-        const std::string request = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+        const std::string host = ask.host.empty() ? "127.0.0.1:" + std::to_string(port) : ask.host;
+        const std::string request = "GET " + ask.path + " HTTP/1.1\r\nHost: " + host +
                                     "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                                     "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                                    "Sec-WebSocket-Version: 13\r\n\r\n";
+                                    "Sec-WebSocket-Version: 13\r\n" +
+                                    ask.headers + "\r\n";
         if (send(fd_, request.data(), request.size(), MSG_NOSIGNAL) !=
             static_cast<ssize_t>(request.size())) {
             return false;
@@ -45,7 +57,16 @@ public:
                 return false;
             response.push_back(c);
         }
-        return response.rfind("HTTP/1.1 101", 0) == 0;
+        status_ = response.size() > 12 && response.rfind("HTTP/1.", 0) == 0
+                      ? std::atoi(response.c_str() + 9)
+                      : 0;
+        return status_ == 101;
+    }
+    int status() const { return status_; }  // the handshake's answer; 0: none
+    // Writes raw bytes (a frame the test makes); false when the socket refused them.
+    bool sendRaw(const std::string& bytes) {
+        return send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL) ==
+               static_cast<ssize_t>(bytes.size());
     }
     ~WsClient() {
         if (fd_ >= 0)
@@ -98,6 +119,7 @@ private:
         return true;
     }
     int fd_ = -1;
+    int status_ = 0;
 };
 
 // Reads a client's messages on a thread of its own, counting the binary (image) ones, until

@@ -6,14 +6,18 @@
 #include <civetweb.h>
 #include <dirent.h>
 #include <dlfcn.h>
+#include <ifaddrs.h>
+#include <net/if.h>
 #include <netinet/in.h>
 #include <pthread.h>
+#include <sys/random.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -27,6 +31,7 @@
 #include "image_to_jpeg.h"
 #include "mixray/graph/host_time.h"
 #include "page.h"
+#include "request_check.h"
 
 // civetweb as Debian builds it (1.15) starts its threads with a fixed 100 kB stack. In a process
 // that also loads libquadmath (the mixray binary does: mrcal and Ceres pull in libgfortran),
@@ -133,6 +138,53 @@ bool isIpv4(const std::string& text) {
            inet_pton(AF_INET, text.c_str(), &parsed) == 1;
 }
 
+// A token from the kernel's CSPRNG: 32 bytes as 64 hex digits. Never a weaker fallback: when
+// getrandom fails the view does not start.
+Status makeToken(std::string* token) {
+    unsigned char bytes[32];
+    size_t got = 0;
+    while (got < sizeof(bytes)) {
+        const ssize_t n = getrandom(bytes + got, sizeof(bytes) - got, 0);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {
+            return {ErrorCode::kUnavailable,
+                    std::string("live view: no random token (getrandom: ") + std::strerror(errno) +
+                        ")"};
+        }
+        got += static_cast<size_t>(n);
+    }
+    static constexpr char kHex[] = "0123456789abcdef";
+    token->clear();
+    for (const unsigned char b : bytes) {
+        token->push_back(kHex[b >> 4]);
+        token->push_back(kHex[b & 0xF]);
+    }
+    return Status::ok();
+}
+
+// This host's IPv4 addresses on interfaces that are up, loopback last; empty when unknown.
+std::vector<std::string> interfaceAddresses() {
+    std::vector<std::string> out;
+    std::vector<std::string> loopback;
+    ifaddrs* list = nullptr;
+    if (getifaddrs(&list) != 0)
+        return out;
+    for (const ifaddrs* i = list; i != nullptr; i = i->ifa_next) {
+        if (i->ifa_addr == nullptr || i->ifa_addr->sa_family != AF_INET || !(i->ifa_flags & IFF_UP))
+            continue;
+        char text[INET_ADDRSTRLEN] = {};
+        inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(i->ifa_addr)->sin_addr, text,
+                  sizeof(text));
+        std::vector<std::string>& into = isLoopbackAddress(text) ? loopback : out;
+        if (std::find(into.begin(), into.end(), text) == into.end())
+            into.emplace_back(text);
+    }
+    freeifaddrs(list);
+    out.insert(out.end(), loopback.begin(), loopback.end());
+    return out;
+}
+
 // Opens and closes a TCP connection to host:port (without waiting for it to be served).
 void knock(const std::string& host, int port) {
     const int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
@@ -168,8 +220,22 @@ Status LiveViewOptions::validate() const {
     if (!(depth_min_m >= 0 && depth_max_m > depth_min_m && std::isfinite(depth_max_m))) {
         return bad("depth_min_m/depth_max_m", "need 0 <= min < max");
     }
+    if (!token.empty() && !isValidToken(token)) {
+        return bad("token", "must be 16..256 characters of A-Z a-z 0-9 - . _ ~ (got " +
+                                std::to_string(token.size()) + " characters)");
+    }
     if (max_clients < 1 || max_clients > 64)
         return bad("max_clients", "must be 1..64");
+    if (max_requests < 1 || max_requests > 64)
+        return bad("max_requests", "must be 1..64");
+    if (max_request_bytes < 1024 || max_request_bytes > 65536)
+        return bad("max_request_bytes", "must be 1024..65536");
+    // civetweb keeps at most MG_MAX_HEADERS (64) lines and drops the rest unseen; a request
+    // that reaches the limit is refused rather than judged without all its headers.
+    if (max_headers < 1 || max_headers >= MG_MAX_HEADERS)
+        return bad("max_headers", "must be 1.." + std::to_string(MG_MAX_HEADERS - 1));
+    if (request_timeout_ms < 100 || request_timeout_ms > 600000)
+        return bad("request_timeout_ms", "must be 100..600000");
     if (!(stalled_client_timeout_s > 0))
         return bad("stalled_client_timeout_s", "must be > 0");
     if (!(status_period_s > 0 && status_period_s <= 60)) {
@@ -319,6 +385,7 @@ struct LiveView::Impl {
 
     mg_context* ctx = nullptr;
     bool library_initialised = false;
+    RequestPolicy policy;  // set at start()
     std::atomic<int> port{0};
     std::atomic<bool> stopping{false};
     std::string last_log;  // civetweb's last message, for bind errors
@@ -336,6 +403,10 @@ struct LiveView::Impl {
     uint64_t clients_ever = 0;
     uint64_t clients_refused = 0;
     uint64_t clients_dropped = 0;
+    uint64_t requests_unauthorized = 0;
+    uint64_t requests_refused = 0;
+    uint64_t messages_refused = 0;
+    int requests_in_flight = 0;  // pages being written, at most options.max_requests
     // The newest message of each kind, for browsers that connect later.
     Bytes config_message;
     Bytes status_message;
@@ -527,54 +598,103 @@ struct LiveView::Impl {
         }
     }
 
-    // civetweb callbacks. cbdata is the Impl.
-    static int servePage(mg_connection* conn, void* cbdata) {
-        const mg_request_info* request = mg_get_request_info(conn);
-        const std::string uri = request->local_uri != nullptr ? request->local_uri : "";
-        if (uri != "/" && uri != "/index.html") {
-            mg_send_http_error(conn, 404, "%s", "mixray live view: only / is served\n");
-            return 404;
+    // civetweb callbacks. cbdata (and the context's user data) is the Impl.
+
+    // Every request comes here first, before civetweb looks at it any further: refused
+    // requests are answered here, pages are served here, and WebSocket upgrades go on to
+    // civetweb's handshake and wsConnect.
+    static int beginRequest(mg_connection* conn) {
+        auto* self = static_cast<Impl*>(mg_get_user_data(mg_get_context(conn)));
+        const mg_request_info* info = mg_get_request_info(conn);
+        const auto text = [](const char* p) { return std::string_view(p != nullptr ? p : ""); };
+        HttpRequest request;
+        request.method = text(info->request_method);
+        request.path = text(info->local_uri);
+        request.query = text(info->query_string);
+        for (int i = 0; i < info->num_headers; ++i)
+            request.headers.push_back(
+                {text(info->http_headers[i].name), text(info->http_headers[i].value)});
+        const RequestVerdict verdict = checkRequest(self->policy, request);
+        if (verdict.status != 0) {
+            {
+                std::lock_guard lock(self->clients_mutex);
+                const bool unauthorized = verdict.status == 401 || verdict.status == 403;
+                ++(unauthorized ? self->requests_unauthorized : self->requests_refused);
+            }
+            return refuseRequest(conn, verdict.status, verdict.reason);
         }
-        (void)cbdata;
-        const std::string_view page = pageHtml();
-        mg_send_http_ok(conn, "text/html; charset=utf-8", static_cast<long long>(page.size()));
-        mg_write(conn, page.data(), page.size());
+        if (verdict.kind == RequestKind::kWebSocket)
+            return 0;
+        return self->servePage(conn);
+    }
+
+    // Writes a whole response. Written here rather than with civetweb's response functions:
+    // civetweb 1.15 sends nothing through those on a connection that asked for a WebSocket,
+    // so a refused upgrade would get no answer at all.
+    static int respond(mg_connection* conn, int status, const char* content_type,
+                       std::string_view body) {
+        std::string head = "HTTP/1.1 " + std::to_string(status) + " " +
+                           mg_get_response_code_text(conn, status) +
+                           "\r\nContent-Type: " + content_type +
+                           "\r\nContent-Length: " + std::to_string(body.size()) +
+                           "\r\nConnection: close\r\n"
+                           // The page's URL may carry the token: no cache keeps it, no other
+                           // site gets it as a referrer, and no other site frames the page.
+                           "Cache-Control: no-store\r\nReferrer-Policy: no-referrer\r\n"
+                           "X-Content-Type-Options: nosniff\r\n"
+                           "Content-Security-Policy: frame-ancestors 'none'\r\n\r\n";
+        mg_write(conn, head.data(), head.size());
+        mg_write(conn, body.data(), body.size());
+        return status;
+    }
+
+    static int refuseRequest(mg_connection* conn, int status, const std::string& reason) {
+        return respond(conn, status, "text/plain; charset=utf-8",
+                       "mixray live view: " + reason + "\n");
+    }
+
+    int servePage(mg_connection* conn) {
+        {
+            std::lock_guard lock(clients_mutex);
+            if (stopping.load() || requests_in_flight >= options.max_requests) {
+                ++clients_refused;
+                return refuseRequest(conn, 503, "busy: too many requests at once, try again");
+            }
+            ++requests_in_flight;
+        }
+        respond(conn, 200, "text/html; charset=utf-8", pageHtml());
+        std::lock_guard lock(clients_mutex);
+        --requests_in_flight;
         return 200;
     }
 
-    static int wsConnect(const mg_connection* /*conn*/, void* cbdata) {
+    // After beginRequest let the upgrade through: a browser's place is taken here, under the
+    // same lock as the count, so simultaneous upgrades never exceed max_clients.
+    static int wsConnect(const mg_connection* conn, void* cbdata) {
         auto* self = static_cast<Impl*>(cbdata);
-        std::lock_guard lock(self->clients_mutex);
-        if (self->stopping.load() ||
-            self->clients.size() >= static_cast<size_t>(self->options.max_clients)) {
-            ++self->clients_refused;
-            return 1;  // civetweb closes the connection without a handshake
-        }
-        return 0;
-    }
-
-    static void wsReady(mg_connection* conn, void* cbdata) {
-        auto* self = static_cast<Impl*>(cbdata);
+        auto* writable = const_cast<mg_connection*>(conn);  // civetweb's own answers need it
         const mg_request_info* request = mg_get_request_info(conn);
         auto client = std::make_shared<Client>();
-        client->conn = conn;
+        client->conn = writable;
         client->remote = endpoint(request->remote_addr, request->remote_port);
+        // Without its socket the view could not end a stalled write: refuse rather than risk a
+        // stop() that hangs.
         client->fd =
             findConnectionSocket(request->remote_addr, request->remote_port, self->port.load());
         client->slots.resize(self->slotCount());
         client->first_image_slot = 2 + self->tiles.size();
         {
             std::lock_guard lock(self->clients_mutex);
+            if (self->stopping.load() || client->fd < 0 ||
+                self->clients.size() >= static_cast<size_t>(self->options.max_clients)) {
+                ++self->clients_refused;
+                refuseRequest(writable, 503,
+                              "busy: " + std::to_string(self->options.max_clients) +
+                                  " browsers are watching already");
+                return 1;
+            }
             client->id = self->next_client_id++;
             ++self->clients_ever;
-            // Without its socket the view could not end a stalled write: refuse rather than
-            // risk a stop() that hangs.
-            if (self->stopping.load() || client->fd < 0) {
-                ++self->clients_refused;
-                mg_set_user_connection_data(conn, nullptr);
-                mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, "", 0);
-                return;
-            }
             client->post(0, self->config_message);
             if (self->status_message)
                 client->post(1, self->status_message);
@@ -589,13 +709,51 @@ struct LiveView::Impl {
             self->connected = self->clients.size();
         }
         mg_set_user_connection_data(conn, client.get());
-        client->sender = std::thread([c = client.get()] { c->run(); });
+        return 0;
     }
 
-    static int wsData(mg_connection* /*conn*/, int opcode, char* /*data*/, size_t /*size*/,
-                      void* /*cbdata*/) {
-        // The page sends nothing the view reads; only a close ends the connection.
-        return (opcode & 0xF) == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE ? 0 : 1;
+    // The handshake is sent: the browser's sender starts.
+    static void wsReady(mg_connection* conn, void* /*cbdata*/) {
+        auto* client = static_cast<Client*>(mg_get_user_connection_data(conn));
+        if (client != nullptr)
+            client->sender = std::thread([client] { client->run(); });
+    }
+
+    static int wsData(mg_connection* conn, int bits, char* /*data*/, size_t size, void* cbdata) {
+        const MessageVerdict verdict = checkClientMessage(static_cast<uint8_t>(bits), size);
+        if (verdict.action == MessageAction::kIgnore)
+            return 1;
+        if (verdict.action == MessageAction::kRefuse) {
+            auto* self = static_cast<Impl*>(cbdata);
+            {
+                std::lock_guard lock(self->clients_mutex);
+                ++self->messages_refused;
+            }
+            // The close code and why, then the connection ends (civetweb calls wsClose).
+            std::string payload = {static_cast<char>(verdict.close_code >> 8),
+                                   static_cast<char>(verdict.close_code & 0xFF)};
+            payload += verdict.reason.substr(0, 123);
+            mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, payload.data(),
+                               payload.size());
+        }
+        return 0;
+    }
+
+    // Takes the client out of the list (counted as dropped when its connection failed);
+    // returns it, or null when it was not (or no longer) listed.
+    std::shared_ptr<Client> unlist(const Client* raw) {
+        std::lock_guard lock(clients_mutex);
+        auto it = std::find_if(clients.begin(), clients.end(),
+                               [&](const auto& c) { return c.get() == raw; });
+        if (it == clients.end())
+            return nullptr;
+        std::shared_ptr<Client> client = *it;
+        clients.erase(it);
+        connected = clients.size();
+        std::lock_guard client_lock(client->mutex);
+        if (client->failed && !stopping.load())
+            ++clients_dropped;
+        return client;
     }
 
     static void wsClose(const mg_connection* conn, void* cbdata) {
@@ -603,20 +761,9 @@ struct LiveView::Impl {
         auto* raw = static_cast<Client*>(mg_get_user_connection_data(conn));
         if (raw == nullptr)
             return;
-        std::shared_ptr<Client> client;
-        {
-            std::lock_guard lock(self->clients_mutex);
-            auto it = std::find_if(self->clients.begin(), self->clients.end(),
-                                   [&](const auto& c) { return c.get() == raw; });
-            if (it == self->clients.end())
-                return;
-            client = *it;
-            self->clients.erase(it);
-            self->connected = self->clients.size();
-            std::lock_guard client_lock(client->mutex);
-            if (client->failed && !self->stopping.load())
-                ++self->clients_dropped;
-        }
+        const std::shared_ptr<Client> client = self->unlist(raw);
+        if (!client)
+            return;
         {
             std::lock_guard lock(client->mutex);
             client->closing = true;
@@ -629,6 +776,15 @@ struct LiveView::Impl {
         if (client->sender.joinable())
             client->sender.join();
         mg_set_user_connection_data(conn, nullptr);
+    }
+
+    // Every connection's end. A browser whose handshake failed after wsConnect took its place
+    // had no wsClose (and no sender): its place is given back here.
+    static void connectionClose(const mg_connection* conn) {
+        auto* self = static_cast<Impl*>(mg_get_user_data(mg_get_context(conn)));
+        auto* raw = static_cast<Client*>(mg_get_user_connection_data(conn));
+        if (self != nullptr && raw != nullptr)
+            self->unlist(raw);
     }
 
     static int logMessage(const mg_connection* conn, const char* message) {
@@ -705,6 +861,16 @@ Status LiveView::start() {
         return Status::ok();
     if (!d.config_message)
         d.config_message = std::make_shared<const std::string>(d.configJson());
+    const bool loopback = isLoopbackAddress(d.options.address);
+    // Made once: a view started again keeps the URL it printed.
+    if (d.policy.token.empty())
+        d.policy.token = d.options.token;
+    if (d.policy.token.empty() && (!loopback || d.options.require_token))
+        MIXRAY_RETURN_IF_ERROR(makeToken(&d.policy.token));
+    // With a token, the view may be reached by any name (a rig's host name); without one it
+    // answers to loopback names only.
+    d.policy.loopback_host_only = d.policy.token.empty();
+    d.policy.max_headers = d.options.max_headers;
     int port = d.options.port;
     if (port == 0) {
         port = pickFreePort(d.options.address);
@@ -715,20 +881,33 @@ Status LiveView::start() {
         }
     }
     const std::string where = endpoint(d.options.address, port);
-    const std::string threads = std::to_string(d.options.max_clients + 4);
+    // One thread per connection: the browsers' WebSockets and max_requests others. Connections
+    // beyond them wait in civetweb's queue (as long) and the kernel's backlog until a thread is
+    // free; one that sends no whole request within request_timeout_ms is closed.
+    const std::string threads = std::to_string(d.options.max_clients + d.options.max_requests);
+    const std::string request_bytes = std::to_string(d.options.max_request_bytes);
+    const std::string request_timeout = std::to_string(d.options.request_timeout_ms);
     const char* config[] = {"listening_ports",
                             where.c_str(),
                             "num_threads",
                             threads.c_str(),
+                            "connection_queue",
+                            threads.c_str(),
+                            "listen_backlog",
+                            threads.c_str(),
+                            "max_request_size",
+                            request_bytes.c_str(),
                             "enable_keep_alive",
                             "no",
                             "request_timeout_ms",
-                            "10000",
+                            request_timeout.c_str(),
                             "websocket_timeout_ms",
                             "3600000",
                             nullptr};
     mg_callbacks callbacks{};
     callbacks.log_message = &Impl::logMessage;
+    callbacks.begin_request = &Impl::beginRequest;
+    callbacks.connection_close = &Impl::connectionClose;
     mg_init_library(0);
     d.library_initialised = true;
     char error_text[256] = {};
@@ -755,7 +934,6 @@ Status LiveView::start() {
                                              (why.empty() ? "bind failed" : why)};
     }
     d.port = port;
-    mg_set_request_handler(d.ctx, "/", &Impl::servePage, &d);
     mg_set_websocket_handler(d.ctx, "/ws", &Impl::wsConnect, &Impl::wsReady, &Impl::wsData,
                              &Impl::wsClose, &d);
     {
@@ -857,13 +1035,43 @@ int LiveView::port() const {
     return impl_->port.load();
 }
 
+namespace {
+
+std::string viewUrl(const std::string& host, int port, const std::string& token) {
+    return "http://" + endpoint(host, port) + "/" + (token.empty() ? "" : "?token=" + token);
+}
+
+}  // namespace
+
 std::string LiveView::url() const {
     const int p = port();
     if (p == 0)
         return "";
     const std::string host =
         impl_->options.address == "0.0.0.0" ? "127.0.0.1" : impl_->options.address;
-    return "http://" + endpoint(host, p) + "/";
+    return viewUrl(host, p, impl_->policy.token);
+}
+
+std::vector<std::string> LiveView::urls() const {
+    const int p = port();
+    if (p == 0)
+        return {};
+    if (impl_->options.address != "0.0.0.0")
+        return {url()};
+    std::vector<std::string> out;
+    for (const std::string& address : interfaceAddresses())
+        out.push_back(viewUrl(address, p, impl_->policy.token));
+    if (out.empty())
+        out.push_back(url());
+    return out;
+}
+
+std::string LiveView::exposureWarning() const {
+    return port() == 0 ? "" : liveview::exposureWarning(impl_->options.address, port());
+}
+
+std::string LiveView::token() const {
+    return impl_->policy.token;
 }
 
 LiveViewStats LiveView::stats() const {
@@ -890,6 +1098,9 @@ LiveViewStats LiveView::stats() const {
     s.clients_ever = d.clients_ever;
     s.clients_refused = d.clients_refused;
     s.clients_dropped = d.clients_dropped;
+    s.requests_unauthorized = d.requests_unauthorized;
+    s.requests_refused = d.requests_refused;
+    s.messages_refused = d.messages_refused;
     const int64_t now = monotonicNowNs();
     for (const auto& c : d.clients) {
         std::lock_guard client_lock(c->mutex);

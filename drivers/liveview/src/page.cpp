@@ -239,8 +239,12 @@ function onStatus(s) {
   }));
   document.getElementById("summary").textContent = `${view.clients ?? "?"} browser(s)`;
 }
+// The view's token, when its URL has one, goes on to the WebSocket as the same query parameter.
+// No cookie: a cookie is sent to every port of the host, so other servers there would get it.
+const token = new URLSearchParams(location.search).get("token");
 function connect() {
-  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws" +
+                           (token ? "?token=" + encodeURIComponent(token) : ""));
   ws.binaryType = "arraybuffer";
   const conn = document.getElementById("conn");
   ws.onopen = () => { conn.textContent = "live"; conn.className = "up"; document.body.dataset.connected = "1"; };

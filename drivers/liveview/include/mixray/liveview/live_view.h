@@ -17,10 +17,17 @@ namespace mixray::liveview {
 
 // How a LiveView serves and what it shows.
 struct LiveViewOptions {
-    // Address to listen on: loopback unless the user names one, because the view has no
-    // authentication (docs/live-view.md). IPv4 dotted quad or "0.0.0.0" for every interface.
+    // Address to listen on: loopback unless the user names one (docs/live-view.md, Security).
+    // IPv4 dotted quad or "0.0.0.0" for every interface. Any address outside 127.0.0.0/8
+    // requires a token.
     std::string address = "127.0.0.1";
     int port = 8080;  // 0: any free port (port() says which after start())
+    // The secret every request must carry as ?token=... (the page passes it on to its
+    // WebSocket), compared in constant time: 16..256 characters of A-Z a-z 0-9 - . _ ~. Empty:
+    // none on loopback; on any other address (or with require_token) start() makes one from the
+    // kernel's CSPRNG (getrandom: 32 bytes as 64 hex digits), which token() and url() give.
+    std::string token;
+    bool require_token = false;  // a token on loopback too (a given token is always required)
     // Graph streams shown as tiles, in order; empty: every image stream in the graph at
     // connect(). Naming a stream that is absent or not an image is an error.
     std::vector<std::string> streams;
@@ -33,7 +40,18 @@ struct LiveViewOptions {
     double depth_min_m = 0.3;
     double depth_max_m = 5.0;
     bool depth_auto_range = false;
-    int max_clients = 8;  // browsers connected at once; more are refused (HTTP 503)
+    int max_clients = 8;  // browsers (WebSockets) connected at once, 1..64; more: HTTP 503
+    // Other requests served at once (page loads, refusals), 1..64; more: HTTP 503. The server
+    // has max_clients + max_requests threads, so connections beyond those wait in a queue of
+    // that many and the kernel's backlog, never in memory of the view's.
+    int max_requests = 4;
+    int max_request_bytes = 8192;  // request line and headers, 1024..65536; more: HTTP 413
+    int max_headers = 32;          // header lines, 1..63; more: HTTP 431
+    // A connection that has not sent its whole request by then is closed (its thread is free
+    // again). civetweb uses the same value as the longest a write to any client may make no
+    // progress, so a browser stalled this long is dropped even before
+    // stalled_client_timeout_s. 100..600000.
+    int request_timeout_ms = 10000;
     // A browser that takes no bytes of a message for this long is disconnected, so a dead
     // connection does not hold a sender thread forever.
     double stalled_client_timeout_s = 10;
@@ -75,8 +93,14 @@ struct LiveViewStats {
     std::vector<TileStats> tiles;
     std::vector<ClientStats> clients;  // connected now
     uint64_t clients_ever = 0;
-    uint64_t clients_refused = 0;  // over max_clients
+    uint64_t clients_refused = 0;  // over max_clients or max_requests (HTTP 503)
     uint64_t clients_dropped = 0;  // disconnected for stalling or a failed write
+    // Requests refused before they were served: no or a wrong token (401, 403), a Host or
+    // Origin of another site (403); and the rest (a method, path or header count the view
+    // does not serve: 404, 405, 431, 400).
+    uint64_t requests_unauthorized = 0;
+    uint64_t requests_refused = 0;
+    uint64_t messages_refused = 0;  // WebSocket messages that ended their connection
     // The most bytes any client's mailbox can ever hold: one message per tile (its largest
     // possible JPEG), one overlay per tile and one status at their size limits, and the tile
     // list. ClientStats::queued_bytes never exceeds it.
@@ -92,7 +116,8 @@ inline constexpr size_t kMaxJsonBytes = 256 * 1024;
 // max_tile_fps JPEGs per tile and hands each to every browser's one-slot-per-tile mailbox; each
 // browser has its own sender thread, so a slow or stalled browser gets fewer frames, never more
 // memory, and never slows the pipeline or the other browsers. The page is embedded in the
-// binary and sends nothing the server parses.
+// binary and sends nothing the server reads. Every request passes one gate (a token where
+// required, the Host and Origin, the header count, the number of clients; docs/live-view.md).
 // Thread-safety: create/connect/start/stop by the graph's owner; setOverlay, setStatusProvider
 // (before start), port, url and stats from any thread.
 class LiveView : public Node {
@@ -126,8 +151,17 @@ public:
     // not a tile; kInvalidArgument when the text is not a JSON object or over kMaxJsonBytes.
     Status setOverlay(std::string_view stream, std::string overlay_json);
 
-    int port() const;         // the bound port; 0 before start()
-    std::string url() const;  // "http://127.0.0.1:8080/"; empty before start()
+    int port() const;  // the bound port; 0 before start()
+    // A URL that opens the view from this machine, token included ("http://127.0.0.1:8080/",
+    // "http://10.0.0.5:8080/?token=..."; 127.0.0.1 when bound to 0.0.0.0); empty before start().
+    std::string url() const;
+    // Every URL the view is served at, token included: the bound address's, or for 0.0.0.0 one
+    // per IPv4 address of this host's interfaces. Empty before start().
+    std::vector<std::string> urls() const;
+    // For a command to print on stderr after start(): empty on loopback; else that every camera
+    // is served to the network, where, and how it is protected.
+    std::string exposureWarning() const;
+    std::string token() const;  // the token requests must carry; empty when none
     LiveViewStats stats() const;
 
 private:
