@@ -2,8 +2,10 @@
 // knows them by name).
 #include "backends.h"
 
+#include <cstdio>
 #include <memory>
 
+#include "cli.h"
 #include "mixray/aravis/aravis_backend.h"
 #include "mixray/dds/dds_backend.h"
 #include "mixray/dds/ros2_source.h"
@@ -78,6 +80,12 @@ Status runPipeline(render::ArPipeline& pipeline, const std::function<bool()>& st
             break;
     pipeline.stop();
     return pipeline.status();
+}
+
+int finishPipelineRun(const std::string& command, const render::ArPipelineStats& stats) {
+    for (const std::string& line : stats.warnings())
+        std::fprintf(stderr, "mixray %s: %s\n", command.c_str(), line.c_str());
+    return stats.input ? kExitOk : kExitIncomplete;
 }
 
 }  // namespace mixray::cli

@@ -8,6 +8,14 @@
 
 namespace mixray::cli {
 
+std::string exitCodesHelp() {
+    return "Exit codes: 0 done (warnings, such as an object never drawn, are printed); 1 internal "
+           "error; 2 bad command line; 3 input refused (missing, malformed, cut off), nothing "
+           "made; 4 device or resource unavailable; 5 input cut off or damaged, the output made "
+           "from what was readable (the message names the damage); 130 stopped by SIGINT, 143 "
+           "by SIGTERM (the output closed with what was done).";
+}
+
 int exitCodeFor(const Status& status) {
     switch (status.code()) {
         case ErrorCode::kOk:

@@ -15,16 +15,24 @@ class LiveView;
 
 namespace mixray::cli {
 
-// Exit codes, stable for scripts: what went wrong, not where.
+// Exit codes, stable for scripts: what went wrong, not where. exitCodesHelp() and
+// docs/architecture.md ("Errors and threads") say them to users.
 enum ExitCode : int {
     kExitOk = 0,
-    kExitInternal = 1,       // a bug or a library failure
-    kExitUsage = 2,          // bad command line (CLI11 uses it too)
-    kExitBadInput = 3,       // input files missing, malformed, truncated
-    kExitUnavailable = 4,    // a device or resource is not there now
+    kExitInternal = 1,     // a bug or a library failure
+    kExitUsage = 2,        // bad command line (CLI11 uses it too)
+    kExitBadInput = 3,     // input refused: missing, malformed, truncated; no output made
+    kExitUnavailable = 4,  // a device or resource is not there now
+    // The input was cut off or damaged and the output was made from what was readable
+    // (run, render, track, demo, play, convert): distinct from 3, so a script knows there is
+    // an output, and that it is partial.
+    kExitIncomplete = 5,
     kExitInterrupted = 130,  // SIGINT (Ctrl-C): 128 + 2, as shells report it
     kExitTerminated = 143,   // SIGTERM: 128 + 15 (InterruptFlag::exitCode() picks)
 };
+
+// The exit codes in words, for the help's footer.
+std::string exitCodesHelp();
 
 int exitCodeFor(const Status& status);
 

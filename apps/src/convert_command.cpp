@@ -138,13 +138,21 @@ int runConvert(const ConvertOptions& options) {
 
     InterruptFlag interrupt;
     StatusLine status;
-    auto summary =
-        replay::convertRecording(**reader, **writer, [&](const replay::ConvertProgress& p) {
+    auto summary = replay::convertRecording(
+        **reader, **writer,
+        [&](const replay::ConvertProgress& p) {
             status.update("converted " + std::to_string(p.frames) + " frames, " +
                           formatBytes(p.bytes_written) + " written");
             return !interrupt.raised();
-        });
+        },
+        replay::InputDamage::kKeepWhatWasRead);
     status.finish();
+    if (!summary && interrupt.raised()) {
+        std::fprintf(stderr, "mixray convert: stopped by %s (%s); %s is closed with them\n",
+                     interrupt.signalName().c_str(), summary.status().message().c_str(),
+                     options.output.c_str());
+        return interrupt.exitCode();
+    }
     if (!summary)
         return fail("convert", summary.status());
     // Frames of dropped streams went through the converter but not into the file.
@@ -166,7 +174,15 @@ int runConvert(const ConvertOptions& options) {
                     static_cast<unsigned long long>(summary->frames_per_stream[i]),
                     dropped ? "not written (the format cannot hold them)" : "written");
     }
-    return kExitOk;
+    if (!summary->input)
+        std::fprintf(stderr, "mixray convert: input incomplete: %s; %s is partial\n",
+                     summary->input.message().c_str(), options.output.c_str());
+    for (const RecordingDamage& d : summary->damage)
+        std::fprintf(stderr,
+                     "mixray convert: input damaged at byte %lld (%s), skipped: its frames are "
+                     "not in %s\n",
+                     static_cast<long long>(d.byte_offset), d.what.c_str(), options.output.c_str());
+    return summary->partial() ? kExitIncomplete : kExitOk;
 }
 
 }  // namespace

@@ -474,13 +474,14 @@ int runDemo(const DemoOptions& options) {
     std::printf("   wrote %s/composite.mp4, %s/frames/*.png%s, %s/summary.json (%.1f s)\n",
                 out.string().c_str(), out.string().c_str(),
                 truth_sim ? " (with _truth and _diff4x)" : "", out.string().c_str(), seconds);
+    const int code = finishPipelineRun("demo", pipeline_stats);
     if (interrupt.raised()) {
         std::fprintf(stderr, "mixray demo: stopped by %s after %llu frames; %s holds them\n",
                      interrupt.signalName().c_str(), static_cast<unsigned long long>(frames),
                      (out / "composite.mp4").string().c_str());
         return interrupt.exitCode();
     }
-    return kExitOk;
+    return code;
 }
 
 }  // namespace

@@ -122,8 +122,11 @@ int runDetect(const DetectCommandOptions& o) {
         found.push_back(std::move(*detections));
     }
     status.finish();
-    if (interrupt.raised())
-        return fail("detect", {ErrorCode::kCancelled, "interrupted; nothing written"});
+    if (interrupt.raised()) {
+        std::fprintf(stderr, "mixray detect: stopped by %s; nothing written\n",
+                     interrupt.signalName().c_str());
+        return interrupt.exitCode();
+    }
     if (Status s = calibration::writeDetections(dir, found); !s)
         return fail("detect", s);
     for (const std::string& line : lines)

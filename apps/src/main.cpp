@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
         "Run 'mixray <command> --help' for the options of one command."};
     app.set_version_flag("--version", "mixray 0.1.0");
     app.require_subcommand(1, 1);
+    app.footer(exitCodesHelp());
 
     registerRecordingFormats();
     Commands commands;

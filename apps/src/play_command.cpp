@@ -122,10 +122,17 @@ int runPlay(const PlayOptions& options) {
                     c->name.c_str(), static_cast<unsigned long long>(c->frames.load()), rate,
                     static_cast<unsigned long long>(i < edges.size() ? edges[i].queue.dropped : 0));
     }
-    Status replay_status = replay_device->status();
-    if (!replay_status)
-        return fail("play", replay_status);
-    return interrupt.raised() ? kExitInterrupted : kExitOk;
+    // A recording cut off or damaged: the frames before the damage were played (counted
+    // above), and the damage is said.
+    const Status input = replay_device->inputStatus();
+    if (!input)
+        std::fprintf(stderr, "mixray play: input incomplete: %s\n", input.message().c_str());
+    if (interrupt.raised()) {
+        std::fprintf(stderr, "mixray play: stopped by %s after %.2f s\n",
+                     interrupt.signalName().c_str(), seconds);
+        return interrupt.exitCode();
+    }
+    return input ? kExitOk : kExitIncomplete;
 }
 
 }  // namespace

@@ -86,7 +86,8 @@ QueuePolicy policyOf(const RecordOptions& options, const RigDescription& rig) {
 // Why the recording loop stopped, said with the summary.
 enum class StopReason { kDuration, kStreamsEnded, kInterrupted, kRecorderError };
 
-std::string stopMessage(StopReason reason, int64_t elapsed_ns, double duration_s) {
+std::string stopMessage(StopReason reason, int64_t elapsed_ns, double duration_s,
+                        const std::string& signal) {
     char text[160];
     switch (reason) {
         case StopReason::kDuration:
@@ -103,7 +104,7 @@ std::string stopMessage(StopReason reason, int64_t elapsed_ns, double duration_s
             }
             return text;
         case StopReason::kInterrupted:
-            std::snprintf(text, sizeof text, "stopped by a signal (Ctrl-C or SIGTERM) after %.1f s",
+            std::snprintf(text, sizeof text, "stopped by %s after %.1f s", signal.c_str(),
                           static_cast<double>(elapsed_ns) / 1e9);
             return text;
         case StopReason::kRecorderError:
@@ -266,7 +267,9 @@ int runRecord(const RecordOptions& options) {
 
     const RecorderStats stats = recorder->stats();
     std::printf("%s: %s\n", options.output.c_str(), stats.summary().c_str());
-    std::printf("  %s\n", stopMessage(reason, stopped_at - t0, options.duration_s).c_str());
+    std::printf(
+        "  %s\n",
+        stopMessage(reason, stopped_at - t0, options.duration_s, interrupt.signalName()).c_str());
     for (const auto& s : stats.streams) {
         // Frames the device never delivered never reached the recorder: said beside its drops.
         const std::optional<StreamId> id = graph.findStream(s.stream);
@@ -287,7 +290,7 @@ int runRecord(const RecordOptions& options) {
         return fail("record", stats.error.withContext(options.output + " (readable up to frame " +
                                                       std::to_string(stats.frames_written) + ")"));
     }
-    return interrupt.raised() ? kExitInterrupted : kExitOk;
+    return interrupt.raised() ? interrupt.exitCode() : kExitOk;
 }
 
 }  // namespace

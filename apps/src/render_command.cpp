@@ -207,6 +207,7 @@ int runRender(const RenderCommandOptions& options) {
                 std::string(render::toString(video->codec())).c_str(),
                 frames ? render_seconds / static_cast<double>(frames) * 1e3 : 0.0,
                 worst_seconds * 1e3);
+    const int code = finishPipelineRun("render", stats);
     if (stopped) {
         // The planned count is known when --max-frames set it; the recording's own count would
         // take a pass over the whole file.
@@ -222,7 +223,7 @@ int runRender(const RenderCommandOptions& options) {
                      static_cast<unsigned long long>(held), plural(held));
         return interrupt.exitCode();
     }
-    return kExitOk;
+    return code;
 }
 
 }  // namespace

@@ -84,6 +84,11 @@ std::string statusText(const render::ArPipelineStats& s, const std::string& colo
                       s.seconds, color.c_str(), color_fps, composite_fps, c.latency.p50_ms,
                       c.latency.p95_ms, c.latency.p99_ms, c.qualityText().c_str(),
                       static_cast<unsigned long long>(c.skipped_superseded), devices.c_str());
+        std::string undrawn;
+        for (const auto& o : c.objects)
+            if (o.frames == 0 && c.composites > 0)
+                undrawn += (undrawn.empty() ? ", not drawn: " : ", ") + o.name;
+        return line + undrawn;
     } else {
         std::string rates;
         for (const auto& st : s.streams)
@@ -317,7 +322,8 @@ int runRun(const RunOptions& options) {
     if (stats.recorder)
         std::printf("%s: %s\n", options.record.c_str(), stats.recorder->summary().c_str());
     std::printf("wrote %s\n", summary_path.string().c_str());
-    return interrupt.raised() ? interrupt.exitCode() : kExitOk;
+    const int code = finishPipelineRun("run", stats);
+    return interrupt.raised() ? interrupt.exitCode() : code;
 }
 
 }  // namespace

@@ -71,14 +71,23 @@ int runSimulate(const SimulateCommandOptions& o) {
     status.finish();
     if (!summary)
         return fail("simulate", summary.status());
-    std::printf("%s: %d frames (%d environment frames) in %.1f s, %.0f ms per frame\n",
-                output.string().c_str(), summary->frames, summary->env_frames, summary->seconds,
-                summary->frames ? summary->seconds * 1e3 / summary->frames : 0.0);
+    if (summary->recording_written)
+        std::printf("%s: %d frames (%d environment frames) in %.1f s, %.0f ms per frame\n",
+                    output.string().c_str(), summary->frames, summary->env_frames, summary->seconds,
+                    summary->frames ? summary->seconds * 1e3 / summary->frames : 0.0);
     for (size_t i = 0; i < summary->files.size(); ++i) {
         std::error_code ec;
         const auto bytes = fs::file_size(summary->files[i], ec);
         std::printf("  %s  %s\n", summary->files[i].string().c_str(),
                     ec ? "?" : formatBytes(bytes).c_str());
+    }
+    if (summary->stopped && !summary->recording_written) {
+        std::fprintf(stderr,
+                     "mixray simulate: stopped by %s before the first of %d frames; no recording "
+                     "written (%s would hold no frame)\n",
+                     interrupt.signalName().c_str(), summary->frames_planned,
+                     output.string().c_str());
+        return interrupt.exitCode();
     }
     if (summary->stopped) {
         std::fprintf(stderr,

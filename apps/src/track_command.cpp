@@ -346,6 +346,10 @@ int runTrack(const TrackCommandOptions& options) {
                 {"setup", setup->source_path},
                 {"camera_stream", setup->camera.stream},
                 {"frames", frames}};
+    const render::ArPipelineStats pipeline_stats = (*pipeline)->stats();
+    doc["input"] = {{"complete", pipeline_stats.input.isOk()}};
+    if (!pipeline_stats.input)
+        doc["input"]["damage"] = pipeline_stats.input.message();
     for (const auto& [name, text] : {std::pair<std::string, std::string>{"poses.csv", poses_csv},
                                      {"lights.csv", lights_csv},
                                      {"track.json", doc.dump(1)}}) {
@@ -378,7 +382,13 @@ int runTrack(const TrackCommandOptions& options) {
     std::printf("wrote %s/{poses.csv, lights.csv, track.json%s%s}\n", out_dir.string().c_str(),
                 video ? ", overlay.mp4" : "",
                 options.record ? ", tracked.mkv (+ tracking/pose, tracking/lights)" : "");
-    return interrupt.raised() ? kExitInterrupted : kExitOk;
+    const int code = finishPipelineRun("track", pipeline_stats);
+    if (!interrupt.raised())
+        return code;
+    std::fprintf(stderr,
+                 "mixray track: stopped by %s after %zu colour frames; the files hold them\n",
+                 interrupt.signalName().c_str(), frames.size());
+    return interrupt.exitCode();
 }
 
 }  // namespace

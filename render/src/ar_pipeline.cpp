@@ -363,6 +363,12 @@ Status ArPipeline::status() const {
     return Status::ok();
 }
 
+Status ArPipeline::inputStatus() const {
+    for (const Device* d : devices_)
+        MIXRAY_RETURN_IF_ERROR(d->inputStatus());
+    return Status::ok();
+}
+
 std::string ArPipeline::compositeStream() const {
     return compositor_ ? graph_->stream(compositor_->outputStream()).name : std::string();
 }
@@ -449,7 +455,18 @@ ArPipelineStats ArPipeline::stats() const {
         s.compositor = compositor_->stats();
     if (recorder_)
         s.recorder = recorder_->stats();
+    s.input = inputStatus();
     return s;
+}
+
+std::vector<std::string> ArPipelineStats::warnings() const {
+    std::vector<std::string> lines;
+    if (!input)
+        lines.push_back("input incomplete: " + input.message());
+    if (compositor)
+        for (std::string& line : compositor->neverDrawn())
+            lines.push_back(std::move(line));
+    return lines;
 }
 
 std::string ArPipelineStats::json() const {
@@ -514,6 +531,17 @@ std::string ArPipelineStats::json() const {
         if (!recorder->error)
             messages.push_back("recording stopped: " + recorder->error.message());
     }
+    j["input"] = {{"complete", input.isOk()}};
+    if (!input)
+        j["input"]["damage"] = input.message();
+    if (compositor) {
+        json objects = json::array();
+        for (const CompositorStats::ObjectDrawn& o : compositor->objects)
+            objects.push_back({{"name", o.name}, {"anchor", o.anchor}, {"drawn", o.frames}});
+        j["objects"] = objects;
+    }
+    for (const std::string& line : warnings())
+        messages.push_back(line);
     j["messages"] = messages;
     return j.dump();
 }

@@ -180,6 +180,9 @@ CompositorNode::CompositorNode(CompositorOptions options, SceneDescription scene
     latencies_ms_.reserve(kLatencyWindow);
     stats_.quality_steps = static_cast<int>(ladder_.size());
     stats_.quality_label = ladder_.front().label();
+    for (const SceneObject& object : scene_.objects)
+        if (object.role == ObjectRole::kVirtual)
+            stats_.objects.push_back({object.name, object.anchor, 0});
 }
 
 CompositorNode::~CompositorNode() {
@@ -316,6 +319,24 @@ bool CompositorNode::waitDone(std::chrono::nanoseconds timeout) const {
 Status CompositorNode::status() const {
     std::lock_guard lock(mutex_);
     return status_;
+}
+
+std::vector<std::string> CompositorStats::neverDrawn() const {
+    std::vector<std::string> lines;
+    if (composites == 0)
+        return lines;
+    const std::string of_all = " in any of " + std::to_string(composites) + " composites";
+    for (const ObjectDrawn& o : objects) {
+        if (o.frames > 0)
+            continue;
+        std::string anchor = o.anchor;
+        if (anchor.starts_with("marker:"))
+            anchor = "marker " + anchor.substr(7);
+        lines.push_back("object '" + o.name + "' (anchor " + o.anchor + ") was never drawn: " +
+                        (rendered == 0 ? "the camera had no pose" : anchor + " had no pose") +
+                        of_all);
+    }
+    return lines;
 }
 
 CompositorStats CompositorNode::stats() const {
@@ -609,6 +630,10 @@ Status CompositorNode::composite(const Pending& set) {
         std::lock_guard lock(mutex_);
         out.index = stats_.composites++;
         (out.rendered ? stats_.rendered : stats_.passed_through)++;
+        if (out.rendered)
+            for (CompositorStats::ObjectDrawn& o : stats_.objects)
+                if (o.anchor == "world" || options_.T_world_anchor.count(o.anchor))
+                    ++o.frames;
         if (latencies_ms_.size() < kLatencyWindow)
             latencies_ms_.push_back(out.latency_ms);
         else

@@ -505,6 +505,15 @@ Result<SimulationSummary> simulateSession(const SimulatorOptions& options_in,
             progress(i + 1, (*sim)->frameCount());
     }
     MIXRAY_RETURN_IF_ERROR((*writer)->close());
+    if (summary.frames == 0 && summary.stopped) {
+        std::error_code removed;
+        fs::remove(recording, removed);
+        if (removed)
+            return Status(ErrorCode::kIoError, "cannot remove " + recording.string() +
+                                                   ", left without frames: " + removed.message());
+        summary.recording_written = false;
+        summary.files.erase(summary.files.begin());
+    }
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return summary;

@@ -7,9 +7,12 @@
 #include <unistd.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "test_data.h"
@@ -68,6 +71,24 @@ inline CliProcess startMixray(const std::vector<std::string>& args,
         _exit(127);
     }
     return process;
+}
+
+// Waits until process `pid` catches `signal_number` (its SigCgt in /proc: mixray installs its
+// handler only once it has parsed its options, and the loader may take seconds on a loaded
+// machine), at most `timeout`. False when it never did (it ended, or never installed one).
+inline bool waitUntilCatching(pid_t pid, int signal_number,
+                              std::chrono::milliseconds timeout = std::chrono::seconds(20)) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    do {
+        std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+        std::string line;
+        while (std::getline(status, line))
+            if (line.rfind("SigCgt:", 0) == 0 &&
+                (std::stoull(line.substr(7), nullptr, 16) & (1ull << (signal_number - 1))) != 0)
+                return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    } while (std::chrono::steady_clock::now() < deadline);
+    return false;
 }
 
 // Waits for a process startMixray started: its exit code, or -1 when a signal killed it.

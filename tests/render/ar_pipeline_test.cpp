@@ -216,6 +216,36 @@ TEST(ArPipeline, FastPaceGivesTheSameCompositesPosesAndLightsAsTheFrameLoop) {
     EXPECT_EQ(stats.compositor->skipped_superseded, 0u);
     EXPECT_EQ(stats.compositor->sync.framesDropped(), 0u);
     EXPECT_EQ(stats.compositor->latency.count, 36u);
+    // Every object drawn in every rendered composite, the input whole: nothing to warn of.
+    EXPECT_TRUE(stats.input) << stats.input.toString();
+    ASSERT_FALSE(stats.compositor->objects.empty());
+    for (const auto& o : stats.compositor->objects)
+        EXPECT_EQ(o.frames, stats.compositor->rendered) << o.name;
+    EXPECT_TRUE(stats.warnings().empty());
+}
+
+// What the compositor says of objects it never drew, and why.
+TEST(CompositorStats, NamesEachObjectNeverDrawnWithWhy) {
+    CompositorStats c;
+    EXPECT_TRUE(c.neverDrawn().empty()) << "nothing composited yet: nothing to say";
+    c.composites = 36;
+    c.rendered = 36;
+    c.objects = {{"teapot", "marker:0", 0}, {"box", "world", 36}};
+    ASSERT_EQ(c.neverDrawn().size(), 1u);
+    EXPECT_EQ(c.neverDrawn()[0],
+              "object 'teapot' (anchor marker:0) was never drawn: marker 0 had no pose in any of "
+              "36 composites");
+    c.rendered = 0;
+    c.objects[1].frames = 0;
+    ASSERT_EQ(c.neverDrawn().size(), 2u);
+    EXPECT_EQ(c.neverDrawn()[1],
+              "object 'box' (anchor world) was never drawn: the camera had no pose in any of 36 "
+              "composites");
+    ArPipelineStats stats;
+    stats.compositor = c;
+    stats.input = Status(ErrorCode::kCorruptData, "cut.mkv: file is cut off");
+    ASSERT_EQ(stats.warnings().size(), 3u);
+    EXPECT_EQ(stats.warnings()[0], "input incomplete: cut.mkv: file is cut off");
 }
 
 // camera_matching.motion_blur through the compositor: from the second measured pose on, each

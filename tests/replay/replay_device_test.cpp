@@ -45,6 +45,9 @@ public:
     Result<FrameRef> next() override {
         if (position_ >= stamps_.size())
             return {ErrorCode::kEndOfStream, "end"};
+        if (position_ == cut_after)
+            return {ErrorCode::kCorruptData, "memory: file is cut off: it ends after " +
+                                                 std::to_string(cut_after) + " complete frames"};
         WritableFrame w = pool_->acquire();
         if (!w)
             return {ErrorCode::kUnavailable, "held"};
@@ -69,6 +72,7 @@ public:
         return Status::ok();
     }
     std::set<const uint8_t*> handed_out;
+    size_t cut_after = SIZE_MAX;  // next() fails as a truncated file does after this many frames
 
 private:
     std::vector<int64_t> stamps_;
@@ -215,6 +219,29 @@ TEST(ReplayDevice, ForwardsTheReadersBuffersWithExactMetadata) {
     EXPECT_TRUE(replay->finished());
     EXPECT_TRUE(replay->status());
     EXPECT_EQ(replay->publishedFrames(), 4u);
+}
+
+// A recording cut off: the frames before the cut are published, the streams end, and the
+// device says why to whoever holds it as a Device (the AR pipeline, mixray play).
+TEST(ReplayDevice, ACutOffRecordingIsSaidAsTheDevicesInputStatus) {
+    auto reader = std::make_unique<FakeReader>(std::vector<int64_t>{1000, 2000, 3000, 4000});
+    reader->cut_after = 2;
+    auto device = openReplayDevice(std::move(reader), config({{"pace", "fast"}}));
+    ASSERT_TRUE(device) << device.status().toString();
+    Graph graph;
+    const Device* replay = device->get();
+    EXPECT_TRUE(replay->inputStatus());
+    ASSERT_TRUE(graph.addNode(std::move(*device)));
+    auto queue = *graph.subscribe(*graph.findStream("rec/mono"), {8, QueuePolicy::kLossless, "t"});
+    ASSERT_TRUE(graph.start());
+    EXPECT_EQ(drain(*queue).size(), 2u);
+    graph.stop();
+    const Status input = replay->inputStatus();
+    EXPECT_EQ(input.code(), ErrorCode::kCorruptData);
+    EXPECT_TRUE(contains(input.message(),
+                         "memory: file is cut off: it ends after 2 complete "
+                         "frames"))
+        << input.message();
 }
 
 TEST(ReplayDevice, RigModeRequestsMustDescribeTheRecording) {

@@ -16,7 +16,8 @@ RecordingHeader headerOf(const RecordingReader& reader) {
 }
 
 Result<ConvertSummary> convertRecording(RecordingReader& reader, RecordingWriter& writer,
-                                        const ConvertProgressCallback& progress) {
+                                        const ConvertProgressCallback& progress,
+                                        InputDamage on_damage) {
     using Clock = std::chrono::steady_clock;
     const auto t0 = Clock::now();
     ConvertSummary summary;
@@ -33,6 +34,10 @@ Result<ConvertSummary> convertRecording(RecordingReader& reader, RecordingWriter
             const ErrorCode code = frame.status().code();
             if (code == ErrorCode::kEndOfStream)
                 break;
+            if (code == ErrorCode::kCorruptData && on_damage == InputDamage::kKeepWhatWasRead) {
+                summary.input = frame.status();
+                break;
+            }
             if (code == ErrorCode::kUnavailable) {
                 const auto now = Clock::now();
                 if (waiting_since == Clock::time_point::max())
@@ -62,6 +67,10 @@ Result<ConvertSummary> convertRecording(RecordingReader& reader, RecordingWriter
             return fail({ErrorCode::kCancelled, "stopped by the progress callback"});
         }
     }
+    // The stretch the reader never read past is the one `input` names already.
+    for (RecordingDamage& d : reader.damage())
+        if (summary.input || d.resumed_at >= 0)
+            summary.damage.push_back(std::move(d));
     MIXRAY_RETURN_IF_ERROR(writer.close().withContext("closing the converted recording"));
     summary.bytes_written = writer.bytesWritten();
     summary.seconds = std::chrono::duration<double>(Clock::now() - t0).count();

@@ -102,6 +102,12 @@ struct ArPipelineStats {
     std::optional<CompositorStats> compositor;
     std::optional<RecorderStats> recorder;
     double seconds = 0;  // since start()
+    // ArPipeline::inputStatus() when it was taken: a replayed recording cut off or damaged.
+    Status input;
+
+    // What a user must be told besides the figures, one line each: the input's damage, then
+    // each virtual object never drawn (CompositorStats::neverDrawn()).
+    std::vector<std::string> warnings() const;
 
     // The live view's status object (docs/live-view.md): devices, streams, latency, sync,
     // ladder, messages.
@@ -129,8 +135,12 @@ public:
     bool waitDone(std::chrono::nanoseconds timeout) const;
     // Stops every node (the recording is closed with what reached it). Idempotent.
     void stop();
-    // The first error of a node (tracking, compositor, recorder, a replayed file), else ok.
+    // The first error of a node (tracking, compositor, recorder), else ok.
     Status status() const;
+    // The first device's Device::inputStatus() that is not ok: a replayed recording cut off or
+    // damaged (kCorruptData naming the file, what is missing and the frames read). The
+    // pipeline then ran on the frames that were readable; it is not an error of status().
+    Status inputStatus() const;
     ArPipelineStats stats() const;
 
     Graph& graph() { return *graph_; }

@@ -178,6 +178,19 @@ struct CompositorStats {
 
     int qualityRung() const { return quality_step + 1; }  // as people and JSON number it
     std::string qualityText() const { return rungText(quality_step, quality_steps, quality_label); }
+    // Each virtual object of the scene, in scene order, and the rendered composites it was
+    // drawn in: posed, since the camera and its anchor had a pose (in view or not).
+    struct ObjectDrawn {
+        std::string name;
+        std::string anchor;  // "world", "marker:0"
+        uint64_t frames = 0;
+    };
+    std::vector<ObjectDrawn> objects;
+
+    // One line per virtual object drawn in no composite, with why: "object 'teapot' (anchor
+    // marker:0) was never drawn: marker 0 had no pose in any of 36 composites". Empty before
+    // the first composite.
+    std::vector<std::string> neverDrawn() const;
 };
 
 // Runs a SyncNode over its inputs and renders on a thread of its own, so matching never waits

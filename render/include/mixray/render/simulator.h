@@ -173,11 +173,14 @@ struct SimulationSummary {
     int frames = 0;          // colour frames written
     int frames_planned = 0;  // the session's colour frames (truth files describe them all)
     // options.stop ended the session early: the recording holds the first `frames` frames
-    // (closed, playable), the truth files every planned one.
+    // (closed, playable), the truth files every planned one. Stopped before the first frame,
+    // no recording is left (a Matroska file without frames is not one a reader accepts).
     bool stopped = false;
+    bool recording_written = true;  // false: stopped before the first frame, none left
     int env_frames = 0;
     double seconds = 0;                        // rendering and writing
-    std::vector<std::filesystem::path> files;  // everything written, the recording first
+    std::vector<std::filesystem::path> files;  // everything written, the recording first (when
+                                               // recording_written)
 };
 
 // Writes `recording` (.mkv, FFV1) with streams kinect/color (rgb8), kinect/depth (depth16,

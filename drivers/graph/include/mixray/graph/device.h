@@ -56,6 +56,12 @@ public:
     // show: another host's clock offset, drift and residual. Empty when it has nothing to say
     // (the default). Thread-safe like state().
     virtual std::string clockReport() const { return {}; }
+    // What of its input it could not deliver: ok while it runs and after a clean end; for a
+    // replayed recording cut off or damaged, kCorruptData naming the file, what is missing or
+    // damaged and how many frames it read (the frames before were delivered exact). Live
+    // devices say nothing here (the default): their losses are the graph's lost counts and
+    // state(). Thread-safe like state().
+    virtual Status inputStatus() const { return Status::ok(); }
 };
 
 // One device family. Implementations live in drivers/<backend>/ and are registered by apps.

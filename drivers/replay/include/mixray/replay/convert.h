@@ -43,14 +43,30 @@ struct ConvertSummary {
     int64_t last_stamp_ns = 0;
     uint64_t bytes_written = 0;  // after close()
     double seconds = 0;          // wall time taken
+    // With InputDamage::kKeepWhatWasRead: the reader's error when the input ended in damage
+    // (a cut-off file: kCorruptData naming it and the frames read); ok otherwise.
+    Status input;
+    // Damaged stretches the reader skipped and read past (RecordingReader::damage()): their
+    // frames are not in the output. The one it never read past is `input`'s.
+    std::vector<RecordingDamage> damage;
+    // The output holds less than the input was meant to: it ended in damage or skipped some.
+    bool partial() const { return !input || !damage.empty(); }
+};
+
+// What convertRecording does when the reader fails midway (kCorruptData: a cut-off file).
+enum class InputDamage {
+    kFail,             // return the error (the output is closed, holding what was copied)
+    kKeepWhatWasRead,  // close the output and return the summary, the error in `input`
 };
 
 // Copies every frame `reader` has left (from its current position) into `writer` and closes
 // the writer. `writer` must have been created with headerOf(reader) (stream ids are passed
 // through unchanged). Waits briefly and retries when the reader reports kUnavailable. Errors of
 // the reader or writer are returned with the frame count reached; the writer is closed then
-// too, so what was copied stays readable. Does not take ownership of either.
+// too, so what was copied stays readable (`on_damage` may keep a reader's kCorruptData as the
+// summary's `input` instead). Does not take ownership of either.
 Result<ConvertSummary> convertRecording(RecordingReader& reader, RecordingWriter& writer,
-                                        const ConvertProgressCallback& progress = {});
+                                        const ConvertProgressCallback& progress = {},
+                                        InputDamage on_damage = InputDamage::kFail);
 
 }  // namespace mixray::replay

@@ -87,6 +87,8 @@ public:
     // ok while playing and after a clean end; the reader's error when it failed midway;
     // kCorruptData naming the first byte offset when it read past damage (RecordingDamage).
     Status status() const;
+    // The same, for the graph's owner that knows it only as a Device.
+    Status inputStatus() const override { return status(); }
     // True once the playback thread has ended its streams (end of data, error or stop()).
     bool finished() const { return finished_.load(); }
     // kEnded once finished(); until then kUnknown: its streams' activity tells the rest.
