@@ -56,7 +56,7 @@ struct BenchPipelineOptions {
     int threads = 0;
     std::string record;  // default: a temporary file, removed after it was counted
     bool no_record = false;
-    MkvCompression compression = MkvCompression::kFfv1;  // mixray run's default
+    MkvCompression compression = MkvCompression::kHuffyuv;  // mixray run's default
     int load = 0;  // busy processes beside the pipeline at real pace (CpuLoad)
     bool json = false;
 };
@@ -384,7 +384,7 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
                      : fs::path(options.record);
         ar.record = record;
         ar.record_compression = options.compression;
-        f.compression = options.compression == MkvCompression::kNone ? "none" : "ffv1";
+        f.compression = toString(options.compression);
     }
     std::mutex mutex;
     ar.on_composite = [&](const render::CompositeFrame& c) {

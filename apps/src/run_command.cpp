@@ -37,7 +37,9 @@ struct RunOptions {
     std::string setup;
     std::string calibration;
     std::string record;
-    MkvCompression compression = MkvCompression::kFfv1;
+    // Live, FFV1 with the replay's own decoding took more than the two cores had; ffvhuff
+    // costs a tenth of it (docs/benchmarks.md).
+    MkvCompression compression = MkvCompression::kHuffyuv;
     std::string output = "out/run";
     std::string pace = "real";
     std::string view;  // [ADDR:]PORT of the live view; empty: none
@@ -350,8 +352,8 @@ void registerRunCommand(CLI::App& app, Commands& commands) {
     sub->add_option("--record", o->record,
                     "Record raw streams, poses, lights and the composite into this .mkv");
     addCompressionOption(*sub, o->compression,
-                         "with --record; the recorder runs above the renderer, so FFV1's CPU "
-                         "costs composites, never recorded frames");
+                         "with --record; ffvhuff leaves the CPU to capture and the composite, at "
+                         "a rate a laptop disk holds: 12 MB/s for VGA colour and depth at 30 fps");
     sub->add_option("-o,--output", o->output, "Folder for summary.json")->capture_default_str();
     sub->add_option("--pace", o->pace,
                     "real: devices, or the recording at its own pace as its rig delivered it "

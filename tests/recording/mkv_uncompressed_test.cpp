@@ -189,6 +189,31 @@ TEST_F(MkvUncompressed, EveryPixelFormatComesBackBitExactAndIsStoredAsIs) {
     }
 }
 
+TEST_F(MkvUncompressed, HuffyuvGivesBackEveryPixelFormatBitExactAndFfmpegNamesItsCodec) {
+    const auto path = test::tempDir() / "ffvhuff_every_format.mkv";
+    std::vector<StreamInfo> streams = test::everyFormatStreams();
+    streams.push_back(test::makeStream("tiny/mono16", PixelFormat::kMono16, 1, 1));
+    streams.push_back(test::makeStream("tiny/rgb", PixelFormat::kRGB8, 3, 2));
+    streams.push_back(test::makeStream("tiny/bgr", PixelFormat::kBGR8, 1, 5));
+    streams.push_back(test::makeStream("tiny/nv12", PixelFormat::kNV12, 2, 2));
+    streams.push_back(test::makeStream("tiny/yuyv", PixelFormat::kYUYV, 2, 1));
+    const RecordingHeader header = test::makeHeader(streams);
+    MkvWriterOptions options;
+    options.compression = MkvCompression::kHuffyuv;
+    const std::vector<ExpectedFrame> written = writeWith(path, header, 5, options);
+    ASSERT_EQ(written.size(), header.streams.size() * 5);
+    const ReadOutcome outcome = readInOrder(path, written);
+    EXPECT_EQ(outcome.frames, written.size());
+    EXPECT_EQ(outcome.status.code(), ErrorCode::kEndOfStream) << outcome.status.toString();
+    if (std::system("command -v ffprobe >/dev/null 2>&1") == 0) {
+        const std::string codecs = runCommand("ffprobe -v error -show_entries stream=codec_name "
+                                              "-of csv=p=0 '" +
+                                              path.string() + "'");
+        EXPECT_NE(codecs.find("ffvhuff"), std::string::npos) << codecs;
+        EXPECT_EQ(codecs.find("ffv1"), std::string::npos) << codecs;
+    }
+}
+
 TEST_F(MkvUncompressed, BothModesReadBackTheSameFrames) {
     const auto dir = test::tempDir();
     RecordingHeader header;
@@ -404,6 +429,8 @@ TEST_F(MkvUncompressed, OptionsRefuseAnUnknownCompression) {
     std::string why;
     EXPECT_TRUE(options.validate(&why)) << why;
     options.compression = MkvCompression::kNone;
+    EXPECT_TRUE(options.validate(&why)) << why;
+    options.compression = MkvCompression::kHuffyuv;
     EXPECT_TRUE(options.validate(&why)) << why;
     options.compression = static_cast<MkvCompression>(7);
     EXPECT_FALSE(options.validate(&why));

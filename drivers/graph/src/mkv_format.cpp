@@ -230,11 +230,9 @@ void unpackRows(const uint8_t* in, const MutableImageView& out) {
         std::memcpy(out.row<uint8_t>(y), in, bytes);
 }
 
-std::optional<Storage> storageFor(PixelFormat format, MkvCompression compression) {
-    if (compression == MkvCompression::kNone) {
-        if (auto raw = rawStorageFor(format))
-            return raw;
-    }
+namespace {
+
+std::optional<Storage> ffv1StorageFor(PixelFormat format) {
     switch (format) {
         case PixelFormat::kMono8:
         case PixelFormat::kBayerRGGB8:
@@ -264,6 +262,24 @@ std::optional<Storage> storageFor(PixelFormat format, MkvCompression compression
             break;
     }
     return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<Storage> storageFor(PixelFormat format, MkvCompression compression) {
+    if (compression == MkvCompression::kNone) {
+        if (auto raw = rawStorageFor(format))
+            return raw;
+    }
+    std::optional<Storage> storage = ffv1StorageFor(format);
+    if (storage && compression == MkvCompression::kHuffyuv && storage->encoded()) {
+        // The same planes as FFV1's, which ffvhuff takes too, but for colour: ffvhuff has no
+        // 0RGB32, and RGB32 is the same bytes with the fourth one coded (as zero).
+        storage->codec = AV_CODEC_ID_FFVHUFF;
+        if (storage->pixel == AV_PIX_FMT_0RGB32)
+            storage->pixel = AV_PIX_FMT_RGB32;
+    }
+    return storage;
 }
 
 void packImage(const ImageView& image, AVFrame* frame) {

@@ -70,7 +70,8 @@ struct Storage {
     // Raw frames: FFmpeg's FourCC for `pixel`, stored as the track's ColourSpace so that other
     // tools know the layout; 0 otherwise.
     uint32_t codec_tag = 0;
-    bool encoded() const { return codec == AV_CODEC_ID_FFV1; }
+    // Coded by an FFmpeg codec (FFV1 or ffvhuff) from and to `pixel`.
+    bool encoded() const { return codec == AV_CODEC_ID_FFV1 || codec == AV_CODEC_ID_FFVHUFF; }
     // Packed rows as they are (Matroska V_UNCOMPRESSED).
     bool raw() const { return codec == AV_CODEC_ID_RAWVIDEO; }
 };

@@ -38,7 +38,7 @@ using FormatPtr = std::unique_ptr<AVFormatContext, FormatCloser>;
 
 // How a track's packets become frame payloads.
 enum class Payload {
-    kFfv1,         // FFV1-decoded then unpacked (mixray images)
+    kDecoded,      // FFV1- or ffvhuff-decoded then unpacked (mixray images)
     kRawRows,      // packed rows (mixray MkvCompression::kNone), copied to the stream's stride
     kCopy,         // the packet bytes as they are (MJPEG, binary, Azure NV12/YUY2)
     kBigEndian16,  // Azure "b16g": 16-bit big-endian samples, swapped to native
@@ -270,9 +270,11 @@ Status MkvReader::addAttachment(const AVStream* st) {
 }
 
 Status MkvReader::openDecoder(Track& track, const AVStream* st) {
-    const AVCodec* codec = avcodec_find_decoder(AV_CODEC_ID_FFV1);
+    const AVCodec* codec = avcodec_find_decoder(st->codecpar->codec_id);
     if (!codec)
-        return {ErrorCode::kUnsupported, "this FFmpeg has no FFV1 decoder"};
+        return {ErrorCode::kUnsupported, std::string("this FFmpeg has no ") +
+                                             avcodec_get_name(st->codecpar->codec_id) +
+                                             " decoder"};
     track.decoder.reset(avcodec_alloc_context3(codec));
     track.decoded.reset(av_frame_alloc());
     if (!track.decoder || !track.decoded) {
@@ -289,8 +291,8 @@ Status MkvReader::openDecoder(Track& track, const AVStream* st) {
     c->err_recognition |= AV_EF_CRCCHECK | AV_EF_EXPLODE;
     err = avcodec_open2(c, codec, nullptr);
     if (err < 0) {
-        return corrupt("track '" + track.info.name +
-                       "': FFV1 decoder refuses its parameters: " + ffmpeg::errorString(err));
+        return corrupt("track '" + track.info.name + "': " + codec->name +
+                       " decoder refuses its parameters: " + ffmpeg::errorString(err));
     }
     return Status::ok();
 }
@@ -317,10 +319,12 @@ Status MkvReader::openMixray() {
         auto info = mkv::parseStreamTags(title, st->metadata);
         if (!info)
             return info.status().withContext(path_.string());
-        // The codec says how the writer stored the images (MkvCompression): FFV1 or raw.
-        const MkvCompression compression = st->codecpar->codec_id == AV_CODEC_ID_RAWVIDEO
-                                               ? MkvCompression::kNone
-                                               : MkvCompression::kFfv1;
+        // The codec says how the writer stored the images (MkvCompression): FFV1, ffvhuff or
+        // raw.
+        const MkvCompression compression =
+            st->codecpar->codec_id == AV_CODEC_ID_RAWVIDEO  ? MkvCompression::kNone
+            : st->codecpar->codec_id == AV_CODEC_ID_FFVHUFF ? MkvCompression::kHuffyuv
+                                                            : MkvCompression::kFfv1;
         const mkv::Storage storage = *mkv::storageFor(info->format.format, compression);
         const bool image = storage.encoded() || storage.raw();
         if (st->codecpar->codec_id != storage.codec ||
@@ -332,7 +336,7 @@ Status MkvReader::openMixray() {
         Track track;
         track.info = std::move(*info);
         track.av_index = static_cast<int>(i);
-        track.payload = storage.encoded() ? Payload::kFfv1
+        track.payload = storage.encoded() ? Payload::kDecoded
                         : storage.raw()   ? Payload::kRawRows
                                           : Payload::kCopy;
         if (storage.raw())
@@ -706,7 +710,7 @@ Result<FrameRef> MkvReader::materialize(const Pending& pending) {
     const uint8_t* bytes = pending.packet->data + pending.offset;
     MutableImageView out = frame.image();
     switch (track.payload) {
-        case Payload::kFfv1: {
+        case Payload::kDecoded: {
             AVCodecContext* decoder = track.decoder.get();
             AVFrame* decoded = track.decoded.get();
             av_frame_unref(decoded);
@@ -718,7 +722,11 @@ Result<FrameRef> MkvReader::materialize(const Pending& pending) {
                                std::to_string(pending.packet->pos) +
                                " does not decode: " + ffmpeg::errorString(err));
             }
-            const auto expected = mkv::storageFor(desc.format)->pixel;
+            const auto expected =
+                mkv::storageFor(desc.format, decoder->codec_id == AV_CODEC_ID_FFVHUFF
+                                                 ? MkvCompression::kHuffyuv
+                                                 : MkvCompression::kFfv1)
+                    ->pixel;
             if (decoded->width != desc.width || decoded->height != desc.height ||
                 decoded->format != expected) {
                 return corrupt("frame of '" + track.info.name + "' decodes to the wrong layout");

@@ -29,8 +29,8 @@ void releaseFrame(void* opaque, uint8_t* /*data*/) {
     delete static_cast<FrameRef*>(opaque);
 }
 
-// createMkvWriter's writer: one libavformat muxer, one FFV1 encoder per image stream stored
-// with FFV1. Thread-bound, like every RecordingWriter.
+// createMkvWriter's writer: one libavformat muxer, one FFV1 or ffvhuff encoder per image stream
+// stored coded. Thread-bound, like every RecordingWriter.
 class MkvWriter final : public RecordingWriter {
 public:
     MkvWriter(std::filesystem::path path, const MkvWriterOptions& options)
@@ -180,8 +180,10 @@ Status MkvWriter::addTrack(const StreamInfo& info) {
 
     if (storage.encoded()) {
         const AVCodec* codec = avcodec_find_encoder(storage.codec);
+        const bool ffv1 = storage.codec == AV_CODEC_ID_FFV1;
         if (!codec)
-            return {ErrorCode::kUnsupported, what + ": FFmpeg lacks the FFV1 encoder"};
+            return {ErrorCode::kUnsupported, what + ": FFmpeg lacks the " +
+                                                 avcodec_get_name(storage.codec) + " encoder"};
         // FFmpeg 5.1's FFV1 version 3 silently decodes to zeros when a slice is 1 pixel wide
         // or high (found by brute force over all sizes up to 48x48); version 1 has no slices
         // and no such case. Slices of at least 2x2 were verified exact for every size and
@@ -190,11 +192,11 @@ Status MkvWriter::addTrack(const StreamInfo& info) {
         const int h = info.format.height;
         const int wanted = options_.ffv1_slices;
         std::vector<std::pair<int, int>> tries;  // (level, slices)
-        if (w / wanted >= 2 && h / wanted >= 2)
+        if (ffv1 && w / wanted >= 2 && h / wanted >= 2)
             tries.emplace_back(3, wanted);
-        if (w >= 2 && h >= 2)
+        if (ffv1 && w >= 2 && h >= 2)
             tries.emplace_back(3, 1);
-        tries.emplace_back(1, 1);
+        tries.emplace_back(1, 1);  // ffvhuff: neither levels nor slices
         int err = 0;
         for (const auto& [level, slices] : tries) {
             track.encoder.reset(avcodec_alloc_context3(codec));
@@ -210,15 +212,21 @@ Status MkvWriter::addTrack(const StreamInfo& info) {
             c->thread_type = FF_THREAD_SLICE;
             if (fmt_->oformat->flags & AVFMT_GLOBALHEADER)
                 c->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
-            if (level >= 3)
-                av_opt_set_int(c->priv_data, "slicecrc", 1, 0);
-            av_opt_set_int(c->priv_data, "coder", 1, 0);  // range coder: smaller than Golomb
+            if (ffv1) {
+                if (level >= 3)
+                    av_opt_set_int(c->priv_data, "slicecrc", 1, 0);
+                av_opt_set_int(c->priv_data, "coder", 1, 0);  // range coder: smaller than Golomb
+            } else {
+                // Each frame its own Huffman tables: keyframes only, and smaller files.
+                av_opt_set_int(c->priv_data, "context", 1, 0);
+            }
             err = avcodec_open2(c, codec, nullptr);
             if (err >= 0)
                 break;
         }
         if (err < 0)
-            return ffmpeg::toStatus(err, what + ": FFV1 encoder");
+            return ffmpeg::toStatus(err,
+                                    what + ": " + avcodec_get_name(storage.codec) + " encoder");
         err = avcodec_parameters_from_context(st->codecpar, track.encoder.get());
         if (err < 0)
             return ffmpeg::toStatus(err, what);
@@ -360,7 +368,8 @@ Status MkvWriter::encode(Track& track, const FrameRef& frame) {
     if (err >= 0)
         err = avcodec_receive_packet(track.encoder.get(), pkt);
     if (err < 0)
-        return ffmpeg::toStatus(err, context() + ": FFV1 encoder");
+        return ffmpeg::toStatus(
+            err, context() + ": " + avcodec_get_name(track.storage.codec) + " encoder");
     return Status::ok();
 }
 
@@ -477,6 +486,18 @@ Status MkvWriter::close() {
 
 }  // namespace
 
+const char* toString(MkvCompression compression) {
+    switch (compression) {
+        case MkvCompression::kFfv1:
+            return "ffv1";
+        case MkvCompression::kNone:
+            return "none";
+        case MkvCompression::kHuffyuv:
+            return "ffvhuff";
+    }
+    return "unknown";
+}
+
 bool MkvWriterOptions::validate(std::string* why) const {
     if (ffv1_slices < 1 || ffv1_slices > 1024) {
         if (why)
@@ -488,9 +509,10 @@ bool MkvWriterOptions::validate(std::string* why) const {
             *why = "threads must not be negative";
         return false;
     }
-    if (compression != MkvCompression::kFfv1 && compression != MkvCompression::kNone) {
+    if (compression != MkvCompression::kFfv1 && compression != MkvCompression::kNone &&
+        compression != MkvCompression::kHuffyuv) {
         if (why)
-            *why = "compression must be kFfv1 or kNone";
+            *why = "compression must be kFfv1, kNone or kHuffyuv";
         return false;
     }
     return true;

@@ -64,9 +64,8 @@ struct ArPipelineOptions {
     // frame a device published on a recorded stream reaches the file: the recorder runs above
     // tracking and the renderer, and the compositor skips sets while it is behind.
     std::filesystem::path record;
-    // How the recording stores images. FFV1 by default at either pace: at real pace the
-    // recorder's priority pays for its CPU with skipped composites, never lost frames, and it
-    // writes a tenth or less of the raw data rate.
+    // How the recording stores images: FFV1 by default (the smallest files; offline its CPU
+    // costs only time). Live, `mixray run` records with ffvhuff, a tenth of FFV1's CPU.
     MkvCompression record_compression = MkvCompression::kFfv1;
     std::vector<Attachment> record_attachments;
     std::map<std::string, std::string> record_tags;
