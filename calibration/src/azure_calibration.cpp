@@ -2,6 +2,7 @@
 // comparison of two registrations (own vs factory).
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -93,8 +94,13 @@ Result<RawCamera> readCamera(const json& cameras, const std::string& location) {
         if (!camera.contains("SensorWidth") || !camera["SensorWidth"].is_number_integer() ||
             !camera.contains("SensorHeight") || !camera["SensorHeight"].is_number_integer())
             return corrupt(where + "SensorWidth/SensorHeight missing");
-        raw.sensor_w = camera["SensorWidth"].get<int>();
-        raw.sensor_h = camera["SensorHeight"].get<int>();
+        const auto sensor_w = camera["SensorWidth"].get<int64_t>();
+        const auto sensor_h = camera["SensorHeight"].get<int64_t>();
+        // The aspect checks multiply them; Azure's sensors are a few thousand pixels wide.
+        if (sensor_w < 1 || sensor_w > 65535 || sensor_h < 1 || sensor_h > 65535)
+            return corrupt(where + "SensorWidth/SensorHeight outside 1..65535");
+        raw.sensor_w = static_cast<int>(sensor_w);
+        raw.sensor_h = static_cast<int>(sensor_h);
         raw.metric_radius = camera.value("MetricRadius", 0.0);
         const json& rt = camera.value("Rt", json());
         const json& R = rt.value("Rotation", json());
@@ -136,6 +142,47 @@ CameraModel modeModel(const RawCamera& raw, const ModeInfo& mode, double cx_n, d
     return m;
 }
 
+// The calibration in a parsed file; json's value() and get() throw (json::type_error) where
+// a field has another type than the file's layout.
+Result<AzureKinectCalibration> fromJson(const json& root, const ModeInfo& dmode,
+                                        const ModeInfo& cmode) {
+    const json& info = root.value("CalibrationInformation", json());
+    const json& cameras = info.value("Cameras", json());
+    if (!cameras.is_array())
+        return corrupt("CalibrationInformation.Cameras missing");
+    auto depth = readCamera(cameras, "CALIBRATION_CameraLocationD0");
+    if (!depth)
+        return depth.status();
+    auto color = readCamera(cameras, "CALIBRATION_CameraLocationPV0");
+    if (!color)
+        return color.status();
+    if (depth->sensor_w != 1024 || depth->sensor_h != 1024)
+        return corrupt("the depth camera's sensor is " + std::to_string(depth->sensor_w) + "x" +
+                       std::to_string(depth->sensor_h) + ", expected 1024x1024");
+
+    AzureKinectCalibration out;
+    const double* d = depth->p;
+    out.registration.depth = modeModel(*depth, dmode, d[0], d[1], d[2], d[3]);
+    const double* c = color->p;
+    double cx = c[0], cy = c[1], fx = c[2], fy = c[3];
+    if (color->sensor_w * 9 / 16 == color->sensor_h) {
+        // A legacy 16:9 calibration: the SDK converts it to the 4:3 sensor first.
+        cy = (cy * 2304 + 384) / 3072;
+        fy = fy * 2304 / 3072;
+    } else if (color->sensor_w * 3 / 4 != color->sensor_h) {
+        return corrupt("the colour sensor's aspect " + std::to_string(color->sensor_w) + ":" +
+                       std::to_string(color->sensor_h) + " is neither 16:9 nor 4:3");
+    }
+    out.registration.color = modeModel(*color, cmode, cx, cy, fx, fy);
+    // Each camera's Rt maps the depth camera's frame into its own.
+    out.registration.T_color_depth = color->T_camera_depth * depth->T_camera_depth.inverse();
+    out.depth_metric_radius = depth->metric_radius;
+    out.color_metric_radius = color->metric_radius;
+    out.serial = info.value("Metadata", json()).value("SerialId", "");
+    MIXRAY_RETURN_IF_ERROR(out.registration.validate().withContext("Azure Kinect calibration"));
+    return out;
+}
+
 }  // namespace
 
 Result<AzureKinectCalibration> parseAzureKinectCalibration(std::string_view text,
@@ -160,41 +207,11 @@ Result<AzureKinectCalibration> parseAzureKinectCalibration(std::string_view text
     } catch (const json::exception& e) {
         return corrupt(std::string("not JSON: ") + e.what());
     }
-    const json& info = root.value("CalibrationInformation", json());
-    const json& cameras = info.value("Cameras", json());
-    if (!cameras.is_array())
-        return corrupt("CalibrationInformation.Cameras missing");
-    auto depth = readCamera(cameras, "CALIBRATION_CameraLocationD0");
-    if (!depth)
-        return depth.status();
-    auto color = readCamera(cameras, "CALIBRATION_CameraLocationPV0");
-    if (!color)
-        return color.status();
-    if (depth->sensor_w != 1024 || depth->sensor_h != 1024)
-        return corrupt("the depth camera's sensor is " + std::to_string(depth->sensor_w) + "x" +
-                       std::to_string(depth->sensor_h) + ", expected 1024x1024");
-
-    AzureKinectCalibration out;
-    const double* d = depth->p;
-    out.registration.depth = modeModel(*depth, *dmode, d[0], d[1], d[2], d[3]);
-    const double* c = color->p;
-    double cx = c[0], cy = c[1], fx = c[2], fy = c[3];
-    if (color->sensor_w * 9 / 16 == color->sensor_h) {
-        // A legacy 16:9 calibration: the SDK converts it to the 4:3 sensor first.
-        cy = (cy * 2304 + 384) / 3072;
-        fy = fy * 2304 / 3072;
-    } else if (color->sensor_w * 3 / 4 != color->sensor_h) {
-        return corrupt("the colour sensor's aspect " + std::to_string(color->sensor_w) + ":" +
-                       std::to_string(color->sensor_h) + " is neither 16:9 nor 4:3");
+    try {
+        return fromJson(root, *dmode, *cmode);
+    } catch (const json::exception& e) {
+        return corrupt(std::string("a field of another type: ") + e.what());
     }
-    out.registration.color = modeModel(*color, *cmode, cx, cy, fx, fy);
-    // Each camera's Rt maps the depth camera's frame into its own.
-    out.registration.T_color_depth = color->T_camera_depth * depth->T_camera_depth.inverse();
-    out.depth_metric_radius = depth->metric_radius;
-    out.color_metric_radius = color->metric_radius;
-    out.serial = info.value("Metadata", json()).value("SerialId", "");
-    MIXRAY_RETURN_IF_ERROR(out.registration.validate().withContext("Azure Kinect calibration"));
-    return out;
 }
 
 namespace {

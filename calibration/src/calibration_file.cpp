@@ -158,6 +158,10 @@ public:
                 auto v = r_.text(*item);
                 if (!v)
                     return v.status();
+                // What writeCalibrationFile() refuses (validateCalibrationFile).
+                if (std::any_of(v->begin(), v->end(),
+                                [](char ch) { return static_cast<unsigned char>(ch) < 0x20; }))
+                    return r_.fail(*item, "expected one line without control characters");
                 *out = *v;
             }
         }
@@ -677,9 +681,20 @@ std::optional<std::vector<uint8_t>> base64Decode(std::string_view text) {
 std::string yamlQuoted(std::string_view text) {
     std::string out = "\"";
     for (char c : text) {
-        if (c == '"' || c == '\\')
+        const auto byte = static_cast<unsigned char>(c);
+        if (c == '"' || c == '\\') {
             out += '\\';
-        out += c;
+            out += c;
+        } else if (byte < 0x20 || byte == 0x7f) {
+            // A raw line break inside quotes reads back as a space, and YAML takes no other
+            // control character raw: escape them so that any text reads back the same.
+            constexpr char kHex[] = "0123456789abcdef";
+            out += "\\x";
+            out += kHex[byte >> 4];
+            out += kHex[byte & 0xf];
+        } else {
+            out += c;
+        }
     }
     return out + "\"";
 }

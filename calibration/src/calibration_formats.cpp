@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "calibration_file_internal.h"
+#include "file_storage_guard.h"
 #include "mixray/calibration/calibration_file.h"
 #include "mixray/calibration/ros_camera_info.h"
 #include "mixray/graph/yaml_reader.h"
@@ -709,6 +710,8 @@ Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
             case CalibrationFormat::kMixray:
                 return readCalibrationFile(path);
             case CalibrationFormat::kOpenCV:
+                if (detail::crashesFileStorage(*text))
+                    return corruptFile(path, "ends inside an XML tag, after an attribute's '='");
                 file = readOpenCV(path);
                 break;
             case CalibrationFormat::kMrcal:

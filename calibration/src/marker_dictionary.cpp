@@ -9,6 +9,8 @@
 #include <string>
 #include <system_error>
 
+#include "file_storage_guard.h"
+
 namespace mixray::calibration {
 namespace {
 
@@ -93,6 +95,8 @@ Result<MarkerDictionary> parseMarkerDictionary(std::string_view text, const std:
     // cv::FileStorage reads a memory buffer as a C string.
     if (text.find('\0') != std::string_view::npos)
         return corrupt(file, "holds a NUL byte (not a text file)");
+    if (detail::crashesFileStorage(text))
+        return corrupt(file, "ends inside an XML tag, after an attribute's '='");
     MarkerDictionary dict;
     dict.name = nameFor(file);
     try {

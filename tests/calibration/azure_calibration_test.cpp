@@ -96,6 +96,33 @@ TEST(AzureKinectCalibration, ClearErrors) {
     EXPECT_NE(r.status().message().find("PV0"), std::string::npos) << r.status().message();
 }
 
+// calibration_file_fuzz: json's value() threw json::type_error out of the parser for a field of
+// another type, and a colour sensor billions of pixels wide overflowed the aspect check.
+TEST(AzureKinectCalibration, FieldsOfAnotherTypeAreCorruptData) {
+    for (const char* text :
+         {R"({"CalibrationInformation": 5})",
+          R"({"CalibrationInformation": {"Cameras": [{"Location": 7}]}})",
+          R"({"CalibrationInformation": {"Cameras": [{"Location": "CALIBRATION_CameraLocationD0",
+              "Intrinsics": 5}]}})"}) {
+        auto r = parseAzureKinectCalibration(text, "NFOV_UNBINNED", "720P");
+        ASSERT_FALSE(r) << text;
+        EXPECT_EQ(r.status().code(), ErrorCode::kCorruptData) << text;
+        EXPECT_NE(r.status().message().find("type"), std::string::npos) << r.status().message();
+    }
+    const auto path = dataDir() / "pyk4a_calibration.json";
+    MIXRAY_REQUIRE_SHARED_DATA(path);
+    std::string huge = readText(path);
+    const std::string width = "\"SensorWidth\": 4096";
+    ASSERT_NE(huge.find(width), std::string::npos);
+    huge.replace(huge.find(width), width.size(), "\"SensorWidth\": 1073741824");
+    auto r = parseAzureKinectCalibration(huge, "NFOV_UNBINNED", "720P");
+    ASSERT_FALSE(r);
+    EXPECT_EQ(r.status().code(), ErrorCode::kCorruptData);
+    EXPECT_NE(r.status().message().find("SensorWidth/SensorHeight outside 1..65535"),
+              std::string::npos)
+        << r.status().message();
+}
+
 // The recording's first depth and colour frames, the factory calibration attached to it.
 struct Recorded {
     AzureKinectCalibration calibration;

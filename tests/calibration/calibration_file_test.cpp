@@ -144,6 +144,20 @@ TEST(CalibrationFile, WritesAndReadsBackEveryFieldExactly) {
     EXPECT_EQ(entries, 1u);
 }
 
+// calibration_file_fuzz: a line break in weak: was written raw inside quotes and read back as a
+// space; control characters are written escaped now.
+TEST(CalibrationFile, TextWithControlCharactersReadsBackTheSame) {
+    const fs::path dir = test::tempDir();
+    CalibrationFile f = fullFile();
+    f.cameras[0].weak =
+        std::string("fx and fy:\n\tweak; \"quoted\" \\ \x01\x1f\x7f") + '\0' + "end";
+    const fs::path path = dir / "rig.calib.yaml";
+    ASSERT_TRUE(writeCalibrationFile(path, f).isOk());
+    auto back = readCalibrationFile(path);
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    EXPECT_EQ(back->cameras[0].weak, f.cameras[0].weak);
+}
+
 TEST(CalibrationFile, MapIsBase64OfLittleEndianFloat32) {
     const fs::path dir = test::tempDir();
     CalibrationFile f = fullFile();
@@ -368,6 +382,9 @@ TEST(CalibrationFile, ErrorsNameFileLineAndField) {
          "12:76: depth[0].correction.distortion: the map is 2x1; the depth camera is 64x48"},
         {12, "  - {stream: d, depth_camera: a, color_camera: b, correction: {scale: 0}}",
          "12:71: depth[0].correction.scale: expected a number above 0"},
+        // calibration_file_fuzz: the reader took what writeCalibrationFile() refuses.
+        {1, "version: 1\ncreated: \"a\\tb\"",
+         "2:10: created: expected one line without control characters"},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.replacement);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -282,6 +283,17 @@ TEST(OpenCVFormat, Errors) {
     auto k = importCalibration(no_k, CalibrationFormat::kOpenCV);
     EXPECT_EQ(k.status().code(), ErrorCode::kCorruptData);
     EXPECT_NE(k.status().message().find("camera_matrix: missing"), std::string::npos);
+    // dictionary_parser_fuzz: text ending after an XML attribute's '=' crashes OpenCV 4.6's
+    // FileStorage (a null pointer); it is refused before.
+    const fs::path cut = dir / "cut.xml";
+    writeText(cut, "<?xml version=\"1.0\"?>\n<opencv_storage><camera_matrix type_id=\n");
+    for (std::optional<CalibrationFormat> format :
+         {std::optional<CalibrationFormat>(), std::optional(CalibrationFormat::kOpenCV)}) {
+        auto c = importCalibration(cut, format);
+        EXPECT_EQ(c.status().code(), ErrorCode::kCorruptData);
+        EXPECT_NE(c.status().message().find("cut.xml: ends inside an XML tag"), std::string::npos)
+            << c.status().message();
+    }
     const fs::path broken = dir / "broken.yml";
     writeText(broken, "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: [\n");
     auto b = importCalibration(broken);

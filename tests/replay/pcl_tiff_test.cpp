@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -33,6 +34,22 @@ TEST(PclStamp, ParsesUtcNamesExactly) {
         auto stamp = parsePclStamp(bad);
         ASSERT_FALSE(stamp) << bad;
         EXPECT_EQ(stamp.status().code(), ErrorCode::kCorruptData) << bad;
+    }
+}
+
+// tum_list_fuzz found names whose time overflowed 64-bit nanoseconds (signed overflow, UBSan):
+// the last nanosecond they hold is read, the first whole second before 1970 they hold too, and
+// anything beyond them is refused.
+TEST(PclStamp, RefusesTimesBeyondSixtyFourBitNanoseconds) {
+    EXPECT_EQ(*parsePclStamp("22620411T234716.854775807"), INT64_MAX);
+    EXPECT_EQ(*parsePclStamp("16770921T001244"), -9'223'372'036'000'000'000);
+    for (const char* beyond :
+         {"22620411T234716.854775847", "22620411T234716.854775808", "16770921T001243.999999999",
+          "99991231T235959.999999999", "00000101T000000"}) {
+        auto stamp = parsePclStamp(beyond);
+        ASSERT_FALSE(stamp) << beyond;
+        EXPECT_EQ(stamp.status().code(), ErrorCode::kCorruptData) << beyond;
+        EXPECT_NE(stamp.status().message().find("64-bit nanoseconds"), std::string::npos);
     }
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <regex>
@@ -189,7 +190,11 @@ Result<int64_t> parsePclStamp(std::string_view text) {
     if (!date.ok() || h > 23 || mi > 59 || s > 59)
         return bad("not a valid date and time");
     const int64_t days = std::chrono::sys_days(date).time_since_epoch().count();
-    return ((days * kSecondsPerDay + h * 3600 + mi * 60 + s) * kNsPerSecond) + fraction;
+    // Four-digit years reach far beyond what 64-bit nanoseconds hold (1677 to 2262).
+    const int64_t seconds = days * kSecondsPerDay + h * 3600 + mi * 60 + s;
+    if (seconds < INT64_MIN / kNsPerSecond || seconds > (INT64_MAX - fraction) / kNsPerSecond)
+        return bad("beyond 64-bit nanoseconds since 1970 (1677-09-21 to 2262-04-11)");
+    return seconds * kNsPerSecond + fraction;
 }
 
 std::string formatPclStamp(int64_t stamp_ns, int digits) {

@@ -91,7 +91,8 @@ std::optional<CalibrationFormat> calibrationFormatFromString(std::string_view na
 // with one camera name it after the file unless the file names it. An OpenCV file without
 // image_width/image_height gives a model of width = height = 0 (not known): set the size
 // before writing it anywhere. kNotFound for a missing file; kCorruptData naming the file (and
-// line and field where the format has them) for content mixray cannot read or hold.
+// line and field where the format has them) for content mixray cannot read or hold, but
+// kUnsupported naming the file for an mrcal model in a lens mixray has none for (CAHVOR, ...).
 Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
                                           std::optional<CalibrationFormat> format = {});
 // Writes `file` in `format`. Single-camera formats (OpenCV, mrcal, ROS) write `camera`, which

@@ -237,7 +237,9 @@ struct AzureKinectCalibration {
 // scaled to the mode's binned sensor, cropped, then shifted by −½ px to mixray's pixel-centre
 // convention; Brown–Conrady is OpenCV's 8-coefficient rational model with the file's order
 // cx cy fx fy k1..k6 codx cody p2 p1; each camera's Rt maps the depth camera's frame into its
-// own (rotation row-major, translation in metres). kCorruptData naming the field.
+// own (rotation row-major, translation in metres). kCorruptData naming the field (also for a
+// field of another type); kUnsupported for a lens model other than Brown–Conrady or a centre of
+// distortion off the principal point.
 Result<AzureKinectCalibration> parseAzureKinectCalibration(std::string_view json,
                                                            std::string_view depth_mode,
                                                            std::string_view color_resolution);

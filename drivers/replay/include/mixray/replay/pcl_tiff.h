@@ -22,7 +22,9 @@ namespace mixray::replay {
 inline constexpr const char* kPclStampDigitsTag = "pcl_stamp_digits";
 
 // "20121214T142255.814212" (UTC) to nanoseconds since the Unix epoch, exactly.
-// kCorruptData for anything else (bad digits, invalid date, more than 9 fractional digits).
+// kCorruptData for anything else (bad digits, invalid date, more than 9 fractional digits, a
+// time 64-bit nanoseconds do not hold: before 1677-09-21T00:12:44 or after
+// 2262-04-11T23:47:16.854775807).
 Result<int64_t> parsePclStamp(std::string_view text);
 // Nanoseconds since the epoch to "YYYYMMDDTHHMMSS.fff..." with `digits` (0..9) fractional
 // digits (none and no dot when 0), truncating.
