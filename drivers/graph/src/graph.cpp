@@ -3,6 +3,8 @@
 
 #include <algorithm>
 
+#include "mixray/graph/device.h"
+
 namespace mixray {
 
 using QueueList = std::vector<std::shared_ptr<FrameQueue>>;
@@ -128,14 +130,33 @@ Status Graph::addNode(std::unique_ptr<Node> node) {
     return Status::ok();
 }
 
+namespace {
+
+// The order nodes start in: every consumer (sinks and filters) before any device, each group in
+// the order it was added. A device publishes from its first instant; a consumer not yet
+// started would let its queue overflow (the recorder's, while its encoders open: frames lost).
+std::vector<Node*> startOrder(const std::vector<std::unique_ptr<Node>>& nodes) {
+    std::vector<Node*> order;
+    for (const auto& node : nodes)
+        if (!dynamic_cast<const Device*>(node.get()))
+            order.push_back(node.get());
+    for (const auto& node : nodes)
+        if (dynamic_cast<const Device*>(node.get()))
+            order.push_back(node.get());
+    return order;
+}
+
+}  // namespace
+
 Status Graph::start() {
     if (running_)
         return Status::ok();
     running_ = true;
-    for (started_nodes_ = 0; started_nodes_ < nodes_.size(); ++started_nodes_) {
-        Status status = nodes_[started_nodes_]->start();
+    const std::vector<Node*> order = startOrder(nodes_);
+    for (started_nodes_ = 0; started_nodes_ < order.size(); ++started_nodes_) {
+        Status status = order[started_nodes_]->start();
         if (!status.isOk()) {
-            status = status.withContext("starting node '" + nodes_[started_nodes_]->name() + "'");
+            status = status.withContext("starting node '" + order[started_nodes_]->name() + "'");
             stop();
             return status;
         }
@@ -158,8 +179,9 @@ void Graph::stop() {
         for (const auto& queue : *list)
             queue->close();
     }
+    const std::vector<Node*> order = startOrder(nodes_);
     while (started_nodes_ > 0)
-        nodes_[--started_nodes_]->stop();
+        order[--started_nodes_]->stop();
 }
 
 uint64_t Graph::publishedCount(StreamId stream) const {

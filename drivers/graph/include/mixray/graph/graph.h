@@ -43,7 +43,8 @@ struct EdgeStats {
 
 // Owns nodes and routes published frames to every subscribed queue without copying them.
 // Thread-safe: publish() is called from capture threads; subscribe() may be called at any
-// time. Nodes are started in the order they were added and stopped in reverse.
+// time. Nodes are started in the order they were added, every consumer before any device (so
+// no queue fills before its consumer runs), and stopped in reverse.
 class Graph {
 public:
     Graph() = default;
