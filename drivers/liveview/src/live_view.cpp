@@ -30,6 +30,7 @@
 
 #include "image_to_jpeg.h"
 #include "mixray/graph/host_time.h"
+#include "mixray/graph/thread_priority.h"
 #include "page.h"
 #include "request_check.h"
 
@@ -716,7 +717,10 @@ struct LiveView::Impl {
     static void wsReady(mg_connection* conn, void* /*cbdata*/) {
         auto* client = static_cast<Client*>(mg_get_user_connection_data(conn));
         if (client != nullptr)
-            client->sender = std::thread([client] { client->run(); });
+            client->sender = std::thread([client] {
+                runAs(ThreadRole::kPublisher);  // below capture and the recorder
+                client->run();
+            });
     }
 
     static int wsData(mg_connection* conn, int bits, char* /*data*/, size_t size, void* cbdata) {
@@ -943,7 +947,10 @@ Status LiveView::start() {
     const int64_t now = monotonicNowNs();
     for (Tile& t : d.tiles)
         t.fps_base_ns = now;
-    d.thread = std::thread([&d] { d.run(); });
+    d.thread = std::thread([&d] {
+        runAs(ThreadRole::kPublisher);
+        d.run();
+    });
     return Status::ok();
 }
 
