@@ -78,14 +78,23 @@ std::string statusText(const render::ArPipelineStats& s, const std::string& colo
     for (const auto& d : s.devices)
         if (d.state != "streaming")
             devices += ", " + d.name + " " + d.state;
+    // What the recording lost, named: the one loss a user cannot make up for.
+    if (s.recorder) {
+        if (s.recorder->frames_dropped > 0)
+            devices += ", recorder dropped " + std::to_string(s.recorder->frames_dropped);
+        if (!s.recorder->error.isOk())
+            devices += ", recording stopped: " + s.recorder->error.message();
+    }
     if (s.compositor) {
         const auto& c = *s.compositor;
         std::snprintf(line, sizeof line,
                       "%.1f s: %s %.1f fps, composite %.1f fps, latency p50 %.0f / p95 %.0f / "
-                      "p99 %.0f ms, quality %s, skipped %llu%s",
+                      "p99 %.0f ms, quality %s, skipped %llu for newer sets, %llu for the "
+                      "recorder%s",
                       s.seconds, color.c_str(), color_fps, composite_fps, c.latency.p50_ms,
                       c.latency.p95_ms, c.latency.p99_ms, c.qualityText().c_str(),
-                      static_cast<unsigned long long>(c.skipped_superseded), devices.c_str());
+                      static_cast<unsigned long long>(c.skipped_superseded),
+                      static_cast<unsigned long long>(c.skipped_for_recording), devices.c_str());
         std::string undrawn;
         for (const auto& o : c.objects)
             if (o.frames == 0 && c.composites > 0)
@@ -315,11 +324,13 @@ int runRun(const RunOptions& options) {
         const auto& c = *stats.compositor;
         std::printf(
             "%llu composites (%llu rendered) in %.1f s; latency p50 %.1f ms, p95 %.1f ms, p99 "
-            "%.1f ms; %llu sets skipped for newer ones; quality %s\n",
+            "%.1f ms; %llu sets skipped for newer ones, %llu while the recorder caught up; "
+            "quality %s\n",
             static_cast<unsigned long long>(c.composites),
             static_cast<unsigned long long>(c.rendered), stats.seconds, c.latency.p50_ms,
             c.latency.p95_ms, c.latency.p99_ms,
-            static_cast<unsigned long long>(c.skipped_superseded), c.qualityText().c_str());
+            static_cast<unsigned long long>(c.skipped_superseded),
+            static_cast<unsigned long long>(c.skipped_for_recording), c.qualityText().c_str());
     }
     if (stats.recorder)
         std::printf("%s: %s\n", options.record.c_str(), stats.recorder->summary().c_str());
