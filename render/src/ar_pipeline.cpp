@@ -291,7 +291,8 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
         RecorderOptions r;
         r.path = options.record;
         r.policy = lossless ? QueuePolicy::kLossless : QueuePolicy::kLive;
-        r.writer.compression = options.record_compression;
+        r.writer.compression = options.record_compression.value_or(
+            lossless ? MkvCompression::kFfv1 : MkvCompression::kHuffyuv);
         // Live, clusters close every second instead of every frame (a crash loses at most
         // that), and the queues ride out the disk's hiccups.
         if (!lossless) {

@@ -139,6 +139,18 @@ std::string runCommand(const std::string& command) {
     return output;
 }
 
+// Every stream format, and images of one or two pixels a side.
+std::vector<StreamInfo> everyFormatAndTinySizes() {
+    std::vector<StreamInfo> streams = test::everyFormatStreams();
+    streams.push_back(test::makeStream("tiny/mono16", PixelFormat::kMono16, 1, 1));
+    streams.push_back(test::makeStream("tiny/rgb", PixelFormat::kRGB8, 3, 2));
+    streams.push_back(test::makeStream("tiny/bgr", PixelFormat::kBGR8, 1, 5));
+    streams.push_back(test::makeStream("tiny/nv12", PixelFormat::kNV12, 2, 2));
+    streams.push_back(test::makeStream("tiny/yuyv", PixelFormat::kYUYV, 2, 1));
+    streams.push_back(test::makeStream("tiny/bayer", PixelFormat::kBayerBGGR8, 1, 1));
+    return streams;
+}
+
 class MkvUncompressed : public ::testing::Test {
 protected:
     static void SetUpTestSuite() { setFfmpegLogging(false); }
@@ -146,15 +158,8 @@ protected:
 
 TEST_F(MkvUncompressed, EveryPixelFormatComesBackBitExactAndIsStoredAsIs) {
     const auto path = test::tempDir() / "raw_every_format.mkv";
-    std::vector<StreamInfo> streams = test::everyFormatStreams();
     // Sizes FFV1 needs special care for are plain rows here; they must be just as exact.
-    streams.push_back(test::makeStream("tiny/mono16", PixelFormat::kMono16, 1, 1));
-    streams.push_back(test::makeStream("tiny/rgb", PixelFormat::kRGB8, 3, 2));
-    streams.push_back(test::makeStream("tiny/bgr", PixelFormat::kBGR8, 1, 5));
-    streams.push_back(test::makeStream("tiny/nv12", PixelFormat::kNV12, 2, 2));
-    streams.push_back(test::makeStream("tiny/yuyv", PixelFormat::kYUYV, 2, 1));
-    streams.push_back(test::makeStream("tiny/bayer", PixelFormat::kBayerBGGR8, 1, 1));
-    const RecordingHeader header = test::makeHeader(streams);
+    const RecordingHeader header = test::makeHeader(everyFormatAndTinySizes());
     const std::vector<ExpectedFrame> written = writeWith(path, header, 5, uncompressed());
     ASSERT_EQ(written.size(), header.streams.size() * 5);
     // The writer let go of every frame it was handed (raw packets borrow them).
@@ -191,13 +196,7 @@ TEST_F(MkvUncompressed, EveryPixelFormatComesBackBitExactAndIsStoredAsIs) {
 
 TEST_F(MkvUncompressed, HuffyuvGivesBackEveryPixelFormatBitExactAndFfmpegNamesItsCodec) {
     const auto path = test::tempDir() / "ffvhuff_every_format.mkv";
-    std::vector<StreamInfo> streams = test::everyFormatStreams();
-    streams.push_back(test::makeStream("tiny/mono16", PixelFormat::kMono16, 1, 1));
-    streams.push_back(test::makeStream("tiny/rgb", PixelFormat::kRGB8, 3, 2));
-    streams.push_back(test::makeStream("tiny/bgr", PixelFormat::kBGR8, 1, 5));
-    streams.push_back(test::makeStream("tiny/nv12", PixelFormat::kNV12, 2, 2));
-    streams.push_back(test::makeStream("tiny/yuyv", PixelFormat::kYUYV, 2, 1));
-    const RecordingHeader header = test::makeHeader(streams);
+    const RecordingHeader header = test::makeHeader(everyFormatAndTinySizes());
     MkvWriterOptions options;
     options.compression = MkvCompression::kHuffyuv;
     const std::vector<ExpectedFrame> written = writeWith(path, header, 5, options);
@@ -206,9 +205,10 @@ TEST_F(MkvUncompressed, HuffyuvGivesBackEveryPixelFormatBitExactAndFfmpegNamesIt
     EXPECT_EQ(outcome.frames, written.size());
     EXPECT_EQ(outcome.status.code(), ErrorCode::kEndOfStream) << outcome.status.toString();
     if (std::system("command -v ffprobe >/dev/null 2>&1") == 0) {
-        const std::string codecs = runCommand("ffprobe -v error -show_entries stream=codec_name "
-                                              "-of csv=p=0 '" +
-                                              path.string() + "'");
+        const std::string codecs = runCommand(
+            "ffprobe -v error -show_entries stream=codec_name "
+            "-of csv=p=0 '" +
+            path.string() + "'");
         EXPECT_NE(codecs.find("ffvhuff"), std::string::npos) << codecs;
         EXPECT_EQ(codecs.find("ffv1"), std::string::npos) << codecs;
     }

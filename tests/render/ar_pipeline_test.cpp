@@ -646,8 +646,8 @@ TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
     ASSERT_TRUE(stats.compositor.has_value());
     const CompositorStats& c = *stats.compositor;
     EXPECT_GT(c.composites, 0u);
-    EXPECT_EQ(c.composites + c.skipped_superseded + c.skipped_without_pose + c.publish_failures +
-                  c.skipped_at_stop,
+    EXPECT_EQ(c.composites + c.skipped_superseded + c.skipped_for_recording +
+                  c.skipped_without_pose + c.publish_failures + c.skipped_at_stop,
               c.sets);
     EXPECT_EQ(callbacks, c.composites);
     EXPECT_EQ(with_latency, c.composites);

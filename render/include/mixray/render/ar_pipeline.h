@@ -64,9 +64,10 @@ struct ArPipelineOptions {
     // frame a device published on a recorded stream reaches the file: the recorder runs above
     // tracking and the renderer, and the compositor skips sets while it is behind.
     std::filesystem::path record;
-    // How the recording stores images: FFV1 by default (the smallest files; offline its CPU
-    // costs only time). Live, `mixray run` records with ffvhuff, a tenth of FFV1's CPU.
-    MkvCompression record_compression = MkvCompression::kFfv1;
+    // How the recording stores images. Default: at real pace ffvhuff, a tenth of FFV1's CPU,
+    // which live belongs to capture first; at fast pace FFV1, the smallest files (offline its
+    // CPU costs only time).
+    std::optional<MkvCompression> record_compression;
     std::vector<Attachment> record_attachments;
     std::map<std::string, std::string> record_tags;
     std::map<std::string, Eigen::Isometry3d> T_world_anchor;
