@@ -56,7 +56,8 @@ CLI::Option* addCameraEnvironmentOption(CLI::App& command, int& width) {
 CLI::Option* addCompressionOption(CLI::App& command, MkvCompression& compression,
                                   const std::string& what_for) {
     std::map<std::string, MkvCompression> names;
-    for (MkvCompression c : {MkvCompression::kFfv1, MkvCompression::kHuffyuv, MkvCompression::kNone})
+    for (MkvCompression c :
+         {MkvCompression::kFfv1, MkvCompression::kHuffyuv, MkvCompression::kNone})
         names[toString(c)] = c;
     return command
         .add_option("--compression", compression,
@@ -64,7 +65,10 @@ CLI::Option* addCompressionOption(CLI::App& command, MkvCompression& compression
                     "10-15 ms of CPU a VGA frame; ffvhuff (Huffyuv), about 4x smaller for 2 ms; "
                     "none, uncompressed, bound by the disk (" +
                         what_for + ")")
-        ->transform(CLI::CheckedTransformer(names))
+        // The enum's values are bytes: the help and the error name the choices, not the map.
+        ->transform(CLI::CheckedTransformer(names).description(""))
+        ->transform(CLI::IsMember({"ffv1", "ffvhuff", "none"}).description(""))  // runs first
+        ->type_name("ffv1|ffvhuff|none")
         ->default_str(toString(compression));
 }
 
