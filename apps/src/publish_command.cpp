@@ -89,7 +89,10 @@ int runPublish(const PublishOptions& options) {
     // Watch queues (capacity 1, live) tell when a stream ended.
     std::vector<std::shared_ptr<FrameQueue>> watches;
     for (StreamId id = 0; id < graph.streamCount(); ++id) {
-        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "publish-watch"});
+        auto queue = graph.subscribe(id, {.capacity = 1,
+                                          .policy = QueuePolicy::kLive,
+                                          .name = "publish-watch",
+                                          .newest_only = true});
         if (!queue)
             return fail("publish", queue.status());
         watches.push_back(*queue);

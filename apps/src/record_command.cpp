@@ -149,7 +149,10 @@ int runRecord(const RecordOptions& options) {
     // Watch queues (capacity 1, live) tell when a stream ended and how many frames it made.
     std::vector<std::shared_ptr<FrameQueue>> watches;
     for (StreamId id = 0; id < graph.streamCount(); ++id) {
-        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "record-watch"});
+        auto queue = graph.subscribe(id, {.capacity = 1,
+                                          .policy = QueuePolicy::kLive,
+                                          .name = "record-watch",
+                                          .newest_only = true});
         if (!queue)
             return fail("record", queue.status());
         watches.push_back(*queue);

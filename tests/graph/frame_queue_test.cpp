@@ -24,6 +24,7 @@ TEST(FrameQueue, LiveDropsOldestAndCounts) {
     auto stats = queue.stats();
     EXPECT_EQ(stats.pushed, 10u);
     EXPECT_EQ(stats.dropped, 7u);
+    EXPECT_EQ(stats.skipped, 0u);
     EXPECT_EQ(stats.size, 3u);
     // Dropped frames went back to the pool: only the queued ones hold buffers.
     EXPECT_EQ(pool->inFlight(), 3u);
@@ -33,6 +34,24 @@ TEST(FrameQueue, LiveDropsOldestAndCounts) {
         EXPECT_EQ(frame->meta().sequence, expected);
     }
     EXPECT_FALSE(queue.tryPop().has_value());
+}
+
+// A consumer that samples at its own rate (a view) replaces frames on purpose: skipped, not
+// dropped, so a status line's drops count only consumers that fell behind.
+TEST(FrameQueue, NewestOnlyCountsReplacedFramesAsSkippedNotDropped) {
+    auto pool = BufferPool::create({ImageDesc::packed(PixelFormat::kMono8, 8, 8), 0, 16, "q"});
+    FrameQueue queue(
+        {.capacity = 1, .policy = QueuePolicy::kLive, .name = "view", .newest_only = true});
+    for (uint64_t i = 0; i < 10; ++i)
+        EXPECT_TRUE(queue.push(makeFrame(*pool, i)));
+    const QueueStats stats = queue.stats();
+    EXPECT_EQ(stats.pushed, 10u);
+    EXPECT_EQ(stats.skipped, 9u);
+    EXPECT_EQ(stats.dropped, 0u);
+    auto frame = queue.tryPop();
+    ASSERT_TRUE(frame.has_value());
+    EXPECT_EQ(frame->meta().sequence, 9u);
+    EXPECT_EQ(pool->inFlight(), 1u);
 }
 
 TEST(FrameQueue, LosslessBlocksUntilConsumed) {

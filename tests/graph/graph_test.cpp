@@ -54,6 +54,32 @@ TEST(Graph, FanOutSharesOneBuffer) {
     EXPECT_EQ(graph.publishedCount(id), 1u);
 }
 
+// When each stream last published: what tells a stalled device from a streaming one.
+TEST(Graph, RemembersWhenEachStreamLastPublished) {
+    Graph graph;
+    StreamId a = *graph.addStream(depthStream("cam/depth"));
+    StreamId b = *graph.addStream(depthStream("cam/other"));
+    EXPECT_FALSE(graph.lastPublished(a).has_value());
+    EXPECT_FALSE(graph.lastPublished(99).has_value());
+    auto pool = BufferPool::create({depthStream("").format, 0, 4, "cam/depth"});
+    const auto before = std::chrono::steady_clock::now();
+    for (int i = 0; i < 2; ++i) {
+        WritableFrame w = pool->acquire();
+        w.meta().stream = a;
+        graph.publish(std::move(w).publish());
+    }
+    const auto first = graph.lastPublished(a);
+    ASSERT_TRUE(first.has_value());
+    EXPECT_GE(*first, before);
+    EXPECT_LE(*first, std::chrono::steady_clock::now());
+    EXPECT_FALSE(graph.lastPublished(b).has_value());
+    std::this_thread::sleep_for(milliseconds(2));
+    WritableFrame w = pool->acquire();
+    w.meta().stream = a;
+    graph.publish(std::move(w).publish());
+    EXPECT_GT(*graph.lastPublished(a), *first);
+}
+
 TEST(Graph, UnsubscribedQueueGetsNothingMore) {
     Graph graph;
     StreamId id = *graph.addStream(depthStream("cam/depth"));

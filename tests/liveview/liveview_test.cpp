@@ -469,6 +469,14 @@ TEST(LiveView, SeveralClientsGetEveryTileAtTheRateLimitWithStatusAndOverlays) {
         EXPECT_GT(t.skipped_rate, 0u) << t.stream;
         EXPECT_EQ(t.encode_errors, 0u) << t.stream;
     }
+    // The view's rate limit is its choice, not a loss: the graph counts its edges' replaced
+    // frames as skipped, and no drop.
+    for (const EdgeStats& e : rig.graph.edgeStats()) {
+        if (e.consumer.starts_with("liveview:")) {
+            EXPECT_EQ(e.queue.dropped, 0u) << e.consumer;
+            EXPECT_GT(e.queue.skipped, 0u) << e.consumer;
+        }
+    }
 }
 
 TEST(LiveView, StalledClientNeitherSlowsThePipelineNorGrowsMemory) {

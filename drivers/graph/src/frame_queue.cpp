@@ -26,7 +26,7 @@ bool FrameQueue::push(FrameRef frame) {
             FrameRef dropped = std::move(ring_[head_]);
             head_ = (head_ + 1) % ring_.size();
             --size_;
-            ++stats_.dropped;
+            ++(options_.newest_only ? stats_.skipped : stats_.dropped);
             lock.unlock();
             dropped.reset();  // recycling takes the pool's lock: not under ours
             lock.lock();

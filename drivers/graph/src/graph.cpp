@@ -92,8 +92,12 @@ std::shared_ptr<const QueueList> Graph::subscribersOf(StreamId stream) const {
     std::lock_guard lock(mutex_);
     if (stream >= streams_.size())
         return nullptr;
-    streams_[stream]->published.fetch_add(1, std::memory_order_relaxed);
-    return streams_[stream]->subscribers;
+    StreamState& state = *streams_[stream];
+    state.published.fetch_add(1, std::memory_order_relaxed);
+    state.last_published_ns.store(
+        std::chrono::steady_clock::now().time_since_epoch() / std::chrono::nanoseconds(1),
+        std::memory_order_relaxed);
+    return state.subscribers;
 }
 
 void Graph::publish(const FrameRef& frame) {
@@ -187,6 +191,14 @@ void Graph::stop() {
 uint64_t Graph::publishedCount(StreamId stream) const {
     std::lock_guard lock(mutex_);
     return stream < streams_.size() ? streams_[stream]->published.load() : 0;
+}
+
+std::optional<std::chrono::steady_clock::time_point> Graph::lastPublished(StreamId stream) const {
+    std::lock_guard lock(mutex_);
+    const int64_t ns = stream < streams_.size() ? streams_[stream]->last_published_ns.load() : 0;
+    if (ns == 0)
+        return std::nullopt;
+    return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(ns));
 }
 
 void Graph::countLost(StreamId stream, uint64_t frames) {

@@ -103,9 +103,11 @@ Status Recorder::connect(Graph& graph) {
     header_.attachments = options_.attachments;
     header_.tags = options_.tags;
     for (Input& input : inputs_) {
-        auto queue = graph.subscribe(
-            input.graph_id,
-            QueueOptions{options_.queue_capacity, options_.policy, options_.name, true});
+        auto queue =
+            graph.subscribe(input.graph_id, QueueOptions{.capacity = options_.queue_capacity,
+                                                         .policy = options_.policy,
+                                                         .name = options_.name,
+                                                         .feeds_recording = true});
         if (!queue)
             return queue.status();
         input.queue = *queue;

@@ -466,7 +466,7 @@ struct LiveView::Impl {
                                        {"fps", std::round(t.fps * 10) / 10},
                                        {"frames_in", q.pushed},
                                        {"encoded", t.encoded},
-                                       {"skipped", q.dropped}};
+                                       {"skipped", q.skipped}};
                 if (!t.last_error.empty())
                     tile["error"] = t.last_error;
                 view_tiles.push_back(std::move(tile));
@@ -843,11 +843,14 @@ Status LiveView::connect(Graph& graph) {
         tile.stream = info.name;
         tile.info = info;
         tileSize(info.format, d.options.max_tile_width, &tile.tile_width, &tile.tile_height);
-        // Capacity 1, live: the newest frame waits for the view's next turn, older ones are
-        // replaced (counted as skipped), and the view holds at most one buffer of the pool.
-        Result<std::shared_ptr<FrameQueue>> queue =
-            graph.subscribe(*graph.findStream(info.name),
-                            QueueOptions{1, QueuePolicy::kLive, "liveview:" + info.name});
+        // Capacity 1, live, newest only: the newest frame waits for the view's next turn, older
+        // ones are replaced (QueueStats::skipped, not drops: the view's rate is its choice),
+        // and the view holds at most one buffer of the pool.
+        Result<std::shared_ptr<FrameQueue>> queue = graph.subscribe(
+            *graph.findStream(info.name), QueueOptions{.capacity = 1,
+                                                       .policy = QueuePolicy::kLive,
+                                                       .name = "liveview:" + info.name,
+                                                       .newest_only = true});
         if (!queue)
             return queue.status().withContext("live view");
         tile.queue = std::move(queue.value());
@@ -1088,7 +1091,7 @@ LiveViewStats LiveView::stats() const {
         std::lock_guard lock(d.tiles_mutex);
         for (const Tile& t : d.tiles) {
             const QueueStats q = t.queue ? t.queue->stats() : QueueStats{};
-            s.tiles.push_back({t.stream, q.pushed, t.encoded, q.dropped, t.encode_errors, t.fps});
+            s.tiles.push_back({t.stream, q.pushed, t.encoded, q.skipped, t.encode_errors, t.fps});
         }
     }
     // Bound: every slot full at its largest (header and length prefix included).

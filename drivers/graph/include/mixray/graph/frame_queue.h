@@ -29,12 +29,17 @@ struct QueueOptions {
     // an edge is backed up, work that may be skipped (the live compositor) gives way to it
     // (Graph::recordingBacklog()).
     bool feeds_recording = false;
+    // Live only: the consumer samples the stream at its own rate (a view, a watch counting
+    // frames) and wants only the newest frame. Frames replaced before its turn are its choice,
+    // counted as QueueStats::skipped, not as drops.
+    bool newest_only = false;
 };
 
 struct QueueStats {
     uint64_t pushed = 0;    // frames offered by the producer
     uint64_t popped = 0;    // frames taken by the consumer
-    uint64_t dropped = 0;   // frames discarded under the live policy
+    uint64_t dropped = 0;   // frames discarded under the live policy: the consumer was behind
+    uint64_t skipped = 0;   // newest_only: frames replaced by newer ones before the consumer's turn
     size_t size = 0;        // frames queued now
     size_t high_water = 0;  // most frames ever queued at once
     // Lossless: pushes that found the queue full and held their producer up, and for how long.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -84,6 +85,10 @@ public:
     bool running() const { return running_.load(); }
 
     uint64_t publishedCount(StreamId stream) const;
+    // When the last frame of `stream` was published (steady clock); nullopt before the first.
+    // A device that says it streams but has published nothing for a few frame periods is
+    // stalled (render::ArPipelineStats).
+    std::optional<std::chrono::steady_clock::time_point> lastPublished(StreamId stream) const;
     // Frames a source made or read but could not publish on `stream` (a full pool, a frame a
     // player skipped): sources count them here so commands report them beside the consumers'
     // drops (edgeStats). Unknown streams are ignored.
@@ -99,6 +104,7 @@ private:
         StreamInfo info;
         std::shared_ptr<const std::vector<std::shared_ptr<FrameQueue>>> subscribers;
         std::atomic<uint64_t> published{0};
+        std::atomic<int64_t> last_published_ns{0};  // steady clock; 0: nothing yet
         std::atomic<uint64_t> lost{0};
     };
     std::shared_ptr<const std::vector<std::shared_ptr<FrameQueue>>> subscribersOf(
