@@ -75,9 +75,15 @@ std::string statusText(const render::ArPipelineStats& s, const std::string& colo
             composite_fps = st.fps;
     }
     std::string devices;
-    for (const auto& d : s.devices)
-        if (d.state != "streaming")
+    for (const auto& d : s.devices) {
+        if (d.state == "stalled") {
+            char silent[32];
+            std::snprintf(silent, sizeof silent, " %.1f s", d.silent_s);
+            devices += ", " + d.name + " stalled (silent" + silent + ")";
+        } else if (d.state != "streaming") {
             devices += ", " + d.name + " " + d.state;
+        }
+    }
     // What the recording lost, named: the one loss a user cannot make up for.
     if (s.recorder) {
         if (s.recorder->frames_dropped > 0)
@@ -106,8 +112,8 @@ std::string statusText(const render::ArPipelineStats& s, const std::string& colo
             if (st.fps > 0)
                 rates += (rates.empty() ? "" : ", ") + st.name + " " +
                          std::to_string(static_cast<int>(std::lround(st.fps))) + " fps";
-        std::snprintf(line, sizeof line, "%.1f s: %s; %llu dropped at edges%s", s.seconds,
-                      rates.empty() ? "no frames yet" : rates.c_str(),
+        std::snprintf(line, sizeof line, "%.1f s: %s; %llu dropped by consumers behind%s",
+                      s.seconds, rates.empty() ? "no frames yet" : rates.c_str(),
                       static_cast<unsigned long long>(s.edge_drops), devices.c_str());
     }
     return line;

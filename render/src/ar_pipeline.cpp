@@ -133,8 +133,7 @@ struct ArPipeline::RateWindow {
         std::shared_ptr<FrameQueue> queue;
         bool source = false;          // published by a device (not a pipeline stage)
         std::vector<Sample> samples;  // the last ~2 s
-        Clock::time_point last_change{};
-        uint64_t last_count = 0;
+        double measured_fps = 0;      // the last rate measured while frames came
     };
     std::mutex mutex;
     std::vector<Watch> watches;
@@ -280,11 +279,13 @@ Result<std::unique_ptr<ArPipeline>> ArPipeline::create(const BackendRegistry& ba
     // Watch every stream for rates and ends.
     p->rates_ = std::make_unique<RateWindow>();
     for (StreamId id = 0; id < graph.streamCount(); ++id) {
-        auto queue = graph.subscribe(id, {1, QueuePolicy::kLive, "pipeline-watch"});
+        auto queue = graph.subscribe(id, {.capacity = 1,
+                                          .policy = QueuePolicy::kLive,
+                                          .name = "pipeline-watch",
+                                          .newest_only = true});
         if (!queue)
             return queue.status();
-        p->rates_->watches.push_back(
-            {id, std::move(queue).value(), id < source_streams, {}, {}, 0});
+        p->rates_->watches.push_back({id, std::move(queue).value(), id < source_streams, {}, 0});
     }
 
     if (!options.record.empty()) {
@@ -374,11 +375,32 @@ std::string ArPipeline::compositeStream() const {
     return compositor_ ? graph_->stream(compositor_->outputStream()).name : std::string();
 }
 
+namespace {
+
+// A device is stalled when one of its streams that has delivered is silent for this many of its
+// frame periods, and at least kStalledAtLeast (scheduling jitter on a loaded machine is not a
+// stall). Drivers notice a camera gone only after their loss timeouts (Aravis: seconds); the
+// user is told at once.
+constexpr double kStalledAfterPeriods = 5;
+constexpr double kStalledAtLeastS = 0.5;
+// The period assumed for a stream with no nominal rate that has not been measured yet.
+constexpr double kUnknownRateFps = 2;
+
+// What one device's source streams did, for its state.
+struct DeviceActivity {
+    int total = 0;
+    int ended = 0;
+    int never = 0;         // not ended, nothing published yet
+    double stalled_s = 0;  // the longest silence among its stalled streams; 0: none stalled
+};
+
+}  // namespace
+
 ArPipelineStats ArPipeline::stats() const {
     ArPipelineStats s;
     const auto now = Clock::now();
     s.seconds = std::chrono::duration<double>(now - started_).count();
-    std::map<std::string, std::pair<int, int>> device_streams;  // streaming, ended
+    std::map<std::string, DeviceActivity> activity;
     {
         std::lock_guard lock(rates_->mutex);
         for (auto& w : rates_->watches) {
@@ -391,48 +413,54 @@ ArPipelineStats ArPipeline::stats() const {
             st.published = graph_->publishedCount(w.id);
             st.lost = graph_->lostCount(w.id);
             st.captured = w.source;
-            if (st.published != w.last_count) {
-                w.last_count = st.published;
-                w.last_change = now;
-            }
             w.samples.push_back({now, st.published});
             while (w.samples.size() > 2 && now - w.samples[1].at >= std::chrono::seconds(1))
                 w.samples.erase(w.samples.begin());
             const double dt = std::chrono::duration<double>(now - w.samples.front().at).count();
             st.fps =
                 dt > 0.2 ? static_cast<double>(st.published - w.samples.front().count) / dt : 0;
+            if (st.fps > 0)
+                w.measured_fps = st.fps;
             if (!w.source) {
                 s.streams.push_back(std::move(st));
                 continue;
             }
-            auto& d = device_streams[info.device];
-            if (w.queue->closed())
-                ++d.second;
-            else if (st.published > 0 && now - w.last_change < std::chrono::seconds(1))
-                ++d.first;
-            if (st.published == 0 && !w.queue->closed())
-                d.first -= 1000;  // a stream that never sent anything: waiting
+            DeviceActivity& a = activity[info.device];
+            ++a.total;
+            const auto last = graph_->lastPublished(w.id);
+            if (w.queue->closed()) {
+                ++a.ended;
+            } else if (!last) {
+                ++a.never;
+            } else if (live_) {
+                // At fast pace the source waits for the pipeline on lossless edges: its
+                // silence is back-pressure, not a stall.
+                const double fps = info.nominal_fps > 0 ? info.nominal_fps
+                                   : w.measured_fps > 0 ? w.measured_fps
+                                                        : kUnknownRateFps;
+                const double silent = std::chrono::duration<double>(now - *last).count();
+                if (silent > std::max(kStalledAfterPeriods / fps, kStalledAtLeastS))
+                    a.stalled_s = std::max(a.stalled_s, silent);
+            }
             s.streams.push_back(std::move(st));
         }
     }
     // Devices as their streams name them: a recording stands in for the rig that made it, so
     // its devices (kinect, env) are listed, not the replay device itself.
     std::vector<std::string> names;
-    std::map<std::string, int> totals;  // source streams per device
     for (size_t i = 0; i < s.streams.size(); ++i) {
-        if (!rates_->watches[i].source)
-            continue;
         const std::string& device = s.streams[i].device;
-        if (totals[device]++ == 0)
+        if (rates_->watches[i].source &&
+            std::find(names.begin(), names.end(), device) == names.end())
             names.push_back(device);
     }
     for (const std::string& name : names) {
-        const auto& counts = device_streams[name];
-        const int total = totals[name];
+        const DeviceActivity& a = activity[name];
         ArPipelineStats::Device dev;
         dev.name = name;
         // The driver's word where it gives one (it knows a camera being reopened from a slow
-        // one); else, and for a recording standing in for its rig, judged from its streams.
+        // one), except that a device the driver still calls streaming is stalled as soon as
+        // its frames stop; for a recording standing in for its rig, judged from its streams.
         DeviceState said = DeviceState::kUnknown;
         for (const Device* d : devices_) {
             if (d->name() == name) {
@@ -440,16 +468,25 @@ ArPipelineStats ArPipeline::stats() const {
                 dev.clock = d->clockReport();
             }
         }
-        dev.state = said != DeviceState::kUnknown ? std::string(toString(said))
-                    : counts.second == total      ? "ended"
-                    : counts.first > 0            ? "streaming"
-                    : counts.first < -500         ? "waiting"
-                                                  : "lost";
+        if (said != DeviceState::kUnknown && said != DeviceState::kStreaming) {
+            dev.state = toString(said);
+        } else if (a.ended == a.total) {
+            dev.state = "ended";
+        } else if (a.stalled_s > 0) {
+            dev.state = "stalled";
+            dev.silent_s = a.stalled_s;
+        } else if (said == DeviceState::kStreaming || a.never < a.total - a.ended) {
+            dev.state = "streaming";
+        } else {
+            dev.state = "waiting";
+        }
         s.devices.push_back(std::move(dev));
     }
-    for (const EdgeStats& e : graph_->edgeStats())
-        if (e.consumer != "pipeline-watch")
-            s.edge_drops += e.queue.dropped;
+    // A view's or a watch's own rate is not a drop (QueueOptions::newest_only: skipped).
+    for (const EdgeStats& e : graph_->edgeStats()) {
+        s.edge_drops += e.queue.dropped;
+        s.queued_frames += e.queue.size;
+    }
     if (tracking_)
         s.tracking = tracking_->stats();
     if (compositor_)
@@ -464,9 +501,12 @@ std::vector<std::string> ArPipelineStats::warnings() const {
     std::vector<std::string> lines;
     if (!input)
         lines.push_back("input incomplete: " + input.message());
-    if (compositor)
+    if (compositor) {
+        for (std::string& line : compositor->damage())
+            lines.push_back(std::move(line));
         for (std::string& line : compositor->neverDrawn())
             lines.push_back(std::move(line));
+    }
     return lines;
 }
 
@@ -476,6 +516,8 @@ std::string ArPipelineStats::json() const {
     json devs = json::array();
     for (const auto& d : devices) {
         json dev = {{"name", d.name}, {"state", d.state}};
+        if (d.state == "stalled")
+            dev["silent_s"] = std::round(d.silent_s * 10) / 10;
         if (!d.clock.empty())
             dev["clock"] = d.clock;
         devs.push_back(std::move(dev));
@@ -489,6 +531,7 @@ std::string ArPipelineStats::json() const {
                        {"dropped", st.lost}});
     j["streams"] = sts;
     j["edge_drops"] = edge_drops;
+    j["queued_frames"] = queued_frames;
     j["seconds"] = std::round(seconds * 10) / 10;
     json messages = json::array();
     if (compositor) {

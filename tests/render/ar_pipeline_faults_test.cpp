@@ -96,6 +96,62 @@ uint64_t composites(const ArPipeline& p) {
     return p.stats().compositor ? p.stats().compositor->composites : 0;
 }
 
+// Issue 31: a camera that goes quiet is "stalled" within a few frame periods, while its driver
+// still calls it streaming (here its loss timeout is 5 s, as Aravis's default is about): the
+// view and the status line no longer show it green at 0 fps until the driver notices.
+TEST(ArPipelineFaults, GigEVisionCameraGoneQuietIsStalledBeforeItsDriversLossTimeout) {
+    if (!GvSimulator::installed())
+        GTEST_SKIP() << test::kGvSimulator << " is missing (Debian package aravis-tools)";
+    std::string rig_text = kRig;
+    const std::string short_timeout = "lost_timeout_ms: 500";
+    rig_text.replace(rig_text.find(short_timeout), short_timeout.size(), "lost_timeout_ms: 5000");
+    auto rig = parseRig(rig_text, "gv-live rig");
+    ASSERT_TRUE(rig.isOk()) << rig.status().toString();
+    BackendRegistry registry;
+    ASSERT_TRUE(registry.add(std::make_unique<aravis::AravisBackend>()).isOk());
+    GvSimulator simulator;
+    ASSERT_TRUE(simulator.start());
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_TRUE(eventually(
+        [&] {
+            ArPipelineOptions options;
+            options.scene = fixedCameraScene();
+            options.render.samples_per_pixel = 1;
+            options.render.max_depth = 1;
+            options.render.threads = 1;
+            ArSource source;
+            source.rig = *rig;
+            auto created = ArPipeline::create(registry, source, std::move(options));
+            if (created.isOk())
+                pipeline = std::move(created).value();
+            return pipeline != nullptr;
+        },
+        20));
+    ASSERT_TRUE(pipeline->start().isOk());
+    ASSERT_TRUE(eventually([&] { return composites(*pipeline) >= 3; }, 20))
+        << pipeline->stats().json();
+    EXPECT_EQ(deviceState(pipeline->stats(), "gv"), "streaming");
+
+    const auto killed = std::chrono::steady_clock::now();
+    simulator.kill();
+    ASSERT_TRUE(eventually([&] { return deviceState(pipeline->stats(), "gv") != "streaming"; }, 10))
+        << pipeline->stats().json();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
+    const ArPipelineStats stats = pipeline->stats();
+    // Stalled, not yet reconnecting: the driver's 5 s have not passed.
+    EXPECT_EQ(deviceState(stats, "gv"), "stalled") << stats.json();
+    EXPECT_LT(seconds, 2.5) << "5 frame periods at 30 fps, and 0.5 s at least";
+    const auto j = nlohmann::json::parse(stats.json());
+    for (const auto& d : j.at("devices")) {
+        if (d.at("name") == "gv") {
+            EXPECT_EQ(d.at("state"), "stalled");
+            EXPECT_GE(d.at("silent_s").get<double>(), 0.45) << d.dump();
+        }
+    }
+    pipeline->stop();
+}
+
 TEST(ArPipelineFaults, GigEVisionCameraKilledAndRestartedWhileCompositingAndRecording) {
     if (!GvSimulator::installed())
         GTEST_SKIP() << test::kGvSimulator << " is missing (Debian package aravis-tools)";

@@ -31,7 +31,7 @@ main{display:flex;gap:12px;padding:12px;align-items:flex-start}
 table{border-collapse:collapse;width:100%}
 td,th{padding:1px 4px;text-align:right}td:first-child,th:first-child{text-align:left}
 .state-streaming{color:#6c6}.state-lost{color:#e66}.state-reconnecting{color:#eb4}
-.state-ended{color:#999}
+.state-stalled{color:#eb4}.state-ended{color:#999}.state-waiting{color:#999}
 #messages li{color:#eb4}
 </style></head>
 <body data-connected="0" data-status-count="0" data-tiles="0">

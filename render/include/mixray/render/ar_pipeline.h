@@ -91,13 +91,21 @@ struct ArPipelineStats {
         std::string name;
         // What the device says (Device::state(): "streaming", "reconnecting", "lost",
         // "ended"); for devices that do not say, judged from their streams: "streaming",
-        // "waiting" (nothing yet), "lost" (silent > 1 s), "ended" (every stream ended).
+        // "waiting" (nothing yet), "ended" (every stream ended). Either way, at real pace,
+        // "stalled" as soon as a stream that delivered is silent for 5 of its frame periods
+        // (and 0.5 s): before a driver's loss timeout says "reconnecting" or "lost".
         std::string state;
-        std::string clock;  // Device::clockReport(): another host's clock, when it has one
+        double silent_s = 0;  // stalled: how long its quietest stream has been silent
+        std::string clock;    // Device::clockReport(): another host's clock, when it has one
     };
     std::vector<Stream> streams;
     std::vector<Device> devices;
-    uint64_t edge_drops = 0;  // frames live edges dropped because a consumer was behind
+    // Frames live edges dropped because their consumer was behind. Not the frames a view or a
+    // watch skips by its own rate (QueueOptions::newest_only): those are not losses.
+    uint64_t edge_drops = 0;
+    // Frames waiting on every edge now: bounded by the edges' capacities, whatever the run's
+    // length (scripts/soak watches it).
+    uint64_t queued_frames = 0;
     std::optional<tracking::TrackingNodeStats> tracking;
     std::optional<CompositorStats> compositor;
     std::optional<RecorderStats> recorder;
