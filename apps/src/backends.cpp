@@ -85,7 +85,10 @@ Status runPipeline(render::ArPipeline& pipeline, const std::function<bool()>& st
 int finishPipelineRun(const std::string& command, const render::ArPipelineStats& stats) {
     for (const std::string& line : stats.warnings())
         std::fprintf(stderr, "mixray %s: %s\n", command.c_str(), line.c_str());
-    return stats.input ? kExitOk : kExitIncomplete;
+    // Damaged input (a cut-off file, corrupt frames, damaged records) made the output from
+    // what was readable: exit 5 says so to scripts as the message says it to people.
+    const bool damaged = stats.compositor && !stats.compositor->damage().empty();
+    return stats.input && !damaged ? kExitOk : kExitIncomplete;
 }
 
 }  // namespace mixray::cli

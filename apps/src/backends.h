@@ -31,9 +31,9 @@ Result<std::unique_ptr<render::ArPipeline>> recordingPipeline(const std::string&
 Status runPipeline(render::ArPipeline& pipeline, const std::function<bool()>& stop_early);
 
 // The end of a pipeline run that made its output: prints each of stats.warnings() (the input
-// cut off or damaged, objects never drawn) as "mixray <command>: <line>" and returns the exit
-// code: kExitIncomplete when the input was incomplete, else kExitOk (an object never drawn is
-// a warning, not a failure).
+// cut off or damaged, corrupt colour frames and damaged records, objects never drawn) as
+// "mixray <command>: <line>" and returns the exit code: kExitIncomplete when the input was
+// incomplete or damaged, else kExitOk (an object never drawn is a warning, not a failure).
 int finishPipelineRun(const std::string& command, const render::ArPipelineStats& stats);
 
 }  // namespace mixray::cli

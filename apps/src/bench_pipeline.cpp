@@ -325,8 +325,8 @@ struct RealFigures {
     double color_fps = 0;     // the session's nominal rate
     uint64_t captured = 0;    // colour frames the replayed camera published
     uint64_t composites = 0;  // published by the compositor
-    uint64_t sets = 0, superseded = 0, for_recording = 0, without_pose = 0, publish_failures = 0,
-             at_stop = 0;
+    uint64_t sets = 0, superseded = 0, for_recording = 0, without_pose = 0, corrupt = 0,
+             publish_failures = 0, at_stop = 0;
     std::vector<double> latencies_ms;  // sorted
     std::map<int, uint64_t> rungs;     // ladder rung -> composites
     std::vector<std::string> rung_labels;
@@ -437,6 +437,7 @@ Result<RealFigures> benchReal(const BenchPipelineOptions& options, const Inputs&
     f.superseded = c.skipped_superseded;
     f.for_recording = c.skipped_for_recording;
     f.without_pose = c.skipped_without_pose;
+    f.corrupt = c.skipped_corrupt;
     f.publish_failures = c.publish_failures;
     f.at_stop = c.skipped_at_stop;
     f.final_rung = c.quality_step;
@@ -528,6 +529,7 @@ json realJson(const RealFigures& f) {
               {"superseded", f.superseded},
               {"skipped_for_recording", f.for_recording},
               {"without_pose", f.without_pose},
+              {"corrupt", f.corrupt},
               {"publish_failures", f.publish_failures},
               {"at_stop", f.at_stop}}},
             {"render_ms", f.render_ms},
@@ -601,11 +603,11 @@ void printReal(const RealFigures& f) {
         p99 < bound_ms ? "within" : "OVER");
     std::printf(
         "  sets %llu: composited %llu, superseded by newer %llu, skipped for the recorder %llu, "
-        "without pose %llu, no output buffer %llu, at stop %llu\n",
+        "without pose %llu, corrupt colour frame %llu, no output buffer %llu, at stop %llu\n",
         static_cast<unsigned long long>(f.sets), static_cast<unsigned long long>(f.composites),
         static_cast<unsigned long long>(f.superseded),
         static_cast<unsigned long long>(f.for_recording),
-        static_cast<unsigned long long>(f.without_pose),
+        static_cast<unsigned long long>(f.without_pose), static_cast<unsigned long long>(f.corrupt),
         static_cast<unsigned long long>(f.publish_failures),
         static_cast<unsigned long long>(f.at_stop));
     std::printf("  render %.1f ms per frame; ladder rungs used:", f.render_ms);

@@ -321,6 +321,20 @@ Status CompositorNode::status() const {
     return status_;
 }
 
+std::vector<std::string> CompositorStats::damage() const {
+    std::vector<std::string> lines;
+    if (skipped_corrupt == 1)
+        lines.push_back("1 colour frame marked corrupt by its driver was not composited");
+    else if (skipped_corrupt > 1)
+        lines.push_back(std::to_string(skipped_corrupt) +
+                        " colour frames marked corrupt by their driver were not composited");
+    if (damaged_records > 0)
+        lines.push_back(std::to_string(damaged_records) + " pose or light record" +
+                        (damaged_records == 1 ? " was" : "s were") +
+                        " damaged and composited past (first: " + first_damaged_record + ")");
+    return lines;
+}
+
 std::vector<std::string> CompositorStats::neverDrawn() const {
     std::vector<std::string> lines;
     if (composites == 0)
@@ -505,6 +519,17 @@ std::optional<RenderInputs::ShutterPoses> CompositorNode::shutterFor(const Frame
 
 Status CompositorNode::composite(const Pending& set) {
     drainEnvironmentMaps();
+    if (set.color.meta().status == FrameStatus::kCorrupt) {
+        std::lock_guard lock(mutex_);
+        ++stats_.skipped_corrupt;
+        return Status::ok();
+    }
+    // A record that does not decode costs its set the pose (or the new lights), not the run.
+    const auto damaged = [this](const Status& why) {
+        std::lock_guard lock(mutex_);
+        if (stats_.damaged_records++ == 0)
+            stats_.first_damaged_record = why.message();
+    };
     CompositeFrame out;
     out.color = set.color;
     out.depth = set.depth;
@@ -513,19 +538,28 @@ Status CompositorNode::composite(const Pending& set) {
     std::optional<RenderInputs::ShutterPoses> shutter;
     if (set.pose) {
         auto pose = decodePoseRecord(set.pose.image());
-        if (!pose)
-            return pose.status().withContext(options_.pose_stream);
-        out.pose = *pose;
-        has_pose = pose->status != PoseStatus::kLost;
-        if (has_pose)
-            T_world_cam = pose->transform();
-        shutter = shutterFor(set.color.meta(), *pose);
+        if (pose) {
+            out.pose = *pose;
+            has_pose = pose->status != PoseStatus::kLost;
+            if (has_pose)
+                T_world_cam = pose->transform();
+            shutter = shutterFor(set.color.meta(), *pose);
+        } else {
+            damaged(pose.status().withContext(options_.pose_stream + " record " +
+                                              std::to_string(set.pose.meta().sequence)));
+            has_pose = false;
+        }
     }
+    std::optional<tracking::LightRecord> lights;
     if (set.lights) {
-        const ImageView bytes = set.lights.image();
-        auto lights = tracking::decodeLightRecord(bytes);
-        if (!lights)
-            return lights.status().withContext(options_.light_stream);
+        auto decoded = tracking::decodeLightRecord(set.lights.image());
+        if (decoded)
+            lights = std::move(decoded).value();
+        else
+            damaged(decoded.status().withContext(options_.light_stream + " record " +
+                                                 std::to_string(set.lights.meta().sequence)));
+    }
+    if (lights) {
         // The fish-eye's map, else the one built from the colour frames (the light node
         // publishes one or the other).
         std::shared_ptr<const FloatImage> map;

@@ -42,7 +42,13 @@ TEST(BenchPipelineCli, RealPaceAccountsForEverySetAndRecordedFrame) {
     ASSERT_TRUE(j.contains("real")) << j.dump();
     const json& r = j["real"];
     expectEverySetAccountedFor(r);
-    EXPECT_GT(r["composites"].get<uint64_t>(), 0u);
+    // How many sets are composited is the machine's speed; that the compositor got sets and
+    // that a run which composited none says why (the recorder came first) is not. Under
+    // AddressSanitizer the recorder's backlog can hold every set of a 3-second run back.
+    EXPECT_GT(r["sets"]["total"].get<uint64_t>(), 0u) << r.dump();
+    if (r["composites"].get<uint64_t>() == 0) {
+        EXPECT_GT(r["sets"]["skipped_for_recording"].get<uint64_t>(), 0u) << r.dump();
+    }
     EXPECT_DOUBLE_EQ(r["latency_ms"]["bound"].get<double>(), 2000.0 / 30);
     EXPECT_LE(r["latency_ms"]["p50"].get<double>(), r["latency_ms"]["p99"].get<double>());
     uint64_t ladder_frames = 0;

@@ -27,8 +27,8 @@ inline void expectEverySetAccountedFor(const nlohmann::json& real) {
     const nlohmann::json& sets = real["sets"];
     EXPECT_EQ(real["composites"].get<uint64_t>() + sets["superseded"].get<uint64_t>() +
                   sets["skipped_for_recording"].get<uint64_t>() +
-                  sets["without_pose"].get<uint64_t>() + sets["publish_failures"].get<uint64_t>() +
-                  sets["at_stop"].get<uint64_t>(),
+                  sets["without_pose"].get<uint64_t>() + sets["corrupt"].get<uint64_t>() +
+                  sets["publish_failures"].get<uint64_t>() + sets["at_stop"].get<uint64_t>(),
               sets["total"].get<uint64_t>())
         << sets.dump();
 }

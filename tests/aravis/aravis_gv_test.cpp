@@ -377,6 +377,9 @@ TEST_F(AravisGv, LostPacketsAreResentOrReported) {
     EXPECT_GT(stats.missing_packets, 0u);
     EXPECT_EQ(stats.resent_packets, 0u);
     EXPECT_EQ(stats.resend_requests, 0u);
+    // Every frame that never reached the graph is counted where commands report losses.
+    EXPECT_EQ(graph_.lostCount(device_->streamId()),
+              stats.failed + stats.pool_exhausted + stats.missing_frames);
     size_t incomplete = 0;
     for (const FrameRef& f : frames) {
         incomplete += f.meta().status == FrameStatus::kIncomplete;

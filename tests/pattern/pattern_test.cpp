@@ -295,6 +295,7 @@ TEST(PatternDevice, StampsContentDropsAndResetsAreReproducible) {
         graph.stop();
         EXPECT_EQ(frames.size() + dev->droppedFrames(), 60u);
         EXPECT_GT(dev->droppedFrames(), 5u);
+        EXPECT_EQ(graph.lostCount(0), dev->droppedFrames()) << "drops reach Graph::lostCount";
         std::vector<std::tuple<uint64_t, int64_t, int64_t>> stamps;
         for (const FrameRef& f : frames) {
             const FrameMetadata& m = f.meta();

@@ -461,6 +461,81 @@ TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
     EXPECT_GE(pose_not_valid, 1) << "the blacked-out frames still gave a current pose";
 }
 
+// Issue 31's fault matrix: a damaged pose record (a bit flipped in its translation: the
+// record's CRC no longer holds) and a colour frame its driver marked corrupt, mid-replay. Each
+// costs its own set, said in the warnings, never the run.
+TEST(ArPipeline, ADamagedPoseRecordAndACorruptColourFrameMidReplayCostTheirSetsNotTheRun) {
+    const fs::path input = fs::path(::testing::TempDir()) / "ar_pipeline_damaged_records.mkv";
+    {
+        auto reader = replay::openRecording(session());
+        ASSERT_TRUE(reader.isOk()) << reader.status().toString();
+        RecordingHeader header;
+        header.streams = (*reader)->streams();
+        header.attachments = (*reader)->attachments();
+        header.tags = (*reader)->tags();
+        auto writer = createMkvWriter(input, header);
+        ASSERT_TRUE(writer.isOk()) << writer.status().toString();
+        int colour = 0, poses = 0;
+        while (true) {
+            auto next = (*reader)->next();
+            if (!next)
+                break;
+            FrameRef frame = std::move(next).value();
+            const std::string& name = header.streams[frame.meta().stream].name;
+            const bool corrupt_this = name == "kinect/color" && ++colour == 12;
+            const bool damage_this = name == "truth/pose" && ++poses == 20;
+            if (corrupt_this || damage_this) {
+                WritableFrame w = WritableFrame::reclaim(frame);
+                ASSERT_TRUE(w) << "the reader kept a handle on its frame";
+                if (corrupt_this)
+                    w.meta().status = FrameStatus::kCorrupt;
+                else
+                    w.image().data[40] ^= 0x10;  // in the translation
+                frame = std::move(w).publish();
+            }
+            ASSERT_TRUE((*writer)->write(frame).isOk());
+        }
+        ASSERT_TRUE((*writer)->close().isOk());
+        ASSERT_GE(poses, 20);
+    }
+    // The session's recorded poses instead of tracking (as bench pipeline's graph-only run):
+    // the damaged record is the one the compositor reads.
+    ArPipelineOptions options = sessionPipelineOptions();
+    ASSERT_TRUE(options.setup.has_value());
+    FixedCamera camera = options.scene->camera.value_or(FixedCamera{});
+    if (!camera.model)
+        camera.model = options.setup->camera.model;
+    camera.has_pose = false;
+    options.scene->camera = camera;
+    options.setup.reset();
+    options.pose_stream = "truth/pose";
+    ArSource source;
+    source.recording = input;
+    source.pace = ArSource::Pace::kFast;
+    std::unique_ptr<ArPipeline> pipeline;
+    ASSERT_NO_FATAL_FAILURE(runToEnd(source, std::move(options), pipeline));
+    const ArPipelineStats stats = pipeline->stats();
+    ASSERT_TRUE(stats.compositor.has_value());
+    const CompositorStats& c = *stats.compositor;
+    EXPECT_EQ(c.skipped_corrupt, 1u);
+    EXPECT_EQ(c.composites + c.skipped_corrupt + c.skipped_without_pose, c.sets);
+    EXPECT_EQ(c.sets, 36u) << "one set per colour frame of the session";
+    EXPECT_EQ(c.damaged_records, 1u);
+    EXPECT_NE(c.first_damaged_record.find("truth/pose record"), std::string::npos)
+        << c.first_damaged_record;
+    // The damaged pose's set is the camera image as is (no pose); the others are rendered.
+    EXPECT_EQ(c.passed_through, 1u);
+    std::string warnings;
+    for (const std::string& line : stats.warnings())
+        warnings += line + "\n";
+    EXPECT_NE(warnings.find("1 colour frame marked corrupt by its driver was not composited"),
+              std::string::npos)
+        << warnings;
+    EXPECT_NE(warnings.find("1 pose or light record was damaged and composited past (first: "),
+              std::string::npos)
+        << warnings;
+}
+
 // Issue 14, the environment from the camera itself: with the fish-eye left out, the light node
 // builds the environment from the tracked colour frames, publishes a map after the first frame
 // and then every `interval`, and every light record names the map in use; the compositor lights
@@ -645,14 +720,23 @@ TEST(ArPipeline, RealPaceAccountsForEverySetAndRecordsEveryCapturedFrame) {
     const ArPipelineStats stats = pipeline->stats();
     ASSERT_TRUE(stats.compositor.has_value());
     const CompositorStats& c = *stats.compositor;
-    EXPECT_GT(c.composites, 0u);
+    EXPECT_GT(c.sets, 0u);
     EXPECT_EQ(c.composites + c.skipped_superseded + c.skipped_for_recording +
-                  c.skipped_without_pose + c.publish_failures + c.skipped_at_stop,
+                  c.skipped_without_pose + c.skipped_corrupt + c.publish_failures +
+                  c.skipped_at_stop,
               c.sets);
     EXPECT_EQ(callbacks, c.composites);
     EXPECT_EQ(with_latency, c.composites);
     EXPECT_EQ(c.latency.count, std::min<uint64_t>(c.composites, 1024));
-    EXPECT_GT(lowest_rung, 0) << "the ladder never went down at a target of 1000 fps";
+    // How much is rendered is the machine's speed: on one busy with other work the recorder's
+    // backlog may hold the compositor back for the whole run (the policy: composites give way,
+    // never captured frames). Then that is the reason said, and the ladder cannot be judged.
+    if (c.rendered >= 5) {
+        EXPECT_GT(lowest_rung, 0) << "the ladder never went down at a target of 1000 fps";
+    } else {
+        EXPECT_GT(c.skipped_for_recording, 0u)
+            << c.rendered << " rendered in 40 s, and not for the recorder";
+    }
 
     // Every frame published on a recorded stream is in the file or counted as dropped by the
     // recorder's live queue (a recorder behind the sources must not slow capture): none is lost

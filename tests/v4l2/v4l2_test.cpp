@@ -411,6 +411,8 @@ TEST(V4l2Device, FlagsDriverErrorsAndCountsLostFrames) {
     }
     EXPECT_EQ(sequences, (std::vector<uint64_t>{0, 1, 2, 3, 5, 6}));
     EXPECT_EQ(cap->device->sequenceGaps(), 1u);
+    // The frame the driver skipped is lost where commands report losses, too.
+    EXPECT_EQ(cap->graph.lostCount(cap->device->streamId()), 1u);
 }
 
 TEST(V4l2Device, StampsThatAreNotMonotonicGetAClockDomain) {

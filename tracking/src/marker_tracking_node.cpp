@@ -93,8 +93,18 @@ void MarkerTrackingNode::run() {
 }
 
 bool MarkerTrackingNode::track(const FrameRef& color) {
-    if (color.meta().status == FrameStatus::kCorrupt)
-        return true;
+    PoseRecord record;
+    record.frame_sequence = color.meta().sequence;
+    record.frame_device_stamp_ns = color.meta().device_stamp_ns;
+    record.anchor = "world";
+    if (color.meta().status == FrameStatus::kCorrupt) {
+        // Not tracked (its pixels are broken), but not passed over in silence either: its pose
+        // is lost with the reason, so the compositor still gets the frame's set and says why
+        // it made no composite of it.
+        record.status = PoseStatus::kLost;
+        record.reason = "the colour frame is marked corrupt by its driver";
+        return publishPose(color, record);
+    }
     TrackedColor f;
     f.color = color;
     const auto start = std::chrono::steady_clock::now();
@@ -116,10 +126,6 @@ bool MarkerTrackingNode::track(const FrameRef& color) {
     if (on_tracked_)
         on_tracked_(f);
 
-    PoseRecord record;
-    record.frame_sequence = color.meta().sequence;
-    record.frame_device_stamp_ns = color.meta().device_stamp_ns;
-    record.anchor = "world";
     if (f.track.pose.value) {
         record.setTransform(*f.track.pose.value);
         record.status =
@@ -131,6 +137,10 @@ bool MarkerTrackingNode::track(const FrameRef& color) {
         record.reason = record::printableText(f.track.pose.reason, kPoseReasonMaxBytes);
     if (!f.track.targets.empty())
         record.error = static_cast<float>(f.track.targets.front().rms_px);
+    return publishPose(color, record);
+}
+
+bool MarkerTrackingNode::publishPose(const FrameRef& color, const PoseRecord& record) {
     const bool published = detail::publishEncoded(*graph_, pose_out_, encodePoseRecord(record),
                                                   color.meta(), options_->lossless, stop_);
     {

@@ -667,6 +667,8 @@ void AravisDevice::handleBuffer(ArvBuffer* buffer) {
     const uint64_t frame_id = arv_buffer_get_frame_id(buffer);
     if (have_frame_id_) {
         const uint64_t step = frameIdAdvance(last_frame_id_, frame_id);
+        if (step > 1)
+            graph_->countLost(stream_id_, step - 1);
         std::lock_guard lock(mutex_);
         stats_.missing_frames += step > 0 ? step - 1 : 0;
         next_sequence_ += step > 0 ? step - 1 : 0;
@@ -691,18 +693,25 @@ void AravisDevice::handleBuffer(ArvBuffer* buffer) {
     } else {
         size = payload_bytes_;
     }
+    // A frame the camera sent that never reaches the graph is lost to it: counted where
+    // commands report losses (Graph::lostCount) as well as in the device's own figures.
     const bool fits = data && desc == camera_desc_ && size >= desc.bufferBytes();
     if (!(complete || partial) || !fits) {
+        graph_->countLost(stream_id_);
         std::lock_guard lock(mutex_);
         ++stats_.failed;
         return;
     }
     WritableFrame frame = pool_->acquire();
-    if (!frame)
-        return;  // counted by the pool: a camera does not wait for its consumers
+    if (!frame) {
+        // A camera does not wait for its consumers: the pool counts it too.
+        graph_->countLost(stream_id_);
+        return;
+    }
     const ImageView source{desc, data, size};
     if (options_.debayer) {
         if (!debayer(source, frame.image())) {
+            graph_->countLost(stream_id_);
             std::lock_guard lock(mutex_);
             ++stats_.failed;
             return;

@@ -355,8 +355,11 @@ void PatternDevice::run() {
 
         for (size_t j = 0; j < n; ++j) {
             const Pending& p = order[j];
+            // A simulated drop and a frame without a free buffer are lost to the graph, as a
+            // real camera's are: counted where commands report losses (Graph::lostCount).
             if (p.lost) {
                 dropped_.fetch_add(1, std::memory_order_relaxed);
+                graph_->countLost(ids_[p.stream]);
                 continue;
             }
             if (options_.realtime && !sleepUntil(p.arrival_ns)) {
@@ -368,6 +371,7 @@ void PatternDevice::run() {
             if (!frame && options_.realtime) {
                 // A camera does not wait for its consumers: the frame is lost.
                 exhausted_.fetch_add(1, std::memory_order_relaxed);
+                graph_->countLost(ids_[p.stream]);
                 continue;
             }
             while (!frame) {

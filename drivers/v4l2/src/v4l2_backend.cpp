@@ -778,14 +778,20 @@ void V4l2Device::run() {
         const Buffer& b = buffers_[buf.index];
         const size_t used = std::min<size_t>(buf.bytesused, b.length);
 
-        if (have_sequence_ && buf.sequence > last_sequence_ + 1)
+        // Frames the driver dropped (a gap in its sequence), frames without a free buffer and
+        // frames that did not decode are all lost to the graph: counted where commands report
+        // losses (Graph::lostCount) as well as in the device's own figures.
+        if (have_sequence_ && buf.sequence > last_sequence_ + 1) {
             gaps_.fetch_add(buf.sequence - last_sequence_ - 1, std::memory_order_relaxed);
+            graph_->countLost(stream_, buf.sequence - last_sequence_ - 1);
+        }
         last_sequence_ = buf.sequence;
         have_sequence_ = true;
 
         WritableFrame frame = pool_->acquire();
         if (!frame) {
             exhausted_.fetch_add(1, std::memory_order_relaxed);
+            graph_->countLost(stream_);
         } else {
             bool ok = true;
             MutableImageView view = frame.image();
@@ -796,6 +802,7 @@ void V4l2Device::run() {
             } else if (desc_.format == PixelFormat::kRGB8) {
                 if (!decodeMjpegToRgb(b.data, used, view).isOk()) {
                     decode_errors_.fetch_add(1, std::memory_order_relaxed);
+                    graph_->countLost(stream_);
                     ok = false;
                 }
             } else {

@@ -161,11 +161,18 @@ struct CompositorStats {
     // kRecordingBacklogToSkip) when this set's turn came, so its cores went to the recorder.
     uint64_t skipped_for_recording = 0;
     uint64_t skipped_without_pose = 0;  // skip_without_pose
-    uint64_t publish_failures = 0;      // no free output buffer
-    uint64_t skipped_at_stop = 0;       // waiting or being rendered when stop() came
+    // The colour frame's driver marked it corrupt (FrameStatus::kCorrupt): kept in the
+    // recording, never composited (virtual objects over a broken image would be a wrong picture).
+    uint64_t skipped_corrupt = 0;
+    uint64_t publish_failures = 0;  // no free output buffer
+    uint64_t skipped_at_stop = 0;   // waiting or being rendered when stop() came
     // Every set is accounted for: sets == composites + skipped_superseded +
-    // skipped_for_recording + skipped_without_pose + publish_failures + skipped_at_stop (once
-    // stopped or done).
+    // skipped_for_recording + skipped_without_pose + skipped_corrupt + publish_failures +
+    // skipped_at_stop (once stopped or done).
+    // Pose and light records that did not decode (damaged, a NaN or non-unit rotation): the set
+    // is composited as if the pose were lost, or with the lights it had; the first one's reason.
+    uint64_t damaged_records = 0;
+    std::string first_damaged_record;
     SyncStats sync;              // frames the synchronizer could not match, and why
     LatencyPercentiles latency;  // over the last 1024 composites
     double render_ms_mean = 0;
@@ -191,6 +198,9 @@ struct CompositorStats {
     // marker:0) was never drawn: marker 0 had no pose in any of 36 composites". Empty before
     // the first composite.
     std::vector<std::string> neverDrawn() const;
+    // One line each for corrupt colour frames skipped and damaged records composited past;
+    // empty when there were none.
+    std::vector<std::string> damage() const;
 };
 
 // Runs a SyncNode over its inputs and renders on a thread of its own, so matching never waits

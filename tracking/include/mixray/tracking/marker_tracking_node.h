@@ -7,6 +7,7 @@
 #include <string>
 
 #include "mixray/graph/graph.h"
+#include "mixray/graph/pose.h"
 #include "mixray/tracking/markers.h"
 #include "mixray/tracking/tracking_graph.h"
 
@@ -49,8 +50,11 @@ public:
 private:
     MarkerTrackingNode(std::shared_ptr<const TrackingNodeOptions> options, Callback on_tracked);
     void run() override;
-    // Tracks one colour frame and publishes its record; false when tracking failed.
+    // Tracks one colour frame and publishes its record; false when tracking failed. A frame
+    // its driver marked corrupt is not tracked: its pose is lost, with the reason.
     bool track(const FrameRef& color);
+    // Publishes `record` as color's pose; false once the node has finished (max_color_frames).
+    bool publishPose(const FrameRef& color, const PoseRecord& record);
 
     std::shared_ptr<const TrackingNodeOptions> options_;
     Callback on_tracked_;
