@@ -7,7 +7,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
+#include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -176,12 +180,14 @@ struct PublishingHost {
     PooledStream stream;
     DdsPublisher* publisher = nullptr;
 
-    explicit PublishingHost(const std::string& host, StreamInfo info = colorStream()) {
+    explicit PublishingHost(const std::string& host, StreamInfo info = colorStream())
+        : PublishingHost(loopback(host), std::move(info)) {}
+    explicit PublishingHost(const DdsOptions& dds, StreamInfo info = colorStream()) {
         auto pooled = addPooledStream(graph, info, 8);
         EXPECT_TRUE(pooled.isOk());
         stream = *pooled;
         DdsPublisherOptions options;
-        options.dds = loopback(host);
+        options.dds = dds;
         options.ros2_rig = "testrig";
         auto made = DdsPublisher::create(options);
         EXPECT_TRUE(made.isOk());
@@ -497,6 +503,77 @@ TEST(DdsBackendTest, AProcessThatMadeAHundredParticipantsIsStillFound) {
     ASSERT_TRUE(listed.isOk());
     ASSERT_EQ(listed->size(), 1u) << "the 101st participant hears the publisher";
     EXPECT_EQ(listed->at(0).id, "hostA/cam");
+}
+
+// The local addresses ("a.b.c.d:port") of this process's UDP sockets, from /proc/net/udp.
+std::vector<std::string> udpSocketsOfThisProcess() {
+    std::set<std::string> inodes;
+    for (const auto& fd : std::filesystem::directory_iterator("/proc/self/fd")) {
+        std::error_code ec;
+        const std::string target = std::filesystem::read_symlink(fd.path(), ec).string();
+        if (!ec && target.starts_with("socket:["))
+            inodes.insert(target.substr(8, target.size() - 9));
+    }
+    std::vector<std::string> out;
+    std::ifstream udp("/proc/net/udp");
+    std::string line;
+    std::getline(udp, line);  // the header
+    while (std::getline(udp, line)) {
+        std::istringstream fields(line);
+        std::string slot, local, remote, state, queues, timer, retransmits, uid, timeout, inode;
+        fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >>
+            timeout >> inode;
+        if (!inodes.count(inode))
+            continue;
+        // "0100007F:1CE8": the address in network order read as a little-endian word.
+        const uint32_t address = static_cast<uint32_t>(std::stoul(local.substr(0, 8), nullptr, 16));
+        const unsigned port = static_cast<unsigned>(std::stoul(local.substr(9), nullptr, 16));
+        out.push_back(std::to_string(address & 0xff) + "." + std::to_string((address >> 8) & 0xff) +
+                      "." + std::to_string((address >> 16) & 0xff) + "." +
+                      std::to_string(address >> 24) + ":" + std::to_string(port));
+    }
+    return out;
+}
+
+// Issue 31: the DDS transport exposes nothing by default. With the default options every UDP
+// socket Fast DDS opens is bound to loopback (other hosts cannot even reach it), and a rig sees
+// only the hosts of its domain and partition.
+TEST(DdsExposure, DefaultsBindLoopbackOnlyAndOtherDomainsAndPartitionsHearNothing) {
+    DdsOptions rig_a;  // the defaults a user gets, but for this test's own domain
+    rig_a.domain = testDomain();
+    rig_a.host = "hostA";
+    rig_a.partition = "rig-a";
+    PublishingHost a(rig_a);
+    const std::vector<std::string> sockets = udpSocketsOfThisProcess();
+    ASSERT_FALSE(sockets.empty()) << "Fast DDS opened no UDP socket";
+    for (const std::string& socket : sockets)
+        EXPECT_TRUE(socket.starts_with("127.0.0.1:")) << "a UDP socket on " << socket;
+
+    DdsOptions same = rig_a;
+    same.host = "hostB";
+    DdsBackend same_rig(same);
+    auto heard = same_rig.enumerate();
+    ASSERT_TRUE(heard.isOk()) << heard.status().toString();
+    ASSERT_EQ(heard->size(), 1u) << "the same domain and partition hear the publisher";
+    EXPECT_EQ(heard->at(0).id, "hostA/cam");
+
+    DdsOptions other_partition = same;
+    other_partition.host = "hostC";
+    other_partition.partition = "rig-b";
+    DdsOptions default_partition = same;
+    default_partition.host = "hostD";
+    default_partition.partition = "";
+    DdsOptions other_domain = same;
+    other_domain.host = "hostE";
+    other_domain.domain = rig_a.domain + 1;
+    for (const DdsOptions& o : {other_partition, default_partition, other_domain}) {
+        SCOPED_TRACE(o.host + " in domain " + std::to_string(o.domain) + ", partition '" +
+                     o.partition + "'");
+        DdsBackend backend(o);
+        auto listed = backend.enumerate();
+        ASSERT_TRUE(listed.isOk()) << listed.status().toString();
+        EXPECT_TRUE(listed->empty()) << listed->at(0).id;
+    }
 }
 
 }  // namespace
