@@ -30,12 +30,28 @@ if(MIXRAY_SANITIZE)
     add_compile_definitions(EIGEN_MALLOC_ALREADY_ALIGNED=1)
 endif()
 
+# ThreadSanitizer (scripts/tsan builds the threaded components' tests with it). It cannot share
+# a process with ASan, and the third-party libraries are not instrumented: tests/tsan.supp
+# names what they report, each with its reason.
+if(MIXRAY_TSAN)
+    if(MIXRAY_SANITIZE)
+        message(FATAL_ERROR "MIXRAY_TSAN and MIXRAY_SANITIZE cannot be combined")
+    endif()
+    add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+    add_link_options(-fsanitize=thread)
+    # GCC 12 warns that std::atomic_thread_fence is not supported by TSan (libstdc++'s
+    # shared_ptr and TBB use it); reports at fences are what tests/tsan.supp is for.
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+        add_compile_options(-Wno-tsan -Wno-maybe-uninitialized)
+    endif()
+endif()
+
 # mixray_optimise_under_sanitizers(<target>): the sanitizer build (Debug, -O1) compiles <target>
 # at -O2, still instrumented and with its assertions. For the per-pixel code of the renderer and
 # the light estimators, which at -O1 spends its time calling the one-line Eigen functions -O1
 # does not inline (render::detail::rotate alone was 16% of an AR pipeline test under ASan).
 function(mixray_optimise_under_sanitizers target)
-    if(MIXRAY_SANITIZE)
+    if(MIXRAY_SANITIZE OR MIXRAY_TSAN)
         target_compile_options(${target} PRIVATE -O2)
     endif()
 endfunction()

@@ -1,6 +1,7 @@
 // The process's memory in use, for tests that bound memory growth: resident memory, or under
-// AddressSanitizer its live heap bytes (its quarantine keeps freed blocks resident, so RSS grows
-// there with every frame freed, whatever the code under test does).
+// AddressSanitizer or ThreadSanitizer their allocator's live heap bytes (ASan's quarantine keeps
+// freed blocks resident, and TSan's shadow and history grow with every access, so RSS grows
+// there whatever the code under test does).
 #pragma once
 
 #include <unistd.h>
@@ -8,14 +9,14 @@
 #include <cstdint>
 #include <fstream>
 
-#if defined(__SANITIZE_ADDRESS__)
-#define MIXRAY_TEST_ASAN 1
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define MIXRAY_TEST_SANITIZER_HEAP 1
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)
-#define MIXRAY_TEST_ASAN 1
+#define MIXRAY_TEST_SANITIZER_HEAP 1
 #endif
 #endif
-#if MIXRAY_TEST_ASAN
+#if MIXRAY_TEST_SANITIZER_HEAP
 // The sanitizer runtime's own function (GCC ships no header declaring it).
 extern "C" size_t __sanitizer_get_current_allocated_bytes();
 #endif
@@ -23,7 +24,7 @@ extern "C" size_t __sanitizer_get_current_allocated_bytes();
 namespace mixray::test {
 
 inline uint64_t memoryInUse() {
-#if MIXRAY_TEST_ASAN
+#if MIXRAY_TEST_SANITIZER_HEAP
     return __sanitizer_get_current_allocated_bytes();
 #else
     std::ifstream statm("/proc/self/statm");

@@ -12,7 +12,6 @@
 #include <pthread.h>
 #include <sys/random.h>
 #include <sys/socket.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -23,6 +22,7 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -75,34 +75,50 @@ std::string endpoint(const std::string& address, int port) {
 // The socket of an accepted connection, found by its two ends: civetweb does not expose it,
 // and the view must be able to shut a stalled connection down from another thread (civetweb's
 // websocket write blocks while the browser does not read). -1 when not found.
+//
+// The kernel's table of TCP sockets (/proc/self/net/tcp) gives the connection's inode, and
+// /proc/self/fd's links name each descriptor's inode. Nothing here touches a descriptor other
+// than the one returned: civetweb's threads open and close theirs meanwhile, and probing them
+// (fstat, getpeername) raced with those closes (ThreadSanitizer saw it).
 int findConnectionSocket(const std::string& remote_addr, int remote_port, int local_port) {
+    in_addr remote{};
+    if (inet_pton(AF_INET, remote_addr.c_str(), &remote) != 1)
+        return -1;
+    std::ifstream tcp("/proc/self/net/tcp");
+    std::string line;
+    std::getline(tcp, line);  // the header
+    std::string inode;
+    while (inode.empty() && std::getline(tcp, line)) {
+        std::istringstream fields(line);
+        std::string slot, local, peer, state, queues, timer, retransmits, uid, timeout, node;
+        fields >> slot >> local >> peer >> state >> queues >> timer >> retransmits >> uid >>
+            timeout >> node;
+        // "0100007F:1F90": the address as the kernel holds it (network order) printed as a
+        // native word, then the port.
+        const size_t colon = peer.find(':');
+        if (colon != 8 || local.size() < 10)
+            continue;
+        const auto hex = [](const std::string& text) {
+            return static_cast<uint32_t>(std::strtoul(text.c_str(), nullptr, 16));
+        };
+        if (hex(peer.substr(0, 8)) == remote.s_addr &&
+            static_cast<int>(hex(peer.substr(9))) == remote_port &&
+            static_cast<int>(hex(local.substr(9))) == local_port)
+            inode = node;
+    }
+    if (inode.empty() || inode == "0")
+        return -1;
+    const std::string target = "socket:[" + inode + "]";
     DIR* dir = opendir("/proc/self/fd");
     if (dir == nullptr)
         return -1;
     int found = -1;
+    char link[64];
     while (dirent* entry = readdir(dir)) {
-        char* end = nullptr;
-        const long fd = std::strtol(entry->d_name, &end, 10);  // NOLINT(google-runtime-int)
-        if (end == entry->d_name || *end != '\0' || fd == dirfd(dir))
-            continue;
-        struct stat st {};
-        if (fstat(static_cast<int>(fd), &st) != 0 || !S_ISSOCK(st.st_mode))
-            continue;
-        sockaddr_in peer{};
-        sockaddr_in local{};
-        socklen_t peer_len = sizeof(peer);
-        socklen_t local_len = sizeof(local);
-        if (getpeername(static_cast<int>(fd), reinterpret_cast<sockaddr*>(&peer), &peer_len) != 0 ||
-            getsockname(static_cast<int>(fd), reinterpret_cast<sockaddr*>(&local), &local_len) !=
-                0 ||
-            peer.sin_family != AF_INET || local.sin_family != AF_INET) {
-            continue;
-        }
-        char text[INET_ADDRSTRLEN] = {};
-        inet_ntop(AF_INET, &peer.sin_addr, text, sizeof(text));
-        if (ntohs(peer.sin_port) == remote_port && ntohs(local.sin_port) == local_port &&
-            remote_addr == text) {
-            found = static_cast<int>(fd);
+        const std::string path = std::string("/proc/self/fd/") + entry->d_name;
+        const ssize_t n = readlink(path.c_str(), link, sizeof(link) - 1);
+        if (n > 0 && std::string_view(link, static_cast<size_t>(n)) == target) {
+            found = std::atoi(entry->d_name);
             break;
         }
     }
