@@ -470,12 +470,14 @@ ArPipelineStats ArPipeline::stats() const {
         }
         if (said != DeviceState::kUnknown && said != DeviceState::kStreaming) {
             dev.state = toString(said);
-        } else if (a.ended == a.total) {
-            dev.state = "ended";
         } else if (a.stalled_s > 0) {
             dev.state = "stalled";
             dev.silent_s = a.stalled_s;
-        } else if (said == DeviceState::kStreaming || a.never < a.total - a.ended) {
+        } else if (said == DeviceState::kStreaming) {
+            dev.state = "streaming";
+        } else if (a.ended == a.total) {
+            dev.state = "ended";
+        } else if (a.never < a.total - a.ended) {
             dev.state = "streaming";
         } else {
             dev.state = "waiting";
