@@ -12,8 +12,7 @@
 #include <vector>
 
 #include "cli_runner.h"
-#include "mixray/graph/mkv.h"
-#include "mixray/replay/open_recording.h"
+#include "recording_edit.h"
 #include "test_data.h"
 
 namespace mixray {
@@ -99,42 +98,16 @@ TEST(SilentCli, ACutOffRecordingIsSaidByRunRenderTrackAndDemoWithExitCode5) {
     EXPECT_EQ(whole.output.find("input incomplete"), std::string::npos) << whole.output;
 }
 
-// The bundled session with colour frame `n` (from 1) marked corrupt by its driver.
-fs::path sessionWithACorruptColourFrame(const fs::path& dir, int n) {
-    const fs::path out = dir / "corrupt_frame.mkv";
-    auto reader = replay::openRecording(kSession);
-    EXPECT_TRUE(reader.isOk()) << reader.status().toString();
-    if (!reader.isOk())
-        return out;
-    RecordingHeader header;
-    header.streams = (*reader)->streams();
-    header.attachments = (*reader)->attachments();
-    header.tags = (*reader)->tags();
-    auto writer = createMkvWriter(out, header);
-    EXPECT_TRUE(writer.isOk()) << writer.status().toString();
-    int colour = 0;
-    while (true) {
-        auto next = (*reader)->next();
-        if (!next)
-            break;
-        FrameRef frame = std::move(next).value();
-        if (header.streams[frame.meta().stream].name == "kinect/color" && ++colour == n) {
-            WritableFrame w = WritableFrame::reclaim(frame);
-            EXPECT_TRUE(w) << "the reader kept a handle on its frame";
-            w.meta().status = FrameStatus::kCorrupt;
-            frame = std::move(w).publish();
-        }
-        EXPECT_TRUE((*writer)->write(frame).isOk());
-    }
-    EXPECT_TRUE((*writer)->close().isOk());
-    return out;
-}
-
 // A colour frame its driver marked corrupt is never composited (virtual objects over a broken
 // image would be a wrong picture), and that is said: the message, summary.json and exit 5.
 TEST(SilentCli, ACorruptColourFrameIsNotCompositedAndIsSaidWithExitCode5) {
     const fs::path dir = test::tempDir();
-    const fs::path input = sessionWithACorruptColourFrame(dir, 12);
+    const fs::path input = dir / "corrupt_frame.mkv";
+    test::copyRecordingEditing(kSession, input,
+                               [](const std::string& stream, int n, WritableFrame& frame) {
+                                   if (stream == "kinect/color" && n == 12)
+                                       frame.meta().status = FrameStatus::kCorrupt;
+                               });
     ASSERT_FALSE(HasFailure());
     const CliRun run = mixray("run " + q(input) + " --scene " +
                               q(test::fixturesDir() / "scenes" / "sim_tabletop_demo.yaml") +

@@ -7,11 +7,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <map>
 #include <set>
-#include <sstream>
 #include <string>
 #include <thread>
 
@@ -21,6 +18,7 @@
 #include "mixray/dds/host_clock.h"
 #include "mixray/graph/clock.h"
 #include "mixray/graph/graph.h"
+#include "proc_net.h"
 
 namespace mixray::dds {
 namespace {
@@ -505,33 +503,13 @@ TEST(DdsBackendTest, AProcessThatMadeAHundredParticipantsIsStillFound) {
     EXPECT_EQ(listed->at(0).id, "hostA/cam");
 }
 
-// The local addresses ("a.b.c.d:port") of this process's UDP sockets, from /proc/net/udp.
+// The local addresses ("a.b.c.d:port") of this process's UDP sockets.
 std::vector<std::string> udpSocketsOfThisProcess() {
-    std::set<std::string> inodes;
-    for (const auto& fd : std::filesystem::directory_iterator("/proc/self/fd")) {
-        std::error_code ec;
-        const std::string target = std::filesystem::read_symlink(fd.path(), ec).string();
-        if (!ec && target.starts_with("socket:["))
-            inodes.insert(target.substr(8, target.size() - 9));
-    }
+    const std::set<std::string> inodes = test::socketInodesOfThisProcess();
     std::vector<std::string> out;
-    std::ifstream udp("/proc/net/udp");
-    std::string line;
-    std::getline(udp, line);  // the header
-    while (std::getline(udp, line)) {
-        std::istringstream fields(line);
-        std::string slot, local, remote, state, queues, timer, retransmits, uid, timeout, inode;
-        fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >>
-            timeout >> inode;
-        if (!inodes.count(inode))
-            continue;
-        // "0100007F:1CE8": the address in network order read as a little-endian word.
-        const uint32_t address = static_cast<uint32_t>(std::stoul(local.substr(0, 8), nullptr, 16));
-        const unsigned port = static_cast<unsigned>(std::stoul(local.substr(9), nullptr, 16));
-        out.push_back(std::to_string(address & 0xff) + "." + std::to_string((address >> 8) & 0xff) +
-                      "." + std::to_string((address >> 16) & 0xff) + "." +
-                      std::to_string(address >> 24) + ":" + std::to_string(port));
-    }
+    for (const test::Ipv4Socket& s : test::ipv4Sockets("/proc/net/udp"))
+        if (inodes.count(s.inode))
+            out.push_back(s.local_address + ":" + std::to_string(s.local_port));
     return out;
 }
 

@@ -23,6 +23,7 @@
 #include "mixray/liveview/live_view.h"
 #include "mixray/pattern/pattern_backend.h"
 #include "mixray/pattern/pattern_image.h"
+#include "proc_net.h"
 #include "test_data.h"
 #include "watchdog.h"
 #include "websocket_client.h"
@@ -280,18 +281,10 @@ TEST(LiveView, BindFailuresNameAddressAndPort) {
 
 // Whether /proc/net/tcp lists a listening socket on `port` bound to 127.0.0.1 only.
 bool listensOnLoopbackOnly(int port) {
-    std::ifstream tcp("/proc/net/tcp");
-    std::string line;
-    char want[16];
-    std::snprintf(want, sizeof(want), ":%04X", port);
     bool loopback = false, other = false;
-    while (std::getline(tcp, line)) {
-        std::istringstream in(line);
-        std::string slot, local, remote, state;
-        in >> slot >> local >> remote >> state;
-        if (state != "0A" || local.size() < 13 || local.substr(8) != want)
-            continue;
-        (local.substr(0, 8) == "0100007F" ? loopback : other) = true;
+    for (const test::Ipv4Socket& s : test::ipv4Sockets("/proc/net/tcp")) {
+        if (s.state == "0A" && s.local_port == port)
+            (s.local_address == "127.0.0.1" ? loopback : other) = true;
     }
     return loopback && !other;
 }

@@ -96,6 +96,40 @@ uint64_t composites(const ArPipeline& p) {
     return p.stats().compositor ? p.stats().compositor->composites : 0;
 }
 
+// A pipeline compositing the simulator's camera (opened by `rig_text`), recording to `record`
+// unless it is empty. The simulator answers within a second or two; until then the camera is
+// not found (kNotFound, nothing else). Null, with a failure, if it never opens.
+std::unique_ptr<ArPipeline> openWhenTheCameraAnswers(const std::string& rig_text,
+                                                     const fs::path& record = {}) {
+    auto rig = parseRig(rig_text, "gv-live rig");
+    EXPECT_TRUE(rig.isOk()) << rig.status().toString();
+    BackendRegistry registry;
+    EXPECT_TRUE(registry.add(std::make_unique<aravis::AravisBackend>()).isOk());
+    std::unique_ptr<ArPipeline> pipeline;
+    if (!rig.isOk())
+        return pipeline;
+    EXPECT_TRUE(eventually(
+        [&] {
+            ArPipelineOptions options;
+            options.scene = fixedCameraScene();
+            options.render.samples_per_pixel = 1;
+            options.render.max_depth = 1;
+            options.render.threads = 1;
+            options.record = record;
+            ArSource source;
+            source.rig = *rig;
+            auto created = ArPipeline::create(registry, source, std::move(options));
+            if (created.isOk())
+                pipeline = std::move(created).value();
+            else
+                EXPECT_EQ(created.status().code(), ErrorCode::kNotFound)
+                    << created.status().toString();
+            return pipeline != nullptr;
+        },
+        20));
+    return pipeline;
+}
+
 // Issue 31: a camera that goes quiet is "stalled" within a few frame periods, while its driver
 // still calls it streaming (here its loss timeout is 5 s, as Aravis's default is about): the
 // view and the status line no longer show it green at 0 fps until the driver notices.
@@ -105,28 +139,10 @@ TEST(ArPipelineFaults, GigEVisionCameraGoneQuietIsStalledBeforeItsDriversLossTim
     std::string rig_text = kRig;
     const std::string short_timeout = "lost_timeout_ms: 500";
     rig_text.replace(rig_text.find(short_timeout), short_timeout.size(), "lost_timeout_ms: 5000");
-    auto rig = parseRig(rig_text, "gv-live rig");
-    ASSERT_TRUE(rig.isOk()) << rig.status().toString();
-    BackendRegistry registry;
-    ASSERT_TRUE(registry.add(std::make_unique<aravis::AravisBackend>()).isOk());
     GvSimulator simulator;
     ASSERT_TRUE(simulator.start());
-    std::unique_ptr<ArPipeline> pipeline;
-    ASSERT_TRUE(eventually(
-        [&] {
-            ArPipelineOptions options;
-            options.scene = fixedCameraScene();
-            options.render.samples_per_pixel = 1;
-            options.render.max_depth = 1;
-            options.render.threads = 1;
-            ArSource source;
-            source.rig = *rig;
-            auto created = ArPipeline::create(registry, source, std::move(options));
-            if (created.isOk())
-                pipeline = std::move(created).value();
-            return pipeline != nullptr;
-        },
-        20));
+    const std::unique_ptr<ArPipeline> pipeline = openWhenTheCameraAnswers(rig_text);
+    ASSERT_TRUE(pipeline);
     ASSERT_TRUE(pipeline->start().isOk());
     ASSERT_TRUE(eventually([&] { return composites(*pipeline) >= 3; }, 20))
         << pipeline->stats().json();
@@ -157,34 +173,10 @@ TEST(ArPipelineFaults, GigEVisionCameraKilledAndRestartedWhileCompositingAndReco
         GTEST_SKIP() << test::kGvSimulator << " is missing (Debian package aravis-tools)";
     const fs::path out = fs::path(::testing::TempDir()) / "ar_pipeline_gv_faults.mkv";
     fs::remove(out);
-    auto rig = parseRig(kRig, "gv-live rig");
-    ASSERT_TRUE(rig.isOk()) << rig.status().toString();
-    BackendRegistry registry;
-    ASSERT_TRUE(registry.add(std::make_unique<aravis::AravisBackend>()).isOk());
-
     GvSimulator simulator;
     ASSERT_TRUE(simulator.start());
-    // The simulator answers within a second or two; until then the camera is not found.
-    std::unique_ptr<ArPipeline> pipeline;
-    ASSERT_TRUE(eventually(
-        [&] {
-            ArPipelineOptions options;
-            options.scene = fixedCameraScene();
-            options.render.samples_per_pixel = 1;
-            options.render.max_depth = 1;
-            options.render.threads = 1;
-            options.record = out;
-            ArSource source;
-            source.rig = *rig;
-            auto created = ArPipeline::create(registry, source, std::move(options));
-            if (created.isOk())
-                pipeline = std::move(created).value();
-            else
-                EXPECT_EQ(created.status().code(), ErrorCode::kNotFound)
-                    << created.status().toString();
-            return pipeline != nullptr;
-        },
-        20));
+    const std::unique_ptr<ArPipeline> pipeline = openWhenTheCameraAnswers(kRig, out);
+    ASSERT_TRUE(pipeline);
     ASSERT_TRUE(pipeline->start().isOk());
     ASSERT_TRUE(eventually([&] { return composites(*pipeline) >= 10; }, 20))
         << pipeline->stats().json();

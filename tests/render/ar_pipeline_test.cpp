@@ -19,6 +19,7 @@
 #include "mixray/graph/pose.h"
 #include "mixray/tracking/light_record.h"
 #include "mixray/tracking/pipeline.h"
+#include "recording_edit.h"
 
 namespace mixray::render {
 namespace {
@@ -466,38 +467,19 @@ TEST(ArPipeline, EstimatesOfADeadCameraAndALostMarkerGoStaleWithTheirReason) {
 // costs its own set, said in the warnings, never the run.
 TEST(ArPipeline, ADamagedPoseRecordAndACorruptColourFrameMidReplayCostTheirSetsNotTheRun) {
     const fs::path input = fs::path(::testing::TempDir()) / "ar_pipeline_damaged_records.mkv";
-    {
-        auto reader = replay::openRecording(session());
-        ASSERT_TRUE(reader.isOk()) << reader.status().toString();
-        RecordingHeader header;
-        header.streams = (*reader)->streams();
-        header.attachments = (*reader)->attachments();
-        header.tags = (*reader)->tags();
-        auto writer = createMkvWriter(input, header);
-        ASSERT_TRUE(writer.isOk()) << writer.status().toString();
-        int colour = 0, poses = 0;
-        while (true) {
-            auto next = (*reader)->next();
-            if (!next)
-                break;
-            FrameRef frame = std::move(next).value();
-            const std::string& name = header.streams[frame.meta().stream].name;
-            const bool corrupt_this = name == "kinect/color" && ++colour == 12;
-            const bool damage_this = name == "truth/pose" && ++poses == 20;
-            if (corrupt_this || damage_this) {
-                WritableFrame w = WritableFrame::reclaim(frame);
-                ASSERT_TRUE(w) << "the reader kept a handle on its frame";
-                if (corrupt_this)
-                    w.meta().status = FrameStatus::kCorrupt;
-                else
-                    w.image().data[40] ^= 0x10;  // in the translation
-                frame = std::move(w).publish();
-            }
-            ASSERT_TRUE((*writer)->write(frame).isOk());
-        }
-        ASSERT_TRUE((*writer)->close().isOk());
-        ASSERT_GE(poses, 20);
-    }
+    int poses = 0;
+    test::copyRecordingEditing(session(), input,
+                               [&](const std::string& stream, int n, WritableFrame& frame) {
+                                   if (stream == "kinect/color" && n == 12)
+                                       frame.meta().status = FrameStatus::kCorrupt;
+                                   if (stream != "truth/pose")
+                                       return;
+                                   poses = n;
+                                   if (n == 20)
+                                       frame.image().data[40] ^= 0x10;  // in the translation
+                               });
+    ASSERT_FALSE(HasFatalFailure());
+    ASSERT_GE(poses, 20);
     // The session's recorded poses instead of tracking (as bench pipeline's graph-only run):
     // the damaged record is the one the compositor reads.
     ArPipelineOptions options = sessionPipelineOptions();
