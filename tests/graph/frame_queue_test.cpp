@@ -36,6 +36,44 @@ TEST(FrameQueue, LiveDropsOldestAndCounts) {
     EXPECT_FALSE(queue.tryPop().has_value());
 }
 
+// A recording's edge: a consumer behind by all the producer's frames it may hold gets copies
+// instead, so the producer's pool is not starved and nothing is lost until the copies run out;
+// then the oldest of the producer's frames goes, and the copies keep their order.
+TEST(FrameQueue, SpillKeepsCopiesOnceTheProducersFramesAreAllHeld) {
+    auto pool = BufferPool::create({ImageDesc::packed(PixelFormat::kMono8, 8, 8), 0, 4, "q"});
+    FrameQueue queue(
+        {.capacity = 2, .policy = QueuePolicy::kLive, .name = "recorder", .spill_capacity = 3});
+    for (uint64_t i = 0; i < 5; ++i) {
+        WritableFrame frame = pool->acquire();
+        ASSERT_TRUE(frame) << "the producer's pool ran dry at frame " << i;
+        frame.meta().sequence = i;
+        frame.image().data[0] = static_cast<uint8_t>(i);
+        EXPECT_TRUE(queue.push(std::move(frame).publish()));
+    }
+    QueueStats stats = queue.stats();
+    EXPECT_EQ(stats.dropped, 0u);
+    EXPECT_EQ(stats.spilled, 3u);
+    EXPECT_EQ(stats.size, 5u);
+    EXPECT_EQ(pool->inFlight(), 2u);  // only the first two are the producer's buffers
+
+    // Full: the next frame costs the oldest of the producer's frames (0), not a copy.
+    EXPECT_TRUE(queue.push(makeFrame(*pool, 5)));
+    stats = queue.stats();
+    EXPECT_EQ(stats.dropped, 1u);
+    EXPECT_EQ(stats.size, 5u);
+    EXPECT_EQ(pool->inFlight(), 2u);
+    for (uint64_t expected : {1, 2, 3, 4, 5}) {
+        auto frame = queue.tryPop();
+        ASSERT_TRUE(frame.has_value());
+        EXPECT_EQ(frame->meta().sequence, expected);
+        if (expected < 5) {
+            EXPECT_EQ(frame->image().data[0], expected) << "the copy differs from the frame";
+        }
+    }
+    EXPECT_FALSE(queue.tryPop().has_value());
+    EXPECT_EQ(pool->inFlight(), 0u);
+}
+
 // A consumer that samples at its own rate (a view) replaces frames on purpose: skipped, not
 // dropped, so a status line's drops count only consumers that fell behind.
 TEST(FrameQueue, NewestOnlyCountsReplacedFramesAsSkippedNotDropped) {

@@ -298,12 +298,15 @@ private:
 };
 
 // A recorder of `path` whose writer takes `delay` per frame: a disk too slow for its streams.
+// It may fall `backlog` behind before it drops (none by default).
 RecorderOptions slowDiskRecorder(const std::filesystem::path& path, QueuePolicy policy,
-                                 size_t queue_capacity, milliseconds delay) {
+                                 size_t queue_capacity, milliseconds delay,
+                                 milliseconds backlog = milliseconds(0)) {
     RecorderOptions options;
     options.path = path;
     options.policy = policy;
     options.queue_capacity = queue_capacity;
+    options.backlog = backlog;
     options.writer_factory =
         [path, delay](const RecordingHeader& header) -> Result<std::unique_ptr<RecordingWriter>> {
         auto writer = createMkvWriter(path, header);
@@ -348,6 +351,45 @@ TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
     auto frames = readRecording(path, &end);
     EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
     ASSERT_EQ(frames.size(), stats.streams[0].written);
+    for (const FrameRef& f : frames) {
+        const FrameRef& original = published.at(f.meta().sequence);
+        EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
+    }
+}
+
+// A writer held up for a while (here 60 frames at 30 ms against frames published at once) costs
+// no frame while its backlog lasts: the frames beyond queue_capacity wait as copies, the driver
+// is never held up, and the file has every frame, exact.
+TEST_F(RecorderTest, LivePolicyKeepsEveryFrameWhileTheWriterIsBehindByLessThanItsBacklog) {
+    const auto path = test::tempDir() / "behind.mkv";
+    Graph graph;
+    const StreamId depth =
+        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
+    // Three seconds of the 30 fps stream (90 frames) may wait, beyond the four queued.
+    auto recorder = std::make_unique<Recorder>(
+        slowDiskRecorder(path, QueuePolicy::kLive, 4, milliseconds(30), milliseconds(3000)));
+    Recorder* rec = recorder.get();
+    ASSERT_TRUE(graph.addNode(std::move(recorder)));
+    ASSERT_TRUE(graph.start());
+
+    constexpr int kFrames = 60;
+    std::map<uint64_t, FrameRef> published;
+    const auto begin = std::chrono::steady_clock::now();
+    for (int i = 0; i < kFrames; ++i)
+        published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
+    EXPECT_LT(std::chrono::steady_clock::now() - begin, milliseconds(600));
+    graph.stop();
+
+    const RecorderStats stats = rec->stats();
+    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
+    EXPECT_EQ(stats.frames_dropped, 0u) << stats.summary();
+    EXPECT_EQ(stats.frames_written, static_cast<uint64_t>(kFrames));
+    EXPECT_GT(stats.frames_spilled, 0u);
+    EXPECT_NE(stats.summary().find("waited in memory"), std::string::npos) << stats.summary();
+    Status end;
+    auto frames = readRecording(path, &end);
+    EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
+    ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
     for (const FrameRef& f : frames) {
         const FrameRef& original = published.at(f.meta().sequence);
         EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;

@@ -3,6 +3,7 @@
 #include "mixray/graph/recorder.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "mixray/graph/thread_priority.h"
@@ -23,6 +24,8 @@ bool RecorderOptions::validate(std::string* why) const {
         return fail("recorder: queue_capacity must be at least 1");
     if (reorder_window.count() < 0)
         return fail("recorder: negative reorder_window");
+    if (backlog.count() < 0)
+        return fail("recorder: negative backlog");
     if (name.empty())
         return fail("recorder: empty name");
     return writer.validate(why);
@@ -44,6 +47,10 @@ std::string RecorderStats::summary() const {
             first = false;
         }
         out += ")";
+    }
+    if (frames_spilled > 0) {
+        out +=
+            "; " + std::to_string(frames_spilled) + " waited in memory while the writer caught up";
     }
     if (producer_waits > 0) {
         std::snprintf(text, sizeof(text), "; the drivers waited for the disk %llu times (%.2f s)",
@@ -103,11 +110,15 @@ Status Recorder::connect(Graph& graph) {
     header_.attachments = options_.attachments;
     header_.tags = options_.tags;
     for (Input& input : inputs_) {
+        const double fps = graph.stream(input.graph_id).nominal_fps;
+        const double backlog_s = std::chrono::duration<double>(options_.backlog).count();
+        const auto spill = static_cast<size_t>(std::ceil(backlog_s * (fps > 0 ? fps : 60.0)));
         auto queue =
             graph.subscribe(input.graph_id, QueueOptions{.capacity = options_.queue_capacity,
                                                          .policy = options_.policy,
                                                          .name = options_.name,
-                                                         .feeds_recording = true});
+                                                         .feeds_recording = true,
+                                                         .spill_capacity = spill});
         if (!queue)
             return queue.status();
         input.queue = *queue;
@@ -293,6 +304,7 @@ RecorderStats Recorder::stats() const {
             continue;
         const QueueStats queue = inputs_[i].queue->stats();
         stats.streams[i].dropped = queue.dropped;
+        stats.streams[i].spilled = queue.spilled;
         stats.streams[i].queue_high_water = queue.high_water;
         stats.streams[i].producer_waits = queue.waits;
         stats.streams[i].producer_waited_s = static_cast<double>(queue.waited_ns) * 1e-9;
@@ -303,6 +315,7 @@ RecorderStats Recorder::stats() const {
         stats.frames_written += s.written;
         stats.frames_dropped += s.dropped;
         stats.frames_discarded += s.discarded;
+        stats.frames_spilled += s.spilled;
     }
     stats.bytes_written = bytes_written_;
     if (started_at_ != Clock::time_point{}) {

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -22,7 +23,7 @@ enum class QueuePolicy : uint8_t {
 std::string_view toString(QueuePolicy policy);
 
 struct QueueOptions {
-    size_t capacity = 4;  // frames held at most; memory is capacity buffers
+    size_t capacity = 4;  // producer's frames held at most (each holds one of its pool's buffers)
     QueuePolicy policy = QueuePolicy::kLive;
     std::string name;  // consumer name, for statistics
     // The edge feeds a recording: its frames are the ones a user cannot get back. While such
@@ -33,6 +34,13 @@ struct QueueOptions {
     // frames) and wants only the newest frame. Frames replaced before its turn are its choice,
     // counted as QueueStats::skipped, not as drops.
     bool newest_only = false;
+    // Live only: frames that find `capacity` of the producer's frames queued are copied into
+    // the queue's own memory, up to this many more, instead of dropping the oldest. For edges
+    // whose frames cannot be got back (a recording): the producer gets its buffers back as
+    // before, and a consumer held up for a moment (a burst of CPU elsewhere) catches up later.
+    // The memory (spill_capacity buffers of the stream's frame size) is allocated on the
+    // first copy, once.
+    size_t spill_capacity = 0;
 };
 
 struct QueueStats {
@@ -40,6 +48,7 @@ struct QueueStats {
     uint64_t popped = 0;    // frames taken by the consumer
     uint64_t dropped = 0;   // frames discarded under the live policy: the consumer was behind
     uint64_t skipped = 0;   // newest_only: frames replaced by newer ones before the consumer's turn
+    uint64_t spilled = 0;   // spill_capacity: frames copied into the queue's memory (not lost)
     size_t size = 0;        // frames queued now
     size_t high_water = 0;  // most frames ever queued at once
     // Lossless: pushes that found the queue full and held their producer up, and for how long.
@@ -48,7 +57,8 @@ struct QueueStats {
 };
 
 // Fixed-capacity FIFO of FrameRefs between one producer side and one consumer. Storage is
-// allocated once; push and pop never allocate. Thread-safe.
+// allocated once (the spill memory on its first use); push and pop never allocate otherwise.
+// Thread-safe.
 class FrameQueue {
 public:
     explicit FrameQueue(const QueueOptions& options);
@@ -72,11 +82,17 @@ public:
     QueueStats stats() const;
 
 private:
+    // A copy of `frame` in the spill memory, or an empty frame when it is all in use.
+    FrameRef spill(const FrameRef& frame);
+
     QueueOptions options_;
     mutable std::mutex mutex_;
     std::condition_variable not_empty_;
     std::condition_variable not_full_;
-    std::vector<FrameRef> ring_;
+    std::vector<FrameRef> ring_;      // capacity + spill_capacity entries
+    std::vector<bool> ring_spilled_;  // the entry is a copy in spill_pool_, not the producer's
+    size_t held_ = 0;                 // entries that hold the producer's buffers
+    std::shared_ptr<BufferPool> spill_pool_;
     size_t head_ = 0;
     size_t size_ = 0;
     bool closed_ = false;

@@ -35,6 +35,12 @@ struct RecorderOptions {
     // Frames queued per stream. Each holds one of its driver's pool buffers, so keep it below
     // the drivers' pool sizes: a longer queue starves the driver instead of dropping here.
     size_t queue_capacity = 4;
+    // kLive: how far the writer may fall behind a stream before its frames are dropped. Frames
+    // beyond queue_capacity are copied into the recorder's own memory, up to this much of each
+    // stream (at its nominal rate; 60 fps where it has none), so a moment without CPU or disk
+    // (a browser starting, a compiler) costs no frame. Memory: at most this long of each
+    // stream, allocated the first time it is needed. Zero: drop at queue_capacity.
+    std::chrono::milliseconds backlog{2000};
     // How long a frame may wait for other streams' older frames before it is written anyway.
     // Frames are written in host-stamp order within this window, and at once when any queue is
     // half full: ordering never costs a frame.
@@ -53,6 +59,7 @@ struct RecorderStreamStats {
     uint64_t written = 0;    // frames stored in the recording
     uint64_t dropped = 0;    // frames the live queue dropped because the writer fell behind
     uint64_t discarded = 0;  // frames drained and not written after a write error
+    uint64_t spilled = 0;    // frames that waited in the recorder's memory (backlog), all kept
     size_t queue_high_water = 0;
     // Lossless: times the stream's driver waited for the writer (a slow disk), and how long.
     uint64_t producer_waits = 0;
@@ -64,6 +71,7 @@ struct RecorderStats {
     uint64_t frames_written = 0;
     uint64_t frames_dropped = 0;
     uint64_t frames_discarded = 0;
+    uint64_t frames_spilled = 0;
     uint64_t producer_waits = 0;
     double producer_waited_s = 0;
     uint64_t bytes_written = 0;
