@@ -712,6 +712,10 @@ Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
             case CalibrationFormat::kOpenCV:
                 if (detail::crashesFileStorage(*text))
                     return corruptFile(path, "ends inside an XML tag, after an attribute's '='");
+                if (const char* why = detail::hangsFileStorageYaml(*text))
+                    return corruptFile(path, std::string(why) +
+                                                 ", which OpenCV's reader "
+                                                 "may never return from");
                 file = readOpenCV(path);
                 break;
             case CalibrationFormat::kMrcal:

@@ -97,6 +97,8 @@ Result<MarkerDictionary> parseMarkerDictionary(std::string_view text, const std:
         return corrupt(file, "holds a NUL byte (not a text file)");
     if (detail::crashesFileStorage(text))
         return corrupt(file, "ends inside an XML tag, after an attribute's '='");
+    if (const char* why = detail::hangsFileStorageYaml(text))
+        return corrupt(file, std::string(why) + ", which OpenCV's reader may never return from");
     MarkerDictionary dict;
     dict.name = nameFor(file);
     try {

@@ -294,6 +294,15 @@ TEST(OpenCVFormat, Errors) {
         EXPECT_NE(c.status().message().find("cut.xml: ends inside an XML tag"), std::string::npos)
             << c.status().message();
     }
+    // dictionary_parser_fuzz: a YAML text OpenCV 4.6's reader never returns from (its first
+    // document ends early, then a line starts with '-'); refused before.
+    const fs::path endless = dir / "endless.yml";
+    writeText(endless, "%YAML:1.0\n---L:1.0\n-s: --\ncamera_matrix: 3\n");
+    auto e = importCalibration(endless, CalibrationFormat::kOpenCV);
+    EXPECT_EQ(e.status().code(), ErrorCode::kCorruptData);
+    EXPECT_NE(e.status().message().find("endless.yml: text after '---' on its line"),
+              std::string::npos)
+        << e.status().message();
     const fs::path broken = dir / "broken.yml";
     writeText(broken, "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: [\n");
     auto b = importCalibration(broken);

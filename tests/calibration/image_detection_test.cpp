@@ -137,6 +137,16 @@ TEST(MarkerDictionaryFile, BadFilesAreCorruptDataNamingTheFileAndField) {
         // the text ends after an attribute's '='; such text no longer reaches it.
         {"<?xml imemn=\n", "ends inside an XML tag"},
         {"<?xml version=\"1.0\"?>\n<opencv_storage><a b=  \n\n", "ends inside an XML tag"},
+        // dictionary_parser_fuzz: OpenCV 4.6's YAML reader loops forever once its first
+        // document ends before the text does and a line starts with '-'. The first case is
+        // the fuzzer's and the third hangs too (both checked against OpenCV 4.6); the others
+        // are the other ways a document ends early. None reaches it now.
+        {"%YAML:1.0\n---L:1.0\n-s: --\nnmarkers: 3\n", "text after '---' on its line"},
+        {"%YAML:1.0\n---\n  nmarkers: 1\n-s: --\n", "top level is indented"},
+        {"%YAML:1.0\n---\nnmarkers: 1\n...\n-s: --\n", "after the end of the YAML document"},
+        {"%YAML:1.0\n---\nnmarkers: 1\n...-\n", "text after '...' on its line"},
+        {"%YAML:1.0\n---\nnmarkers: 1\n---\n-s: --\n", "a second YAML document"},
+        {"%YAML:1.0\n---\n[1, 2]\n-s: --\n", "a flow collection"},
     };
     for (const auto& [text, expected] : cases) {
         auto parsed = parseMarkerDictionary(text, "dicts/bad.yml");
