@@ -177,7 +177,8 @@ TEST_F(MkvRobustness, FlippedBytesGiveExactFramesOrAnErrorNeverGarbage) {
         writeBytes(damaged_path, bytes, bytes.size());
         SCOPED_TRACE("damage at byte " + std::to_string(at));
         const ReadOutcome outcome = readChecked(damaged_path, sample.frames, false);
-        if (!outcome.opened || outcome.status.code() != ErrorCode::kEndOfStream)
+        if (!outcome.opened || outcome.status.code() != ErrorCode::kEndOfStream ||
+            !outcome.damage.empty())
             ++errors;
         if (outcome.opened) {
             EXPECT_TRUE(outcome.status.code() == ErrorCode::kCorruptData ||
@@ -209,7 +210,7 @@ TEST_F(MkvRobustness, OverwrittenBytesInTheMiddleAreReportedAsDamageWithWhere) {
     const auto frames = test::writeRecording(path, header, 60);
     std::vector<uint8_t> bytes = readBytes(path);
     // From the first cluster at or after the middle: the damage breaks the file's structure
-    // (damage inside a payload alone fails its CRC and ends reading, see above).
+    // (damage inside a payload alone costs that frame, see below).
     const uint8_t cluster[] = {0x1F, 0x43, 0xB6, 0x75};
     const size_t at = static_cast<size_t>(
         std::search(bytes.begin() + static_cast<std::ptrdiff_t>(bytes.size() / 2), bytes.end(),
@@ -235,6 +236,39 @@ TEST_F(MkvRobustness, OverwrittenBytesInTheMiddleAreReportedAsDamageWithWhere) {
         // Reading went on after the damage, from a byte past it.
         EXPECT_GT(d.resumed_at, static_cast<int64_t>(at));
     }
+}
+
+// One byte flipped inside a frame's payload, the file's structure intact: that frame fails its
+// CRC and is lost, said as damage with where it is; every frame before and after is read, exact.
+TEST_F(MkvRobustness, AFrameFailingItsCrcIsSkippedAndSaidAndReadingGoesOn) {
+    const auto dir = test::tempDir();
+    const Sample sample = makeSample(dir);
+    // An MJPEG frame from the middle: stored as it came, so its bytes are in the file as such.
+    size_t victim = sample.frames.size() / 2;
+    while (victim < sample.frames.size() && sample.frames[victim].meta.stream != 1)
+        ++victim;
+    ASSERT_LT(victim, sample.frames.size());
+    const ImageView image = sample.frames[victim].frame.image();
+    std::vector<uint8_t> bytes = sample.bytes;
+    const auto payload =
+        std::search(bytes.begin(), bytes.end(), image.data, image.data + image.size_bytes);
+    ASSERT_NE(payload, bytes.end());
+    const auto at = static_cast<int64_t>(payload - bytes.begin());
+    const auto flipped = at + static_cast<int64_t>(image.size_bytes / 2);
+    bytes[static_cast<size_t>(flipped)] ^= 0x10;
+    const auto damaged = dir / "one_frame.mkv";
+    writeBytes(damaged, bytes, bytes.size());
+
+    const ReadOutcome outcome = readChecked(damaged, sample.frames, false);
+    ASSERT_TRUE(outcome.opened) << outcome.status.toString();
+    EXPECT_EQ(outcome.status.code(), ErrorCode::kEndOfStream) << outcome.status.toString();
+    EXPECT_EQ(outcome.frames, sample.frames.size() - 1);
+    ASSERT_EQ(outcome.damage.size(), 1u);
+    const RecordingDamage& d = outcome.damage.front();
+    EXPECT_LE(d.byte_offset, at);
+    EXPECT_GT(d.resumed_at, flipped);
+    EXPECT_NE(d.what.find("stream 'k/color'"), std::string::npos) << d.what;
+    EXPECT_NE(d.what.find("payload CRC mismatch"), std::string::npos) << d.what;
 }
 
 TEST_F(MkvRobustness, RecordingCutOffByACrashReadsToItsLastFrame) {

@@ -121,6 +121,10 @@ private:
     void fill();
     // Turns the demuxer's logged errors into damage; `packet` is the packet read after them.
     void noteDamage(const AVPacket* packet);
+    // A frame whose block the demuxer read whole but whose content fails mixray's checks (its
+    // record, its payload CRC, its size): the frame is lost, reported as damage, and reading
+    // goes on with the next block, which the container's framing still finds.
+    Status skipDamagedFrame(const AVPacket* packet, std::string what);
     Status demux(AVPacket* packet);
     Status demuxMixray(Track& track, size_t index, AVPacket* packet);
     Status demuxAzure(Track& track, size_t index, AVPacket* packet);
@@ -273,8 +277,7 @@ Status MkvReader::openDecoder(Track& track, const AVStream* st) {
     const AVCodec* codec = avcodec_find_decoder(st->codecpar->codec_id);
     if (!codec)
         return {ErrorCode::kUnsupported, std::string("this FFmpeg has no ") +
-                                             avcodec_get_name(st->codecpar->codec_id) +
-                                             " decoder"};
+                                             avcodec_get_name(st->codecpar->codec_id) + " decoder"};
     track.decoder.reset(avcodec_alloc_context3(codec));
     track.decoded.reset(av_frame_alloc());
     if (!track.decoder || !track.decoded) {
@@ -490,18 +493,19 @@ Status MkvReader::demuxMixray(Track& track, size_t index, AVPacket* packet) {
                               track.info.name + "', byte " + std::to_string(packet->pos) + ")";
     auto record = mkv::decodeFrameRecord(side, side_size);
     if (!record)
-        return corrupt(where + ": " + record.status().message());
+        return skipDamagedFrame(packet, where + ": " + record.status().message());
     if (record->meta.stream != index) {
-        return corrupt(where + ": its record belongs to stream " +
-                       std::to_string(record->meta.stream));
+        return skipDamagedFrame(packet, where + ": its record belongs to stream " +
+                                            std::to_string(record->meta.stream));
     }
     if (static_cast<size_t>(packet->size) > kMaxPayloadBytes ||
         ffmpeg::crc32(packet->data, static_cast<size_t>(packet->size)) != record->payload_crc) {
-        return corrupt(where + ": damaged or cut off (payload CRC mismatch)");
+        return skipDamagedFrame(packet, where + ": damaged or cut off (payload CRC mismatch)");
     }
     if (track.exact_bytes && static_cast<size_t>(packet->size) != track.exact_bytes) {
-        return corrupt(where + ": holds " + std::to_string(packet->size) + " bytes, the image " +
-                       std::to_string(track.exact_bytes));
+        return skipDamagedFrame(packet, where + ": holds " + std::to_string(packet->size) +
+                                            " bytes, the image " +
+                                            std::to_string(track.exact_bytes));
     }
     const FrameMetadata& meta = record->meta;
     if (packet->pts != AV_NOPTS_VALUE) {
@@ -643,6 +647,22 @@ void MkvReader::fill() {
         }
     }
     av_packet_unref(packet);
+}
+
+Status MkvReader::skipDamagedFrame(const AVPacket* packet, std::string what) {
+    ++frames_read_;  // frames keep their numbers in the file
+    // A loop or seek reads it again: reported once.
+    const bool known = std::any_of(damage_.begin(), damage_.end(),
+                                   [&](const auto& d) { return d.byte_offset == packet->pos; });
+    if (!known) {
+        RecordingDamage d;
+        d.byte_offset = packet->pos;
+        d.resumed_at = packet->pos >= 0 ? packet->pos + packet->size : -1;
+        d.after_stamp_ns = last_stamp_ns_;
+        d.what = std::move(what);
+        damage_.push_back(std::move(d));
+    }
+    return Status::ok();
 }
 
 void MkvReader::noteDamage(const AVPacket* packet) {
