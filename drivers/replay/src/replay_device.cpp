@@ -407,7 +407,11 @@ bool ReplayDevice::waitFor(Clock::duration duration) {
 }
 
 void ReplayDevice::run() {
-    runAs(ThreadRole::kCapture);  // a frame late here is a frame lost (thread_priority.h)
+    // At the recording's pace it stands in for a device: a frame late here is a frame lost
+    // (thread_priority.h). As fast as it can, it is a batch job that waits on its consumers,
+    // and at capture priority it would take the cores from every other process's devices.
+    if (options_.pace == ReplayOptions::Pace::kOriginal)
+        runAs(ThreadRole::kCapture);
     const auto stopping = [this] {
         std::lock_guard lock(mutex_);
         return stop_requested_;
