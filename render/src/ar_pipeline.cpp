@@ -573,6 +573,7 @@ std::string ArPipelineStats::json() const {
     if (recorder) {
         j["recorder"] = {{"written", recorder->frames_written},
                          {"dropped", recorder->frames_dropped},
+                         {"waited_in_memory", recorder->frames_spilled},
                          {"bytes", recorder->bytes_written}};
         if (!recorder->error)
             messages.push_back("recording stopped: " + recorder->error.message());
