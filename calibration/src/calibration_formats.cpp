@@ -596,7 +596,11 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
         if (!distortion)
             return distortion.status();
         o << "cam" << i << ":\n";
-        if (i > 0) {
+        // A camera linked to no other (a camchain of independent cameras, as Kalibr reads one
+        // without T_cn_cnm1) is written so; one linked elsewhere must reach the previous one.
+        const bool unlinked =
+            c.parent.empty() && i > 0 && !file.pose(file.cameras[i - 1].name, c.name);
+        if (i > 0 && !unlinked) {
             const std::string& previous = file.cameras[i - 1].name;
             auto T_previous_camera = file.pose(previous, c.name);
             if (!T_previous_camera) {
@@ -617,7 +621,7 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
         o << "  distortion_coeffs: " << detail::yamlList(distortion->second) << "\n";
         o << "  resolution: [" << m.width << ", " << m.height << "]\n";
         o << "  rostopic: " << detail::yamlQuoted("/" + c.name) << "\n";
-        if (i > 0)
+        if (i > 0 && !unlinked)
             o << "  cam_overlaps: [" << i - 1 << "]\n";
     }
     return detail::writeTextFile(path, o.str());
@@ -710,8 +714,8 @@ Result<CalibrationFile> importCalibration(const std::filesystem::path& path,
             case CalibrationFormat::kMixray:
                 return readCalibrationFile(path);
             case CalibrationFormat::kOpenCV:
-                if (detail::crashesFileStorage(*text))
-                    return corruptFile(path, "ends inside an XML tag, after an attribute's '='");
+                if (const char* why = detail::crashesFileStorage(*text))
+                    return corruptFile(path, why);
                 if (const char* why = detail::hangsFileStorageYaml(*text))
                     return corruptFile(path, std::string(why) +
                                                  ", which OpenCV's reader "

@@ -19,8 +19,8 @@
 #include <system_error>
 #include <utility>
 
-#include "image_file.h"
 #include "detect_internal.h"
+#include "image_file.h"
 #include "mixray/graph/mkv.h"
 
 namespace mixray::calibration {

@@ -6,13 +6,27 @@
 
 namespace mixray::calibration::detail {
 
-// An XML text that ends, but for whitespace, right after an attribute's '=' ("<?xml a="):
-// FileStorage's XML parser reads the missing value through a null pointer (found by
-// dictionary_parser_fuzz). No complete XML document ends so.
-inline bool crashesFileStorage(std::string_view text) {
+// Why FileStorage's XML reader would crash on `text` (it is not XML unless its first character
+// is '<'), or nullptr. Both were found by dictionary_parser_fuzz; no well-formed XML file
+// OpenCV writes, with Unix or Windows line ends, has either:
+// - the text ends, but for whitespace, right after an attribute's '=' ("<?xml a="): the
+//   missing value is read through a null pointer;
+// - a carriage return not followed by a line feed (a lone CR, as after "<a b=" in
+//   "<a b=\r\"\">"): the reader takes it for the end of its line buffer and reads on
+//   through a null pointer.
+inline const char* crashesFileStorage(std::string_view text) {
     const size_t first = text.find_first_not_of(" \t\r\n");
+    if (first == std::string_view::npos || text[first] != '<')
+        return nullptr;
     const size_t last = text.find_last_not_of(" \t\r\n");
-    return first != std::string_view::npos && text[first] == '<' && text[last] == '=';
+    if (text[last] == '=')
+        return "ends inside an XML tag, after an attribute's '='";
+    for (size_t cr = text.find('\r'); cr != std::string_view::npos; cr = text.find('\r', cr + 1)) {
+        if (cr + 1 == text.size() || text[cr + 1] != '\n')
+            return "holds a carriage return without a line feed (not a line end OpenCV's XML "
+                   "reader survives)";
+    }
+    return nullptr;
 }
 
 // Why FileStorage's YAML reader could loop forever on `text`, or nullptr. Its loop over

@@ -95,8 +95,8 @@ Result<MarkerDictionary> parseMarkerDictionary(std::string_view text, const std:
     // cv::FileStorage reads a memory buffer as a C string.
     if (text.find('\0') != std::string_view::npos)
         return corrupt(file, "holds a NUL byte (not a text file)");
-    if (detail::crashesFileStorage(text))
-        return corrupt(file, "ends inside an XML tag, after an attribute's '='");
+    if (const char* why = detail::crashesFileStorage(text))
+        return corrupt(file, why);
     if (const char* why = detail::hangsFileStorageYaml(text))
         return corrupt(file, std::string(why) + ", which OpenCV's reader may never return from");
     MarkerDictionary dict;

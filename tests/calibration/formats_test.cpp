@@ -413,6 +413,34 @@ TEST(KalibrFormat, RoundTripsARig) {
     expectSameProjection(zero_k3.cameras[0].model, radtan->cameras[0].model);
 }
 
+// calibration_file_fuzz: a camchain whose cam1 has no T_cn_cnm1 was read (two independent
+// cameras) but could not be written back. It is written as read: no link, no overlap.
+TEST(KalibrFormat, IndependentCamerasRoundTripWithoutALink) {
+    const fs::path dir = test::tempDir();
+    std::string text = kCamchain;
+    const size_t link = text.find("  T_cn_cnm1:");
+    ASSERT_NE(link, std::string::npos);
+    size_t end = link;
+    for (int line = 0; line < 5; ++line)
+        end = text.find('\n', end) + 1;
+    text.erase(link, end - link);
+    const fs::path path = dir / "independent.yaml";
+    writeText(path, text);
+    auto f = importCalibration(path, CalibrationFormat::kKalibr);
+    ASSERT_TRUE(f.isOk()) << f.status().toString();
+    ASSERT_EQ(f->cameras.size(), 2u);
+    EXPECT_TRUE(f->cameras[1].parent.empty());
+    const fs::path out = dir / "written.yaml";
+    ASSERT_TRUE(exportCalibration(out, *f, CalibrationFormat::kKalibr).isOk());
+    EXPECT_EQ(readText(out).find("T_cn_cnm1"), std::string::npos) << readText(out);
+    auto back = importCalibration(out, CalibrationFormat::kKalibr);
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    ASSERT_EQ(back->cameras.size(), 2u);
+    EXPECT_TRUE(back->cameras[1].parent.empty());
+    EXPECT_EQ(back->cameras[1].name, f->cameras[1].name);
+    expectSameModel(f->cameras[1].model, back->cameras[1].model);
+}
+
 TEST(KalibrFormat, RefusesWhatItCannotHold) {
     const fs::path dir = test::tempDir();
     const fs::path path = dir / "camchain.yaml";
@@ -423,10 +451,14 @@ TEST(KalibrFormat, RefusesWhatItCannotHold) {
         EXPECT_NE(s.message().find("camera wide's model: pinhole with"), std::string::npos)
             << s.message();
     }
-    // Two cameras whose poses are not linked: no T_cn_cnm1 to write.
+    // A camera posed in another one that the previous camera does not reach: Kalibr's chain
+    // has no way to say it (a camera posed in none is written without a link, above).
     CalibrationFile two = oneCamera("a", allModels()[1].model);
     two.cameras.push_back(two.cameras[0]);
+    two.cameras.push_back(two.cameras[0]);
     two.cameras[1].name = "b";
+    two.cameras[1].parent = "c";
+    two.cameras[2].name = "c";
     const Status unlinked = exportCalibration(path, two, CalibrationFormat::kKalibr);
     EXPECT_EQ(unlinked.code(), ErrorCode::kInvalidArgument);
     EXPECT_NE(unlinked.message().find("not linked"), std::string::npos) << unlinked.message();

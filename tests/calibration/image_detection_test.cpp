@@ -111,6 +111,13 @@ TEST(MarkerDictionaryFile, ReadsWhatOpenCvsWriterWritesInEveryFormat) {
         EXPECT_EQ(ours->marker_size, 5) << ext;
         EXPECT_EQ(ours->max_correction_bits, opencv->maxCorrectionBits) << ext;
         EXPECT_EQ(ours->markers, predefined->markers) << ext;
+        // The same with Windows line ends (the guards against OpenCV's crashes let CRLF by).
+        std::string text = test::readText(path), crlf;
+        for (char c : text)
+            crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+        auto windows = parseMarkerDictionary(crlf, path.string());
+        ASSERT_TRUE(windows) << ext << " with CRLF: " << windows.status().toString();
+        EXPECT_EQ(windows->markers, predefined->markers) << ext;
     }
 }
 
@@ -137,6 +144,9 @@ TEST(MarkerDictionaryFile, BadFilesAreCorruptDataNamingTheFileAndField) {
         // the text ends after an attribute's '='; such text no longer reaches it.
         {"<?xml imemn=\n", "ends inside an XML tag"},
         {"<?xml version=\"1.0\"?>\n<opencv_storage><a b=  \n\n", "ends inside an XML tag"},
+        // ... and after a carriage return without a line feed (the fuzzer's was "<?xml a=\r").
+        {"<?xml version=\"1.0\"?>\n<opencv_storage><a b=\r\"\">1</a></opencv_storage>",
+         "carriage return without a line feed"},
         // dictionary_parser_fuzz: OpenCV 4.6's YAML reader loops forever once its first
         // document ends before the text does and a line starts with '-'. The first case is
         // the fuzzer's and the third hangs too (both checked against OpenCV 4.6); the others
