@@ -18,6 +18,7 @@
 #include "calibration_file_internal.h"
 #include "mixray/calibration/camera_model_yaml.h"
 #include "mixray/graph/yaml_reader.h"
+#include "mixray/graph/yaml_writer.h"
 
 namespace mixray::calibration {
 namespace {
@@ -678,27 +679,6 @@ std::optional<std::vector<uint8_t>> base64Decode(std::string_view text) {
     return out;
 }
 
-std::string yamlQuoted(std::string_view text) {
-    std::string out = "\"";
-    for (char c : text) {
-        const auto byte = static_cast<unsigned char>(c);
-        if (c == '"' || c == '\\') {
-            out += '\\';
-            out += c;
-        } else if (byte < 0x20 || byte == 0x7f) {
-            // A raw line break inside quotes reads back as a space, and YAML takes no other
-            // control character raw: escape them so that any text reads back the same.
-            constexpr char kHex[] = "0123456789abcdef";
-            out += "\\x";
-            out += kHex[byte >> 4];
-            out += kHex[byte & 0xf];
-        } else {
-            out += c;
-        }
-    }
-    return out + "\"";
-}
-
 std::string yamlList(const std::vector<double>& values) {
     std::string out = "[";
     for (size_t i = 0; i < values.size(); ++i)
@@ -818,15 +798,15 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
          "# pose_covariance is over [rotation vector (rad), translation (m)].\n";
     o << "version: 1\n";
     if (!file.created.empty())
-        o << "created: " << detail::yamlQuoted(file.created) << "\n";
+        o << "created: " << yaml::doubleQuoted(file.created) << "\n";
     if (!file.target.empty())
-        o << "target: " << detail::yamlQuoted(file.target) << "\n";
+        o << "target: " << yaml::doubleQuoted(file.target) << "\n";
     o << "cameras:\n";
     for (const CalibratedCamera& c : file.cameras) {
-        o << "  - name: " << detail::yamlQuoted(c.name) << "\n";
+        o << "  - name: " << yaml::doubleQuoted(c.name) << "\n";
         o << "    model: " << cameraModelYaml(c.model) << "\n";
         if (!c.parent.empty()) {
-            o << "    parent: " << detail::yamlQuoted(c.parent) << "\n";
+            o << "    parent: " << yaml::doubleQuoted(c.parent) << "\n";
             o << "    T_parent_camera: " << poseYaml(c.T_parent_camera) << "\n";
         }
         if (c.pose_covariance) {
@@ -845,7 +825,7 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
         if (c.views > 0)
             o << "    views: " << c.views << "\n";
         if (!c.weak.empty())
-            o << "    weak: " << detail::yamlQuoted(c.weak) << "\n";
+            o << "    weak: " << yaml::doubleQuoted(c.weak) << "\n";
         if (c.lens)
             o << "    lens: {f_number: " << num(c.lens->f_number)
               << ", focal_length_mm: " << num(c.lens->focal_length_mm)
@@ -855,9 +835,9 @@ Status writeCalibrationFile(const std::filesystem::path& path, const Calibration
         o << "depth:\n";
         for (const CalibratedDepth& d : file.depth) {
             const DepthCorrection& k = d.correction;
-            o << "  - stream: " << detail::yamlQuoted(d.stream) << "\n";
-            o << "    depth_camera: " << detail::yamlQuoted(d.depth_camera) << "\n";
-            o << "    color_camera: " << detail::yamlQuoted(d.color_camera) << "\n";
+            o << "  - stream: " << yaml::doubleQuoted(d.stream) << "\n";
+            o << "    depth_camera: " << yaml::doubleQuoted(d.depth_camera) << "\n";
+            o << "    color_camera: " << yaml::doubleQuoted(d.color_camera) << "\n";
             o << "    correction:\n      scale: " << num(k.scale)
               << "\n      offset_m: " << num(k.offset_m) << "\n      alpha0: " << num(k.alpha0)
               << "\n      alpha1: " << num(k.alpha1) << "\n";

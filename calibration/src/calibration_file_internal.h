@@ -41,8 +41,6 @@ std::string base64Encode(const std::vector<uint8_t>& bytes);
 // nullopt on a character outside the alphabet or a wrong length; whitespace is skipped.
 std::optional<std::vector<uint8_t>> base64Decode(std::string_view text);
 
-// A YAML double-quoted scalar; control characters escaped, so any text reads back the same.
-std::string yamlQuoted(std::string_view text);
 // A YAML flow sequence of numbers, each in its shortest exact form: "[1, 0.5]".
 std::string yamlList(const std::vector<double>& values);
 // A YAML sequence of `min_count`..`max_count` numbers, each in [min, max]; the reader's error

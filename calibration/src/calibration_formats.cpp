@@ -15,6 +15,7 @@
 #include "mixray/calibration/calibration_file.h"
 #include "mixray/calibration/ros_camera_info.h"
 #include "mixray/graph/yaml_reader.h"
+#include "mixray/graph/yaml_writer.h"
 #include "mrcal_format.h"
 
 namespace mixray::calibration {
@@ -620,7 +621,7 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
         o << "  distortion_model: " << distortion->first << "\n";
         o << "  distortion_coeffs: " << detail::yamlList(distortion->second) << "\n";
         o << "  resolution: [" << m.width << ", " << m.height << "]\n";
-        o << "  rostopic: " << detail::yamlQuoted("/" + c.name) << "\n";
+        o << "  rostopic: " << yaml::doubleQuoted("/" + c.name) << "\n";
         if (i > 0 && !unlinked)
             o << "  cam_overlaps: [" << i - 1 << "]\n";
     }
@@ -642,7 +643,7 @@ Status writeRos(const std::filesystem::path& path, const CalibratedCamera& c) {
     };
     std::ostringstream o;
     o << "image_width: " << info->width << "\nimage_height: " << info->height << "\n";
-    o << "camera_name: " << detail::yamlQuoted(c.name) << "\n";
+    o << "camera_name: " << yaml::doubleQuoted(c.name) << "\n";
     o << matrix("camera_matrix", 3, 3, info->k);
     o << "distortion_model: " << info->distortion_model << "\n";
     o << matrix("distortion_coefficients", 1, static_cast<int>(info->d.size()), info->d);

@@ -106,6 +106,19 @@ TEST(TrackingSetup, WrittenFileReadsBackToTheSameValues) {
     EXPECT_DOUBLE_EQ(again->probes[1].albedo, 0.7);
     EXPECT_EQ(again->environment->map_width, 256);
 
+    // Names are the user's text (tracking_setup_fuzz: one with ": " and bytes above 0x7f was
+    // written bare and did not read back): they are written quoted.
+    TrackingSetup named = *setup;
+    named.targets[0].name = "3\xdc\xed: marker #1";
+    named.targets[0].bound_objects = {"tea: pot", "[ball]"};
+    named.probes[0].name = "probe, left";
+    const std::string named_text = trackingSetupYaml(named);
+    auto named_again = parseTrackingSetup(named_text, "c.yaml");
+    ASSERT_TRUE(named_again) << named_again.status().message() << "\n" << named_text;
+    EXPECT_EQ(named_again->targets[0].name, named.targets[0].name);
+    EXPECT_EQ(named_again->targets[0].bound_objects, named.targets[0].bound_objects);
+    EXPECT_EQ(named_again->probes[0].name, named.probes[0].name);
+
     // And the setup the simulator wrote for the bundled session (quaternions with every digit).
     auto simulated =
         loadTrackingSetup(test::fixturesDir() / "sessions" / "sim_tabletop.tracking.yaml");

@@ -9,6 +9,7 @@
 
 #include "mixray/calibration/camera_model_yaml.h"
 #include "mixray/graph/yaml_reader.h"
+#include "mixray/graph/yaml_writer.h"
 
 namespace mixray::tracking {
 namespace {
@@ -408,8 +409,8 @@ std::string trackingSetupYaml(const TrackingSetup& s) {
       << "\n  model: " << calibration::cameraModelYaml(s.camera.model) << "\n";
     o << "targets:\n";
     for (const MarkerTarget& t : s.targets) {
-        o << "  - name: " << t.name << "\n    type: " << targetTypeName(t.kind)
-          << "\n    dictionary: " << t.dictionary << "\n    id: " << t.id
+        o << "  - name: " << yaml::doubleQuoted(t.name) << "\n    type: " << targetTypeName(t.kind)
+          << "\n    dictionary: " << yaml::doubleQuoted(t.dictionary) << "\n    id: " << t.id
           << "\n    size_m: " << num(t.size_m) << "\n";
         if (t.kind != TargetKind::kMarker) {
             o << "    squares: [" << t.squares_x << ", " << t.squares_y << "]\n";
@@ -422,7 +423,7 @@ std::string trackingSetupYaml(const TrackingSetup& s) {
         if (!t.bound_objects.empty()) {
             o << "    binds: [";
             for (size_t i = 0; i < t.bound_objects.size(); ++i)
-                o << (i ? ", " : "") << t.bound_objects[i];
+                o << (i ? ", " : "") << yaml::doubleQuoted(t.bound_objects[i]);
             o << "]\n";
         }
     }
@@ -437,7 +438,7 @@ std::string trackingSetupYaml(const TrackingSetup& s) {
     if (!s.probes.empty()) {
         o << "probes:\n";
         for (const LightProbe& p : s.probes) {
-            o << "  - {name: " << p.name
+            o << "  - {name: " << yaml::doubleQuoted(p.name)
               << ", material: " << (p.material == ProbeMaterial::kMirror ? "mirror" : "diffuse")
               << ", radius_m: " << num(p.radius_m) << ", centre: " << vec(p.centre_world)
               << ", albedo: " << num(p.albedo) << "}\n";
