@@ -285,14 +285,25 @@ Status CameraModel::validate() const {
         return invalid("width and height must be > 0, got " + std::to_string(width) + "x" +
                        std::to_string(height));
     }
-    if (!std::isfinite(fx) || fx <= 0)
-        return invalid("fx must be finite and > 0");
-    if (!std::isfinite(fy) || fy <= 0)
-        return invalid("fy must be finite and > 0");
-    if (!std::isfinite(cx))
-        return invalid("cx must be finite");
-    if (!std::isfinite(cy))
-        return invalid("cy must be finite");
+    // The ranges mixray's own calibration file reads (camera_model_yaml.cpp), so that a model
+    // accepted from any format can be written and read back (found by calibration_file_fuzz: a
+    // Kalibr principal point of 2462049 px).
+    constexpr int kMaxSide = 65535;
+    constexpr double kMaxPixels = 1e6;
+    if (width > kMaxSide || height > kMaxSide)
+        return invalid("width and height must be at most " + std::to_string(kMaxSide));
+    if (!std::isfinite(fx) || fx <= 0 || fx > kMaxPixels)
+        return invalid("fx must be finite, > 0 and at most 1e6");
+    if (!std::isfinite(fy) || fy <= 0 || fy > kMaxPixels)
+        return invalid("fy must be finite, > 0 and at most 1e6");
+    if (!std::isfinite(cx) || std::abs(cx) > kMaxPixels)
+        return invalid("cx must be finite and within ±1e6");
+    if (!std::isfinite(cy) || std::abs(cy) > kMaxPixels)
+        return invalid("cy must be finite and within ±1e6");
+    for (double d : distortion) {
+        if (!std::isfinite(d) || std::abs(d) > kMaxPixels)
+            return invalid("distortion coefficients must be finite and within ±1e6");
+    }
     const size_t n = distortion.size();
     if (lens == LensModel::kPinhole) {
         if (n != 0 && n != 4 && n != 5 && n != 8) {

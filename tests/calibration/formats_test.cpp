@@ -441,6 +441,24 @@ TEST(KalibrFormat, IndependentCamerasRoundTripWithoutALink) {
     expectSameModel(f->cameras[1].model, back->cameras[1].model);
 }
 
+// calibration_file_fuzz: Kalibr intrinsics mixray's own file cannot hold (a principal point of
+// 2462049 px) were read, and the file written from them did not read back. Every reader now
+// holds models to the same ranges (CameraModel::validate).
+TEST(KalibrFormat, IntrinsicsBeyondMixraysRangesAreRefused) {
+    const fs::path dir = test::tempDir();
+    std::string text = kCamchain;
+    const std::string cy = "246.049]";
+    ASSERT_NE(text.find(cy), std::string::npos);
+    text.replace(text.find(cy), cy.size(), "2462049]");
+    const fs::path path = dir / "far.yaml";
+    writeText(path, text);
+    auto f = importCalibration(path, CalibrationFormat::kKalibr);
+    ASSERT_FALSE(f.isOk());
+    EXPECT_EQ(f.status().code(), ErrorCode::kCorruptData) << f.status().toString();
+    EXPECT_NE(f.status().message().find("cy must be finite and within"), std::string::npos)
+        << f.status().message();
+}
+
 TEST(KalibrFormat, RefusesWhatItCannotHold) {
     const fs::path dir = test::tempDir();
     const fs::path path = dir / "camchain.yaml";
