@@ -179,7 +179,9 @@ Result<AzureKinectCalibration> fromJson(const json& root, const ModeInfo& dmode,
     out.depth_metric_radius = depth->metric_radius;
     out.color_metric_radius = color->metric_radius;
     out.serial = info.value("Metadata", json()).value("SerialId", "");
-    MIXRAY_RETURN_IF_ERROR(out.registration.validate().withContext("Azure Kinect calibration"));
+    // A file whose numbers make no valid camera is a damaged file, not a caller's mistake.
+    if (Status s = out.registration.validate(); !s)
+        return corrupt(s.message());
     return out;
 }
 
