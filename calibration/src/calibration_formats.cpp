@@ -599,21 +599,21 @@ Status writeKalibr(const std::filesystem::path& path, const CalibrationFile& fil
         o << "cam" << i << ":\n";
         // A camera linked to no other (a camchain of independent cameras, as Kalibr reads one
         // without T_cn_cnm1) is written so; one linked elsewhere must reach the previous one.
-        const bool unlinked =
-            c.parent.empty() && i > 0 && !file.pose(file.cameras[i - 1].name, c.name);
-        if (i > 0 && !unlinked) {
-            const std::string& previous = file.cameras[i - 1].name;
-            auto T_previous_camera = file.pose(previous, c.name);
-            if (!T_previous_camera) {
+        bool unlinked = false;
+        if (i > 0) {
+            auto T_previous_camera = file.pose(file.cameras[i - 1].name, c.name);
+            unlinked = !T_previous_camera && c.parent.empty();
+            if (!T_previous_camera && !unlinked) {
                 return invalid(
-                    "Kalibr's camchain gives each camera's pose in the previous one's "
-                    "frame: " +
+                    "Kalibr's camchain gives each camera's pose in the previous one's frame: " +
                     T_previous_camera.status().message());
             }
-            const Eigen::Matrix4d M = T_previous_camera->inverse().matrix();
-            o << "  T_cn_cnm1:\n";
-            for (int r = 0; r < 4; ++r)
-                o << "  - " << matrixRow(M, r) << "\n";
+            if (T_previous_camera) {
+                const Eigen::Matrix4d M = T_previous_camera->inverse().matrix();
+                o << "  T_cn_cnm1:\n";
+                for (int r = 0; r < 4; ++r)
+                    o << "  - " << matrixRow(M, r) << "\n";
+            }
         }
         const CameraModel& m = c.model;
         o << "  camera_model: pinhole\n";

@@ -318,43 +318,59 @@ RecorderOptions slowDiskRecorder(const std::filesystem::path& path, QueuePolicy 
     return options;
 }
 
-TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
-    const auto path = test::tempDir() / "slow.mkv";
+// 60 frames of a 16x16 depth stream published at once into `options`' recorder, the way a
+// driver would: what was published, how long publishing took, and the recorder's figures.
+struct BurstOutcome {
+    std::map<uint64_t, FrameRef> published;
+    std::chrono::steady_clock::duration publishing{};
+    RecorderStats stats;
+};
+
+BurstOutcome publishBurst(RecorderOptions options) {
+    BurstOutcome out;
     Graph graph;
     const StreamId depth =
         addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
-    auto recorder =
-        std::make_unique<Recorder>(slowDiskRecorder(path, QueuePolicy::kLive, 4, milliseconds(30)));
+    auto recorder = std::make_unique<Recorder>(std::move(options));
     Recorder* rec = recorder.get();
-    ASSERT_TRUE(graph.addNode(std::move(recorder)));
-    ASSERT_TRUE(graph.start());
-
-    constexpr int kFrames = 60;
-    std::map<uint64_t, FrameRef> published;
+    EXPECT_TRUE(graph.addNode(std::move(recorder)));
+    EXPECT_TRUE(graph.start());
     const auto begin = std::chrono::steady_clock::now();
-    for (int i = 0; i < kFrames; ++i)
-        published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
-    const auto publishing = std::chrono::steady_clock::now() - begin;
-    // A lossless queue would have held the driver for about kFrames x 30 ms.
-    EXPECT_LT(publishing, milliseconds(600));
+    for (uint64_t i = 0; i < 60; ++i)
+        out.published[i] = publish(graph, depth, i, 1'000'000 * static_cast<int64_t>(i + 1));
+    out.publishing = std::chrono::steady_clock::now() - begin;
     graph.stop();
+    out.stats = rec->stats();
+    return out;
+}
 
-    const RecorderStats stats = rec->stats();
-    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
-    ASSERT_EQ(stats.streams.size(), 1u);
-    EXPECT_GT(stats.streams[0].dropped, 0u);
-    EXPECT_EQ(stats.streams[0].written + stats.streams[0].dropped, static_cast<uint64_t>(kFrames));
-    EXPECT_NE(stats.summary().find("dropped"), std::string::npos) << stats.summary();
-
-    // What was written is valid and exact.
+// The file at `path` reads to its end and holds `count` frames, each exactly as published.
+void expectFileHoldsPublishedFrames(const std::filesystem::path& path,
+                                    const std::map<uint64_t, FrameRef>& published, size_t count) {
     Status end;
     auto frames = readRecording(path, &end);
     EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
-    ASSERT_EQ(frames.size(), stats.streams[0].written);
+    ASSERT_EQ(frames.size(), count);
     for (const FrameRef& f : frames) {
         const FrameRef& original = published.at(f.meta().sequence);
         EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
     }
+}
+
+TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
+    const auto path = test::tempDir() / "slow.mkv";
+    const BurstOutcome burst =
+        publishBurst(slowDiskRecorder(path, QueuePolicy::kLive, 4, milliseconds(30)));
+    // A lossless queue would have held the driver for about 60 x 30 ms.
+    EXPECT_LT(burst.publishing, milliseconds(600));
+    const RecorderStats& stats = burst.stats;
+    EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
+    ASSERT_EQ(stats.streams.size(), 1u);
+    EXPECT_GT(stats.streams[0].dropped, 0u);
+    EXPECT_EQ(stats.streams[0].written + stats.streams[0].dropped, 60u);
+    EXPECT_NE(stats.summary().find("dropped"), std::string::npos) << stats.summary();
+    // What was written is valid and exact.
+    expectFileHoldsPublishedFrames(path, burst.published, stats.streams[0].written);
 }
 
 // A writer held up for a while (here 60 frames at 30 ms against frames published at once) costs
@@ -362,38 +378,17 @@ TEST_F(RecorderTest, LivePolicyDropsAndCountsInsteadOfBlockingTheDriver) {
 // is never held up, and the file has every frame, exact.
 TEST_F(RecorderTest, LivePolicyKeepsEveryFrameWhileTheWriterIsBehindByLessThanItsBacklog) {
     const auto path = test::tempDir() / "behind.mkv";
-    Graph graph;
-    const StreamId depth =
-        addStream(graph, test::makeStream("cam/depth", PixelFormat::kDepth16, 16, 16));
     // Three seconds of the 30 fps stream (90 frames) may wait, beyond the four queued.
-    auto recorder = std::make_unique<Recorder>(
+    const BurstOutcome burst = publishBurst(
         slowDiskRecorder(path, QueuePolicy::kLive, 4, milliseconds(30), milliseconds(3000)));
-    Recorder* rec = recorder.get();
-    ASSERT_TRUE(graph.addNode(std::move(recorder)));
-    ASSERT_TRUE(graph.start());
-
-    constexpr int kFrames = 60;
-    std::map<uint64_t, FrameRef> published;
-    const auto begin = std::chrono::steady_clock::now();
-    for (int i = 0; i < kFrames; ++i)
-        published[i] = publish(graph, depth, i, 1'000'000 * (i + 1));
-    EXPECT_LT(std::chrono::steady_clock::now() - begin, milliseconds(600));
-    graph.stop();
-
-    const RecorderStats stats = rec->stats();
+    EXPECT_LT(burst.publishing, milliseconds(600));
+    const RecorderStats& stats = burst.stats;
     EXPECT_TRUE(stats.error.isOk()) << stats.error.toString();
     EXPECT_EQ(stats.frames_dropped, 0u) << stats.summary();
-    EXPECT_EQ(stats.frames_written, static_cast<uint64_t>(kFrames));
+    EXPECT_EQ(stats.frames_written, 60u);
     EXPECT_GT(stats.frames_spilled, 0u);
     EXPECT_NE(stats.summary().find("waited in memory"), std::string::npos) << stats.summary();
-    Status end;
-    auto frames = readRecording(path, &end);
-    EXPECT_EQ(end.code(), ErrorCode::kEndOfStream) << end.toString();
-    ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
-    for (const FrameRef& f : frames) {
-        const FrameRef& original = published.at(f.meta().sequence);
-        EXPECT_TRUE(test::sameFrame(f, {original, original.meta()})) << f.meta().sequence;
-    }
+    expectFileHoldsPublishedFrames(path, burst.published, 60);
 }
 
 TEST_F(RecorderTest, LosslessPolicyHoldsTheDriverAndSaysForHowLong) {
